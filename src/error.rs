@@ -1,0 +1,55 @@
+//! The library's one error type. Every variant renders as one line that a
+//! user can act on; the binary prints it and exits non-zero.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// An I/O failure on a named file.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A PLY file that cannot be read: says which file and what is wrong.
+    #[error("{path}: {msg}")]
+    Ply { path: PathBuf, msg: String },
+    /// A camera file or camera flag with a missing or impossible value; names the field.
+    #[error("camera: {field}: {msg}")]
+    Camera { field: &'static str, msg: String },
+    /// A file that is not valid JSON or not of the camera file's shape.
+    #[error("{path}: {msg}")]
+    Json { path: PathBuf, msg: String },
+    /// Encoding or decoding an image file.
+    #[error("{path}: {msg}")]
+    Image { path: PathBuf, msg: String },
+    /// A Vulkan call failed.
+    #[error("Vulkan: {call} failed: {result}")]
+    Vulkan {
+        call: &'static str,
+        result: ash::vk::Result,
+    },
+    /// Vulkan is missing or unusable (no loader, no driver, no layer, no device).
+    #[error("{0}")]
+    VulkanSetup(String),
+    /// GPU memory allocation failed.
+    #[error("GPU allocation failed: {0}")]
+    Allocation(String),
+    /// An argument with a value the program cannot use.
+    #[error("{0}")]
+    InvalidArgument(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Wraps an `ash` result with the name of the call, for one-line errors.
+pub(crate) trait VkContext<T> {
+    fn vk(self, call: &'static str) -> Result<T>;
+}
+
+impl<T> VkContext<T> for std::result::Result<T, ash::vk::Result> {
+    fn vk(self, call: &'static str) -> Result<T> {
+        self.map_err(|result| Error::Vulkan { call, result })
+    }
+}

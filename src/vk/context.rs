@@ -1,0 +1,533 @@
+//! The Vulkan context: instance, validation messenger, device, queue and
+//! allocator. Everything GPU-side in pointlens goes through one `Context`.
+
+use std::ffi::{c_void, CStr, CString};
+use std::mem::ManuallyDrop;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use crate::error::{Error, Result, VkContext};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// How to create a [`Context`].
+#[derive(Debug, Clone, Default)]
+pub struct ContextOptions {
+    /// Enable `VK_LAYER_KHRONOS_validation` with synchronization validation.
+    pub validation: bool,
+    /// Pick the first device whose name or driver name contains this
+    /// (case-insensitive); otherwise discrete > integrated > virtual > CPU.
+    pub device: Option<String>,
+}
+
+impl ContextOptions {
+    /// Validation from `--validate` or the `POINTLENS_VALIDATION=1` environment variable.
+    pub fn from_env(validate_flag: bool, device: Option<String>) -> Self {
+        let env = std::env::var("POINTLENS_VALIDATION").is_ok_and(|v| v == "1");
+        ContextOptions {
+            validation: validate_flag || env,
+            device,
+        }
+    }
+}
+
+/// One message from the validation layer (or the loader) at warning or error severity.
+#[derive(Debug, Clone)]
+pub struct ValidationMessage {
+    pub severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    pub id_name: String,
+    pub text: String,
+}
+
+impl std::fmt::Display for ValidationMessage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let sev = if self.severity == vk::DebugUtilsMessageSeverityFlagsEXT::ERROR {
+            "error"
+        } else {
+            "warning"
+        };
+        write!(f, "validation {sev}: [{}] {}", self.id_name, self.text)
+    }
+}
+
+/// A shared handle on the validation messages of a [`Context`].
+#[derive(Clone)]
+pub struct MessageLog(Arc<Mutex<Vec<ValidationMessage>>>);
+
+impl MessageLog {
+    /// The messages recorded so far.
+    pub fn messages(&self) -> Vec<ValidationMessage> {
+        self.0.lock().map(|v| v.clone()).unwrap_or_default()
+    }
+}
+
+/// What the program reports about the device it runs on.
+#[derive(Debug, Clone)]
+pub struct DeviceInfo {
+    pub name: String,
+    pub driver_name: String,
+    pub driver_info: String,
+    pub device_type: vk::PhysicalDeviceType,
+    pub api_version: u32,
+    pub max_image_dimension_2d: u32,
+    pub point_size_max: f32,
+    /// Nanoseconds per timestamp tick.
+    pub timestamp_period_ns: f32,
+    pub timestamp_valid_bits: u32,
+    /// Size of the largest device-local heap, bytes.
+    pub device_local_heap_bytes: u64,
+}
+
+impl DeviceInfo {
+    /// `name (driver driver_info)`, for reports.
+    pub fn describe(&self) -> String {
+        format!("{} ({} {})", self.name, self.driver_name, self.driver_info)
+    }
+}
+
+struct Messenger {
+    loader: ash::ext::debug_utils::Instance,
+    raw: vk::DebugUtilsMessengerEXT,
+    /// Kept alive here; the callback gets a raw pointer to the mutex as user data.
+    _sink: Arc<Mutex<Vec<ValidationMessage>>>,
+}
+
+/// Instance, device, queue and allocator. Create one with [`Context::new`]
+/// and share it as `Arc<Context>`; every GPU resource holds a clone, so the
+/// context is destroyed last.
+pub struct Context {
+    _entry: ash::Entry,
+    pub instance: ash::Instance,
+    messenger: Option<Messenger>,
+    messages: Arc<Mutex<Vec<ValidationMessage>>>,
+    pub physical_device: vk::PhysicalDevice,
+    pub device: ash::Device,
+    debug_utils: ash::ext::debug_utils::Device,
+    pub push_descriptor: ash::khr::push_descriptor::Device,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    allocator: ManuallyDrop<Mutex<Allocator>>,
+    pub info: DeviceInfo,
+    validation: bool,
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: `user` points to the mutex kept alive by `Messenger::_sink` (and
+    // `Context::messages`), which outlive the messenger objects; `data` is
+    // valid for the call's duration.
+    unsafe {
+        let sink = &*(user as *const Mutex<Vec<ValidationMessage>>);
+        let data = &*data;
+        let cstr = |p: *const std::ffi::c_char| {
+            if p.is_null() {
+                String::new()
+            } else {
+                CStr::from_ptr(p).to_string_lossy().into_owned()
+            }
+        };
+        let msg = ValidationMessage {
+            severity,
+            id_name: cstr(data.p_message_id_name),
+            text: cstr(data.p_message),
+        };
+        eprintln!("{msg}");
+        if let Ok(mut v) = sink.lock() {
+            v.push(msg);
+        }
+    }
+    vk::FALSE
+}
+
+const INSTALL_HINT: &str = "install Vulkan with: apt-get install libvulkan1 mesa-vulkan-drivers \
+                            vulkan-validationlayers";
+
+impl Context {
+    /// Creates the instance (Vulkan 1.3), the validation messenger when asked
+    /// for, picks a device and creates it with dynamic rendering,
+    /// synchronization2, maintenance4, large points and push descriptors.
+    pub fn new(options: &ContextOptions) -> Result<Arc<Context>> {
+        // SAFETY: loading the system Vulkan loader; it stays loaded as long as
+        // `_entry`, which the context owns and drops last.
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| {
+            Error::VulkanSetup(format!(
+                "cannot load the Vulkan loader ({e}); {INSTALL_HINT}"
+            ))
+        })?;
+
+        // SAFETY: plain queries on a valid entry.
+        let layers = unsafe { entry.enumerate_instance_layer_properties() }
+            .vk("vkEnumerateInstanceLayerProperties")?;
+        if options.validation
+            && !layers
+                .iter()
+                .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER))
+        {
+            return Err(Error::VulkanSetup(format!(
+                "validation requested but {} is not installed; {INSTALL_HINT}",
+                VALIDATION_LAYER.to_string_lossy()
+            )));
+        }
+        // SAFETY: as above.
+        let instance_exts = unsafe { entry.enumerate_instance_extension_properties(None) }
+            .vk("vkEnumerateInstanceExtensionProperties")?;
+        let has_debug_utils = instance_exts
+            .iter()
+            .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::debug_utils::NAME));
+        if !has_debug_utils {
+            return Err(Error::VulkanSetup(format!(
+                "the Vulkan loader lacks VK_EXT_debug_utils; {INSTALL_HINT}"
+            )));
+        }
+
+        let app_info = vk::ApplicationInfo::default()
+            .application_name(c"pointlens")
+            .application_version(1)
+            .engine_name(c"pointlens")
+            .api_version(vk::API_VERSION_1_3);
+        let layer_ptrs = if options.validation {
+            vec![VALIDATION_LAYER.as_ptr()]
+        } else {
+            vec![]
+        };
+        let ext_ptrs = [ash::ext::debug_utils::NAME.as_ptr()];
+        let enabled_features = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        let mut validation_features =
+            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled_features);
+
+        let messages = Arc::new(Mutex::new(Vec::new()));
+        let sink = messages.clone();
+        let user_data = Arc::as_ptr(&sink) as *mut c_void;
+        // One for instance creation and destruction (chained), one for the
+        // messenger object: the latter must have no pNext.
+        let mut instance_messenger_info = messenger_create_info(user_data);
+        let messenger_info = messenger_create_info(user_data);
+
+        let mut create_info = vk::InstanceCreateInfo::default()
+            .application_info(&app_info)
+            .enabled_layer_names(&layer_ptrs)
+            .enabled_extension_names(&ext_ptrs);
+        if options.validation {
+            // Chained so that instance creation itself is also validated.
+            create_info = create_info
+                .push_next(&mut validation_features)
+                .push_next(&mut instance_messenger_info);
+        }
+        // SAFETY: every pointer in `create_info` refers to locals alive here.
+        let instance = unsafe { entry.create_instance(&create_info, None) }.map_err(|e| {
+            Error::VulkanSetup(format!(
+                "vkCreateInstance failed ({e}): no Vulkan 1.3 driver? {INSTALL_HINT}"
+            ))
+        })?;
+
+        // From here on, a failure must destroy what was created: build a
+        // partial context step by step through `Partial`.
+        let mut partial = Partial {
+            instance: Some(instance),
+            messenger: None,
+        };
+        if options.validation {
+            let loader = ash::ext::debug_utils::Instance::new(&entry, partial.instance());
+            // SAFETY: valid instance; `sink` is moved into the Messenger and
+            // so outlives the messenger object.
+            let raw = unsafe { loader.create_debug_utils_messenger(&messenger_info, None) }
+                .vk("vkCreateDebugUtilsMessengerEXT")?;
+            partial.messenger = Some(Messenger {
+                loader,
+                raw,
+                _sink: sink,
+            });
+        }
+
+        let (physical_device, queue_family, info) =
+            pick_device(partial.instance(), options.device.as_deref())?;
+
+        let queue_priorities = [1.0f32];
+        let queue_infos = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&queue_priorities)];
+        let device_exts = [ash::khr::push_descriptor::NAME.as_ptr()];
+        let features = vk::PhysicalDeviceFeatures::default().large_points(true);
+        let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
+            .dynamic_rendering(true)
+            .synchronization2(true)
+            .maintenance4(true);
+        let device_info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_infos)
+            .enabled_extension_names(&device_exts)
+            .enabled_features(&features)
+            .push_next(&mut features13);
+        // SAFETY: physical device from this instance; pointers are locals.
+        let device = unsafe {
+            partial
+                .instance()
+                .create_device(physical_device, &device_info, None)
+        }
+        .vk("vkCreateDevice")?;
+        // SAFETY: the queue family and index 0 were requested above.
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: partial.instance().clone(),
+            device: device.clone(),
+            physical_device,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        });
+        let allocator = match allocator {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: nothing was created from the device yet.
+                unsafe { device.destroy_device(None) };
+                return Err(Error::Allocation(e.to_string()));
+            }
+        };
+
+        let debug_utils = ash::ext::debug_utils::Device::new(partial.instance(), &device);
+        let push_descriptor = ash::khr::push_descriptor::Device::new(partial.instance(), &device);
+        let (instance, messenger) = partial.take();
+        let ctx = Context {
+            _entry: entry,
+            instance,
+            messenger,
+            messages,
+            physical_device,
+            device,
+            debug_utils,
+            push_descriptor,
+            queue,
+            queue_family,
+            allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            info,
+            validation: options.validation,
+        };
+        ctx.set_name(ctx.queue, "main queue");
+        Ok(Arc::new(ctx))
+    }
+
+    /// Whether the validation layer is on.
+    pub fn validation_enabled(&self) -> bool {
+        self.validation
+    }
+
+    /// Every validation warning and error recorded so far.
+    pub fn validation_messages(&self) -> Vec<ValidationMessage> {
+        self.message_log().messages()
+    }
+
+    /// A handle on the message record that outlives the context, so that
+    /// messages emitted while the device is destroyed are seen too.
+    pub fn message_log(&self) -> MessageLog {
+        MessageLog(self.messages.clone())
+    }
+
+    /// The allocator, locked.
+    pub(crate) fn allocator(&self) -> MutexGuard<'_, Allocator> {
+        // A poisoned lock only means another thread panicked mid-allocation;
+        // the allocator's own state is still consistent.
+        self.allocator
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Names of the allocations still alive (empty when every resource was freed).
+    pub fn live_allocations(&self) -> Vec<String> {
+        self.allocator()
+            .generate_report()
+            .allocations
+            .iter()
+            .map(|a| format!("{} ({} bytes)", a.name, a.size))
+            .collect()
+    }
+
+    /// Gives a Vulkan object a debug name (shown by validation messages and tools).
+    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
+        let Ok(name) = CString::new(name) else {
+            return;
+        };
+        let info = vk::DebugUtilsObjectNameInfoEXT::default()
+            .object_handle(handle)
+            .object_name(&name);
+        // SAFETY: the handle belongs to this device; naming never fails in a
+        // way that matters, so the result is ignored.
+        let _ = unsafe { self.debug_utils.set_debug_utils_object_name(&info) };
+    }
+
+    /// Opens a debug label region in a command buffer.
+    pub(crate) fn begin_label(&self, cmd: vk::CommandBuffer, name: &str) {
+        let name = CString::new(name).unwrap_or_default();
+        let label = vk::DebugUtilsLabelEXT::default().label_name(&name);
+        // SAFETY: `cmd` is in the recording state.
+        unsafe { self.debug_utils.cmd_begin_debug_utils_label(cmd, &label) };
+    }
+
+    /// Closes the innermost debug label region.
+    pub(crate) fn end_label(&self, cmd: vk::CommandBuffer) {
+        // SAFETY: paired with `begin_label` on the same recording buffer.
+        unsafe { self.debug_utils.cmd_end_debug_utils_label(cmd) };
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        // SAFETY: every resource holds an `Arc<Context>`, so none is alive
+        // now. Teardown in reverse creation order: allocator, device,
+        // messenger, instance.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            ManuallyDrop::drop(&mut self.allocator);
+            self.device.destroy_device(None);
+            if let Some(m) = self.messenger.take() {
+                m.loader.destroy_debug_utils_messenger(m.raw, None);
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}
+
+/// Owns the instance and messenger until the context takes them, so an
+/// error in between destroys them.
+struct Partial {
+    instance: Option<ash::Instance>,
+    messenger: Option<Messenger>,
+}
+
+impl Partial {
+    fn instance(&self) -> &ash::Instance {
+        self.instance
+            .as_ref()
+            .expect("instance taken only by take()")
+    }
+    fn take(mut self) -> (ash::Instance, Option<Messenger>) {
+        let i = self.instance.take().expect("take() called once");
+        (i, self.messenger.take())
+    }
+}
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        // SAFETY: only reached on an error path, before any device exists.
+        unsafe {
+            if let Some(m) = self.messenger.take() {
+                m.loader.destroy_debug_utils_messenger(m.raw, None);
+            }
+            if let Some(i) = self.instance.take() {
+                i.destroy_instance(None);
+            }
+        }
+    }
+}
+
+fn messenger_create_info(user_data: *mut c_void) -> vk::DebugUtilsMessengerCreateInfoEXT<'static> {
+    vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(debug_callback))
+        .user_data(user_data)
+}
+
+fn type_rank(t: vk::PhysicalDeviceType) -> u32 {
+    match t {
+        vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+        vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+        vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+        vk::PhysicalDeviceType::CPU => 3,
+        _ => 4,
+    }
+}
+
+fn pick_device(
+    instance: &ash::Instance,
+    wanted: Option<&str>,
+) -> Result<(vk::PhysicalDevice, u32, DeviceInfo)> {
+    // SAFETY: valid instance; all queries below are plain reads.
+    let devices =
+        unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+    let mut candidates = Vec::new();
+    let mut seen = Vec::new();
+    for pd in devices {
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
+        let props = props2.properties;
+        let name = props
+            .device_name_as_c_str()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let driver_name = driver
+            .driver_name_as_c_str()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let driver_info = driver
+            .driver_info_as_c_str()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        seen.push(name.clone());
+        if props.api_version < vk::API_VERSION_1_3 {
+            continue;
+        }
+        if let Some(w) = wanted {
+            let w = w.to_lowercase();
+            if !name.to_lowercase().contains(&w) && !driver_name.to_lowercase().contains(&w) {
+                continue;
+            }
+        }
+        let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+        let Some((family, fprops)) = families.iter().enumerate().find(|(_, f)| {
+            f.queue_flags
+                .contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE)
+        }) else {
+            continue;
+        };
+        let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
+        let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
+            .iter()
+            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .map(|h| h.size)
+            .max()
+            .unwrap_or(0);
+        let info = DeviceInfo {
+            name,
+            driver_name,
+            driver_info,
+            device_type: props.device_type,
+            api_version: props.api_version,
+            max_image_dimension_2d: props.limits.max_image_dimension2_d,
+            point_size_max: props.limits.point_size_range[1],
+            timestamp_period_ns: props.limits.timestamp_period,
+            timestamp_valid_bits: fprops.timestamp_valid_bits,
+            device_local_heap_bytes,
+        };
+        candidates.push((pd, family as u32, info));
+    }
+    candidates.sort_by_key(|(_, _, info)| type_rank(info.device_type));
+    candidates.into_iter().next().ok_or_else(|| {
+        let list = if seen.is_empty() {
+            "none".to_string()
+        } else {
+            seen.join(", ")
+        };
+        match wanted {
+            Some(w) => Error::VulkanSetup(format!(
+                "no Vulkan 1.3 device matches '{w}' (devices: {list}); {INSTALL_HINT}"
+            )),
+            None => Error::VulkanSetup(format!(
+                "no Vulkan 1.3 device with graphics and compute (devices: {list}); {INSTALL_HINT}"
+            )),
+        }
+    })
+}

@@ -1,0 +1,227 @@
+//! Buffers and images that free themselves: each holds an `Arc<Context>`,
+//! its allocation, and destroys its objects in reverse creation order.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::Context;
+use crate::error::{Error, Result, VkContext};
+
+/// A buffer with its memory.
+pub struct Buffer {
+    ctx: Arc<Context>,
+    pub raw: vk::Buffer,
+    pub size: u64,
+    allocation: Option<Allocation>,
+}
+
+impl Buffer {
+    /// Creates a buffer of `size` bytes in `location` (use `CpuToGpu` /
+    /// `GpuToCpu` for host-visible staging and readback buffers).
+    pub fn new(
+        ctx: &Arc<Context>,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Buffer> {
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(4))
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid device and create info.
+        let raw = unsafe { ctx.device.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
+        // SAFETY: `raw` was just created on this device.
+        let requirements = unsafe { ctx.device.get_buffer_memory_requirements(raw) };
+        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
+            name,
+            requirements,
+            location,
+            linear: true,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: the buffer is unused and unbound.
+                unsafe { ctx.device.destroy_buffer(raw, None) };
+                return Err(Error::Allocation(format!("{name} ({size} bytes): {e}")));
+            }
+        };
+        let buffer = Buffer {
+            ctx: ctx.clone(),
+            raw,
+            size,
+            allocation: Some(allocation),
+        };
+        let a = buffer.allocation.as_ref().expect("just set");
+        // SAFETY: the allocation satisfies the buffer's requirements; bound once.
+        unsafe {
+            ctx.device
+                .bind_buffer_memory(raw, a.memory(), a.offset())
+                .vk("vkBindBufferMemory")?
+        };
+        ctx.set_name(raw, name);
+        Ok(buffer)
+    }
+
+    /// Host-visible bytes of the buffer (None for device-only memory).
+    pub fn mapped(&self) -> Option<&[u8]> {
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .map(|s| &s[..self.size as usize])
+    }
+
+    /// Host-visible bytes, mutable.
+    pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
+        let size = self.size as usize;
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .map(|s| &mut s[..size])
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: the owner waited for the GPU before dropping (all submits
+        // in pointlens wait on a fence), so the buffer is not in use.
+        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.allocator().free(a);
+        }
+    }
+}
+
+/// A 2D image (optionally an array) with one view over all its layers.
+pub struct Image {
+    ctx: Arc<Context>,
+    pub raw: vk::Image,
+    pub view: vk::ImageView,
+    pub format: vk::Format,
+    pub width: u32,
+    pub height: u32,
+    pub layers: u32,
+    allocation: Option<Allocation>,
+}
+
+impl Image {
+    /// Creates a device-local 2D image (`layers > 1` for an array image) and
+    /// a view of it (`TYPE_2D_ARRAY` when layered).
+    pub fn new_2d(
+        ctx: &Arc<Context>,
+        name: &str,
+        format: vk::Format,
+        width: u32,
+        height: u32,
+        layers: u32,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Image> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D {
+                width,
+                height,
+                depth: 1,
+            })
+            .mip_levels(1)
+            .array_layers(layers)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid device and create info.
+        let raw = unsafe { ctx.device.create_image(&info, None) }.vk("vkCreateImage")?;
+        // SAFETY: `raw` was just created on this device.
+        let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
+        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
+            name,
+            requirements,
+            location: MemoryLocation::GpuOnly,
+            linear: false,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        });
+        let allocation = match allocation {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: the image is unused and unbound.
+                unsafe { ctx.device.destroy_image(raw, None) };
+                return Err(Error::Allocation(format!(
+                    "{name} ({width}x{height}x{layers}): {e}"
+                )));
+            }
+        };
+        let mut image = Image {
+            ctx: ctx.clone(),
+            raw,
+            view: vk::ImageView::null(),
+            format,
+            width,
+            height,
+            layers,
+            allocation: Some(allocation),
+        };
+        let a = image.allocation.as_ref().expect("just set");
+        // SAFETY: the allocation satisfies the image's requirements; bound once.
+        unsafe {
+            ctx.device
+                .bind_image_memory(raw, a.memory(), a.offset())
+                .vk("vkBindImageMemory")?
+        };
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(raw)
+            .view_type(if layers > 1 {
+                vk::ImageViewType::TYPE_2D_ARRAY
+            } else {
+                vk::ImageViewType::TYPE_2D
+            })
+            .format(format)
+            .subresource_range(image.full_range());
+        // SAFETY: the image is bound to memory and the view covers its range.
+        image.view =
+            unsafe { ctx.device.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
+        ctx.set_name(raw, name);
+        ctx.set_name(image.view, name);
+        Ok(image)
+    }
+
+    /// The aspect of this image's format.
+    pub fn aspect(&self) -> vk::ImageAspectFlags {
+        match self.format {
+            vk::Format::D32_SFLOAT | vk::Format::D16_UNORM | vk::Format::X8_D24_UNORM_PACK32 => {
+                vk::ImageAspectFlags::DEPTH
+            }
+            _ => vk::ImageAspectFlags::COLOR,
+        }
+    }
+
+    /// The subresource range covering every layer.
+    pub fn full_range(&self) -> vk::ImageSubresourceRange {
+        vk::ImageSubresourceRange {
+            aspect_mask: self.aspect(),
+            base_mip_level: 0,
+            level_count: 1,
+            base_array_layer: 0,
+            layer_count: self.layers,
+        }
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        // SAFETY: not in use (see Buffer::drop); view before image before memory.
+        unsafe {
+            self.ctx.device.destroy_image_view(self.view, None);
+            self.ctx.device.destroy_image(self.raw, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.allocator().free(a);
+        }
+    }
+}

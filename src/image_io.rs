@@ -1,0 +1,380 @@
+//! Linear-light images and their files: 8-bit sRGB PNG and 32-bit float EXR.
+//!
+//! The renderer works in linear light; [`LinearImage`] holds RGBA in linear
+//! light. [`write_image`] picks the file format from the extension (`.png`:
+//! sRGB-encoded 8-bit RGB, `.exr`: linear 32-bit float RGBA) and replaces the
+//! target atomically, so an interrupted or failed write never leaves a
+//! truncated image behind. [`read_image`] reads PNG (sRGB-decoded to linear)
+//! and EXR (taken as linear) back for `compare` and the tests.
+
+use std::ffi::OsString;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, BufReader, BufWriter};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::OnceLock;
+
+use image::codecs::openexr::OpenExrEncoder;
+use image::codecs::png::PngEncoder;
+use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageError, ImageFormat, ImageReader};
+
+use crate::error::{Error, Result};
+
+/// A linear-light RGBA image, row-major with the top row first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` RGBA pixels in linear light, row by row from the top.
+    pub pixels: Vec<[f32; 4]>,
+}
+
+impl LinearImage {
+    /// An image of `width` × `height` pixels, all set to `fill`.
+    pub fn new(width: u32, height: u32, fill: [f32; 4]) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![fill; width as usize * height as usize],
+        }
+    }
+
+    /// The pixel at column `x`, row `y` (row 0 is the top).
+    ///
+    /// # Panics
+    /// If `(x, y)` lies outside the image.
+    pub fn get(&self, x: u32, y: u32) -> [f32; 4] {
+        self.pixels[self.index(x, y)]
+    }
+
+    /// Sets the pixel at column `x`, row `y` (row 0 is the top).
+    ///
+    /// # Panics
+    /// If `(x, y)` lies outside the image.
+    pub fn set(&mut self, x: u32, y: u32, value: [f32; 4]) {
+        let i = self.index(x, y);
+        self.pixels[i] = value;
+    }
+
+    fn index(&self, x: u32, y: u32) -> usize {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside a {}x{} image",
+            self.width,
+            self.height
+        );
+        y as usize * self.width as usize + x as usize
+    }
+}
+
+/// Encodes a linear-light value with the sRGB transfer function (IEC
+/// 61966-2-1, exact piecewise form). The input is clamped to [0, 1] first;
+/// NaN maps to 0.
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c.is_nan() || c <= 0.0 {
+        0.0
+    } else if c >= 1.0 {
+        1.0
+    } else if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Decodes an sRGB-encoded value to linear light (IEC 61966-2-1, exact
+/// piecewise form). Not clamped: values outside [0, 1] follow the
+/// extended curve, and NaN stays NaN.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Encodes a linear-light value as an 8-bit sRGB code:
+/// `floor(linear_to_srgb(c) * 255 + 0.5)`, so 0 → 0, 0.5 → 188, 1 → 255,
+/// and anything at or above 1 → 255 (NaN → 0).
+pub fn linear_to_srgb8(c: f32) -> u8 {
+    (linear_to_srgb(c) * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8
+}
+
+/// The linear-light value of each 8-bit sRGB code: `lut[v] ==
+/// srgb_to_linear(v as f32 / 255.0)`.
+pub fn srgb8_to_linear_lut() -> &'static [f32; 256] {
+    static LUT: OnceLock<[f32; 256]> = OnceLock::new();
+    LUT.get_or_init(|| std::array::from_fn(|v| srgb_to_linear(v as f32 / 255.0)))
+}
+
+/// Converts an IEEE 754 binary16 (half) bit pattern to `f32`, exactly:
+/// normals, subnormals, signed zeros, infinities, and NaNs (payload kept).
+pub fn f16_to_f32(bits: u16) -> f32 {
+    let sign = u32::from(bits >> 15) << 31;
+    let exponent = u32::from((bits >> 10) & 0x1f);
+    let mantissa = u32::from(bits & 0x3ff);
+    match (exponent, mantissa) {
+        (0, 0) => f32::from_bits(sign),
+        (0, m) => {
+            // Subnormal: m · 2⁻²⁴, exact in f32 (m < 2¹⁰, power-of-two scale).
+            let magnitude = m as f32 * f32::from_bits((127 - 24) << 23);
+            f32::from_bits(sign | magnitude.to_bits())
+        }
+        (0x1f, m) => f32::from_bits(sign | 0x7f80_0000 | (m << 13)),
+        (e, m) => f32::from_bits(sign | ((e + 127 - 15) << 23) | (m << 13)),
+    }
+}
+
+/// The file formats [`write_image`] produces and [`read_image`] accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FileFormat {
+    Png,
+    Exr,
+}
+
+impl FileFormat {
+    fn name(self) -> &'static str {
+        match self {
+            Self::Png => "PNG",
+            Self::Exr => "EXR",
+        }
+    }
+
+    fn from_path(path: &Path) -> Result<Self> {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ext.eq_ignore_ascii_case("png") {
+            Ok(Self::Png)
+        } else if ext.eq_ignore_ascii_case("exr") {
+            Ok(Self::Exr)
+        } else {
+            let shown = match path.extension() {
+                Some(e) => format!(" '.{}'", e.to_string_lossy()),
+                None => ": no extension".to_owned(),
+            };
+            Err(Error::InvalidArgument(format!(
+                "{}: unsupported output format{shown} (use .png or .exr)",
+                path.display()
+            )))
+        }
+    }
+}
+
+/// Writes `img` to `path`, choosing the format by the extension
+/// (case-insensitive):
+///
+/// * `.png`: 8-bit sRGB-encoded RGB ([`linear_to_srgb8`]); alpha is dropped
+///   and the PNG is opaque.
+/// * `.exr`: linear 32-bit float RGBA.
+///
+/// Any other extension is an [`Error::InvalidArgument`] before anything is
+/// written. The write is atomic: the image is encoded into a temporary file
+/// beside the target (`.NAME.tmp-PID-N`), synced, then renamed over the
+/// target (a symbolic link at `path` is replaced, not followed). On failure
+/// the temporary file is removed and the target is left as it was (an
+/// existing file keeps its old content, a missing one stays missing). Errors
+/// name `path`: [`Error::InvalidArgument`] for a pixel count that does not
+/// match the size, [`Error::Image`] for encoding, [`Error::Io`] for the file
+/// system.
+pub fn write_image(img: &LinearImage, path: &Path) -> Result<()> {
+    let format = FileFormat::from_path(path)?;
+    let expected = img.width as u64 * img.height as u64;
+    if img.pixels.len() as u64 != expected {
+        return Err(Error::InvalidArgument(format!(
+            "{}: a {}x{} image needs {expected} pixels but has {}",
+            path.display(),
+            img.width,
+            img.height,
+            img.pixels.len()
+        )));
+    }
+
+    let (tmp_path, file) = create_temp_beside(path).map_err(|source| io_err(path, source))?;
+    let result = encode(img, format, file, path)
+        .and_then(|()| fs::rename(&tmp_path, path).map_err(|source| io_err(path, source)));
+    match result {
+        Ok(()) => {
+            sync_parent_dir(path);
+            Ok(())
+        }
+        Err(e) => {
+            // Best effort: the original error is the one worth reporting.
+            let _ = fs::remove_file(&tmp_path);
+            Err(e)
+        }
+    }
+}
+
+/// Encodes `img` into `file` and syncs it to disk. Errors name `path`.
+fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Result<()> {
+    let mut out = BufWriter::new(file);
+    let encoded = match format {
+        FileFormat::Png => {
+            let rgb: Vec<u8> = img
+                .pixels
+                .iter()
+                .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
+                .collect();
+            PngEncoder::new(&mut out).write_image(
+                &rgb,
+                img.width,
+                img.height,
+                ExtendedColorType::Rgb8,
+            )
+        }
+        FileFormat::Exr => {
+            let bytes: Vec<u8> = img
+                .pixels
+                .iter()
+                .flatten()
+                .flat_map(|v| v.to_ne_bytes())
+                .collect();
+            OpenExrEncoder::new(&mut out).write_image(
+                &bytes,
+                img.width,
+                img.height,
+                ExtendedColorType::Rgba32F,
+            )
+        }
+    };
+    encoded.map_err(|e| match e {
+        // The PNG encoder reports its own format errors as I/O errors too;
+        // only those from the operating system are file-system failures.
+        ImageError::IoError(source) if source.raw_os_error().is_some() => io_err(path, source),
+        other => image_msg(path, format!("cannot encode {}: {other}", format.name())),
+    })?;
+    let file = out.into_inner().map_err(|e| io_err(path, e.into_error()))?;
+    file.sync_all().map_err(|source| io_err(path, source))
+}
+
+/// The directory holding `path` (`.` for a bare file name).
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Creates a new, empty temporary file in the directory of `target`, named
+/// `.NAME.tmp-PID-N` after it, and returns its path and handle.
+fn create_temp_beside(target: &Path) -> io::Result<(PathBuf, File)> {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let pid = std::process::id();
+    let mut attempts = 0;
+    loop {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let mut name = OsString::from(".");
+        name.push(target.file_name().unwrap_or_default());
+        name.push(format!(".tmp-{pid}-{n}"));
+        let tmp = parent_dir(target).join(name);
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(file) => return Ok((tmp, file)),
+            // A leftover of an earlier process with the same id: try the next name.
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => attempts += 1,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Makes the rename durable where the platform supports syncing a directory.
+/// Best effort: the image is already in place, so a failure here is ignored.
+fn sync_parent_dir(path: &Path) {
+    #[cfg(unix)]
+    if let Ok(dir) = File::open(parent_dir(path)) {
+        let _ = dir.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+}
+
+/// Reads a PNG or EXR file as a linear-light image. The format is taken from
+/// the file's content (falling back on the extension).
+///
+/// * PNG (8 or 16 bits; gray, gray+alpha, RGB, RGBA, or palette): color
+///   channels are sRGB-decoded to linear light, alpha is taken as is (1 when
+///   the file has none).
+/// * EXR: channels are taken as linear; alpha is 1 when the file has none.
+///
+/// Errors name `path`: [`Error::Io`] when the file cannot be opened or read,
+/// [`Error::Image`] when it is not a PNG/EXR or cannot be decoded.
+pub fn read_image(path: &Path) -> Result<LinearImage> {
+    let file = File::open(path).map_err(|source| io_err(path, source))?;
+    let mut reader = ImageReader::new(BufReader::new(file))
+        .with_guessed_format()
+        .map_err(|source| io_err(path, source))?;
+    let format = match reader
+        .format()
+        .or_else(|| ImageFormat::from_path(path).ok())
+    {
+        Some(ImageFormat::Png) => FileFormat::Png,
+        Some(ImageFormat::OpenExr) => FileFormat::Exr,
+        _ => return Err(image_msg(path, "not a PNG or EXR image".into())),
+    };
+    reader.set_format(match format {
+        FileFormat::Png => ImageFormat::Png,
+        FileFormat::Exr => ImageFormat::OpenExr,
+    });
+    let decoded = reader
+        .decode()
+        .map_err(|e| image_msg(path, format!("cannot decode {}: {e}", format.name())))?;
+    let (width, height) = (decoded.width(), decoded.height());
+    let pixels = if format == FileFormat::Exr {
+        decoded.into_rgba32f().pixels().map(|p| p.0).collect()
+    } else {
+        srgb_pixels_to_linear(decoded)
+    };
+    Ok(LinearImage {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// sRGB-decodes the color channels of an integer image; alpha stays linear.
+fn srgb_pixels_to_linear(img: DynamicImage) -> Vec<[f32; 4]> {
+    let is_16_bit = matches!(
+        img,
+        DynamicImage::ImageLuma16(_)
+            | DynamicImage::ImageLumaA16(_)
+            | DynamicImage::ImageRgb16(_)
+            | DynamicImage::ImageRgba16(_)
+    );
+    if is_16_bit {
+        img.into_rgba16()
+            .pixels()
+            .map(|p| {
+                let [r, g, b, a] = p.0.map(|v| f32::from(v) / 65535.0);
+                [srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a]
+            })
+            .collect()
+    } else {
+        let lut = srgb8_to_linear_lut();
+        img.into_rgba8()
+            .pixels()
+            .map(|p| {
+                let [r, g, b, a] = p.0;
+                [
+                    lut[usize::from(r)],
+                    lut[usize::from(g)],
+                    lut[usize::from(b)],
+                    f32::from(a) / 255.0,
+                ]
+            })
+            .collect()
+    }
+}
+
+fn io_err(path: &Path, source: io::Error) -> Error {
+    Error::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+fn image_msg(path: &Path, msg: String) -> Error {
+    Error::Image {
+        path: path.to_owned(),
+        msg,
+    }
+}

@@ -1,0 +1,364 @@
+//! `pointlens`: the command-line front end, a thin layer over the library.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{bail, Context as _, Result};
+use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
+
+use pointlens::camera::{self, CameraSpec};
+use pointlens::cloud::srgb_to_linear;
+use pointlens::image_io::write_image;
+use pointlens::ply::load_ply;
+use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::vk::{Context, ContextOptions, FrameTimings};
+
+#[derive(Parser)]
+#[command(
+    name = "pointlens",
+    version,
+    about = "Offline point-cloud renderer with physically based depth of field (Vulkan)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float) image.
+    Render(Box<RenderArgs>),
+    /// Print point count, bounds and attributes of a point cloud.
+    Info {
+        /// PLY file.
+        input: PathBuf,
+    },
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// PLY file (ASCII or binary).
+    input: PathBuf,
+    /// Output image: .png (sRGB 8-bit) or .exr (linear float).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Camera file (JSON, DESIGN §2); the flags below override single fields.
+    #[arg(long)]
+    camera: Option<PathBuf>,
+    #[arg(long)]
+    width: Option<u32>,
+    #[arg(long)]
+    height: Option<u32>,
+    /// pinhole (more methods in later versions).
+    #[arg(long, default_value = "pinhole")]
+    method: String,
+    /// K: the G-buffer takes K×K samples per pixel (1 = hard sprites).
+    #[arg(long, default_value_t = 4)]
+    ssaa: u32,
+    /// Vertical field of view, degrees.
+    #[arg(long, allow_negative_numbers = true)]
+    fovy_deg: Option<f32>,
+    /// Lens aperture radius, scene units.
+    #[arg(long, conflicts_with = "f_number", allow_negative_numbers = true)]
+    aperture_radius: Option<f32>,
+    /// f-number (needs focal_length_mm and units_per_mm from a camera file).
+    #[arg(long, allow_negative_numbers = true)]
+    f_number: Option<f32>,
+    /// Depth of the plane in focus along the view axis, scene units.
+    #[arg(long, allow_negative_numbers = true)]
+    focus_distance: Option<f32>,
+    /// Eye position X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<[f32; 3]>,
+    /// Look-at target X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    target: Option<[f32; 3]>,
+    /// Up vector X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    up: Option<[f32; 3]>,
+    /// Every splat a square of side W in scene units, facing the camera.
+    #[arg(long, conflicts_with = "splat_px", allow_negative_numbers = true)]
+    splat_size: Option<f32>,
+    /// Every splat a P×P pixel square.
+    #[arg(long, allow_negative_numbers = true)]
+    splat_px: Option<f32>,
+    /// Background color R,G,B, sRGB values in [0, 1] (default black).
+    #[arg(long, value_parser = parse_vec3)]
+    background: Option<[f32; 3]>,
+    /// Print the effective camera as a camera file (JSON) on stdout.
+    #[arg(long)]
+    print_camera: bool,
+    /// Use the Vulkan device whose name or driver contains NAME.
+    #[arg(long, value_name = "NAME")]
+    device: Option<String>,
+    /// Enable the Khronos validation layer with synchronization validation
+    /// (also POINTLENS_VALIDATION=1); any message fails the command.
+    #[arg(long)]
+    validate: bool,
+    /// Print per-pass GPU times and the frame's wall time.
+    #[arg(long)]
+    timings: bool,
+    /// Write the timings as JSON.
+    #[arg(long, value_name = "FILE")]
+    timings_json: Option<PathBuf>,
+}
+
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(parts) {
+        *slot = p
+            .trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{p}' is not a finite number in '{s}'"))?;
+    }
+    Ok(v)
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            // One line: clap's first line, without its usage block.
+            let text = e.render().to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            eprintln!("{first} (see 'pointlens --help')");
+            return ExitCode::from(2);
+        }
+    };
+    let result = match cli.command {
+        Command::Render(args) => render(*args),
+        Command::Info { input } => info(&input),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the chain joined, innermost cause last.
+            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+            eprintln!("error: {}", msg.join(": "));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn info(input: &Path) -> Result<()> {
+    let cloud = load_ply(input)?;
+    print!("{}", cloud.info_text(input));
+    Ok(())
+}
+
+fn check_output_extension(path: &Path) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("png" | "exr") => Ok(()),
+        _ => bail!(
+            "{}: unsupported output format (use .png or .exr)",
+            path.display()
+        ),
+    }
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    let method: Method = args.method.parse()?;
+    check_output_extension(&args.output)?;
+    if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
+        bail!("--splat-size must be a positive number, not {w}");
+    }
+    if let Some(p) = args.splat_px.filter(|p| !(p.is_finite() && *p > 0.0)) {
+        bail!("--splat-px must be a positive number, not {p}");
+    }
+    let background = match args.background {
+        Some(c) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
+            bail!("--background takes sRGB values in [0, 1], got {c:?}")
+        }
+        Some(c) => Vec3::from_array(c.map(srgb_to_linear)),
+        None => Vec3::ZERO,
+    };
+
+    let t_load = Instant::now();
+    let cloud = load_ply(&args.input)?;
+    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+
+    let flags = CameraSpec {
+        width: args.width,
+        height: args.height,
+        eye: args.eye,
+        target: args.target,
+        up: args.up,
+        fovy_deg: args.fovy_deg,
+        aperture_radius: args.aperture_radius,
+        f_number: args.f_number,
+        focus_distance: args.focus_distance,
+        ..CameraSpec::default()
+    };
+    let spec = match &args.camera {
+        Some(path) => {
+            let spec = CameraSpec::from_json_file(path)?.overridden_by(&flags);
+            spec.require_complete()
+                .with_context(|| path.display().to_string())?;
+            spec
+        }
+        None => flags,
+    };
+    let (lo, hi) = cloud.bounds();
+    let cam = camera::resolve(&spec, lo, hi, &cloud.positions)?;
+    if args.print_camera {
+        println!("{}", cam.to_json());
+    }
+
+    let splat = match (args.splat_size, args.splat_px) {
+        (Some(w), _) => SplatSize::World(w),
+        (_, Some(p)) => SplatSize::Pixels(p),
+        _ => SplatSize::Spacing,
+    };
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    let renderer = Renderer::new(&ctx)?;
+    let scene = renderer.upload(&cloud, splat)?;
+    let options = RenderOptions {
+        camera: cam,
+        method,
+        ssaa: args.ssaa,
+        background,
+    };
+    let rendered = renderer.render(&scene, &options)?;
+
+    let t_encode = Instant::now();
+    write_image(&rendered.image, &args.output)?;
+    let encode_ms = t_encode.elapsed().as_secs_f64() * 1e3;
+
+    let report = TimingReport {
+        device: ctx.info.describe(),
+        method: &args.method,
+        width: cam.width,
+        height: cam.height,
+        ssaa: args.ssaa,
+        points: cloud.len(),
+        guard: rendered.guard,
+        frame: &rendered.timings,
+        upload: &scene.upload_timings,
+        load_ms,
+        encode_ms,
+    };
+    if args.timings {
+        eprint!("{}", report.text());
+    }
+    if let Some(path) = &args.timings_json {
+        write_atomically(path, report.json().as_bytes())?;
+    }
+    drop(scene);
+    drop(renderer);
+    let messages = ctx.validation_messages();
+    if !messages.is_empty() {
+        bail!(
+            "validation reported {} message(s) (printed above)",
+            messages.len()
+        );
+    }
+    Ok(())
+}
+
+struct TimingReport<'a> {
+    device: String,
+    method: &'a str,
+    width: u32,
+    height: u32,
+    ssaa: u32,
+    points: usize,
+    guard: u32,
+    frame: &'a FrameTimings,
+    upload: &'a FrameTimings,
+    load_ms: f64,
+    encode_ms: f64,
+}
+
+impl TimingReport<'_> {
+    fn text(&self) -> String {
+        let mut s = format!(
+            "device: {}\nframe: {}x{} method {} ssaa {} points {} guard {} px\n",
+            self.device, self.width, self.height, self.method, self.ssaa, self.points, self.guard
+        );
+        s += &format!("{:<20} {:>10} {:>6}\n", "pass", "gpu ms", "count");
+        for p in &self.frame.passes {
+            s += &format!("{:<20} {:>10.3} {:>6}\n", p.name, p.gpu_ms, p.count);
+        }
+        s += &format!("{:<20} {:>10.3}\n", "gpu total", self.frame.gpu_total_ms());
+        s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame.wall_ms);
+        s += &format!(
+            "{:<20} {:>10.3}   (not in the frame)\n",
+            "upload gpu",
+            self.upload.gpu_total_ms()
+        );
+        s += &format!(
+            "{:<20} {:>10.3}   (not in the frame)\n",
+            "load wall", self.load_ms
+        );
+        s += &format!(
+            "{:<20} {:>10.3}   (not in the frame)\n",
+            "encode wall", self.encode_ms
+        );
+        s
+    }
+
+    fn json(&self) -> String {
+        let passes: Vec<serde_json::Value> = self
+            .frame
+            .passes
+            .iter()
+            .map(|p| serde_json::json!({"name": p.name, "gpu_ms": p.gpu_ms, "count": p.count}))
+            .collect();
+        let v = serde_json::json!({
+            "device": self.device,
+            "method": self.method,
+            "width": self.width,
+            "height": self.height,
+            "ssaa": self.ssaa,
+            "points": self.points,
+            "guard_px": self.guard,
+            "passes": passes,
+            "gpu_total_ms": self.frame.gpu_total_ms(),
+            "frame_wall_ms": self.frame.wall_ms,
+            "upload_gpu_ms": self.upload.gpu_total_ms(),
+            "load_ms": self.load_ms,
+            "encode_ms": self.encode_ms,
+        });
+        serde_json::to_string_pretty(&v).unwrap_or_default() + "\n"
+    }
+}
+
+/// Writes `bytes` to a temporary file beside `path`, then renames it over
+/// `path`, so a reader never sees a half-written file.
+fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path.file_name().context("output path has no file name")?;
+    let tmp = dir.join(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.with_context(|| path.display().to_string())
+}

@@ -1,0 +1,353 @@
+//! The frame, as one readable chain: upload → G-buffer (K×K raster samples,
+//! resolved) → DOF method → readback.
+
+use std::str::FromStr;
+use std::sync::Arc;
+
+use ash::vk;
+use glam::Vec3;
+use gpu_allocator::MemoryLocation;
+
+use crate::camera::Camera;
+use crate::cloud::PointCloud;
+use crate::error::{Error, Result};
+use crate::gbuffer::{depth_range, GBuffer, RasterView};
+use crate::image_io::{f16_to_f32, LinearImage};
+use crate::passes::gbuffer_resolve::GBufferResolve;
+use crate::passes::splat_raster::{SplatRaster, SplatVertex};
+use crate::vk::{
+    image_barrier, memory_barrier, slice_as_bytes, Access, Buffer, Context, Frame, FrameTimings,
+};
+
+/// A splat's default world diameter is this multiple of its local point
+/// spacing (mean distance to its 8 nearest neighbours), enough to close the
+/// gaps of an irregular scan without visibly fattening edges.
+pub const SPACING_TO_DIAMETER: f32 = 1.0;
+
+/// The depth-of-field methods of DESIGN §8.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// No depth of field: the resolved G-buffer color.
+    Pinhole,
+}
+
+/// Every method name DESIGN §8 lists, implemented or not.
+const PLANNED_METHODS: [&str; 4] = ["fast", "rdb", "layered", "accum"];
+
+impl Method {
+    /// The names of the methods this build implements.
+    pub const AVAILABLE: [&'static str; 1] = ["pinhole"];
+}
+
+impl FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Method> {
+        let available = Method::AVAILABLE.join(", ");
+        match s {
+            "pinhole" => Ok(Method::Pinhole),
+            s if PLANNED_METHODS.contains(&s) => Err(Error::InvalidArgument(format!(
+                "method '{s}' is not implemented yet; available methods: {available}"
+            ))),
+            s => Err(Error::InvalidArgument(format!(
+                "unknown method '{s}'; available methods: {available}"
+            ))),
+        }
+    }
+}
+
+/// How big a splat is (DESIGN §3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SplatSize {
+    /// From each point's local spacing (the default).
+    Spacing,
+    /// Every splat a square of this side in scene units, facing the camera.
+    World(f32),
+    /// Every splat a square of this many pixels in the pinhole image.
+    Pixels(f32),
+}
+
+/// Everything a frame needs besides the scene.
+#[derive(Debug, Clone, Copy)]
+pub struct RenderOptions {
+    pub camera: Camera,
+    pub method: Method,
+    /// K: the G-buffer takes K×K samples per pixel.
+    pub ssaa: u32,
+    /// Linear-light background color.
+    pub background: Vec3,
+}
+
+/// A cloud on the GPU: its splats, and what the CPU needs to frame them.
+pub struct Scene {
+    vertices: Buffer,
+    count: u32,
+    positions: Vec<Vec3>,
+    /// World diameters (unused when `splat` is `Pixels`).
+    diameters: Vec<f32>,
+    splat: SplatSize,
+    /// GPU time of the upload copy.
+    pub upload_timings: FrameTimings,
+}
+
+impl Scene {
+    /// Number of splats.
+    pub fn len(&self) -> usize {
+        self.count as usize
+    }
+
+    /// Whether the scene has no splats.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// The result of a frame: the image without guard band, and its timings.
+pub struct Rendered {
+    pub image: LinearImage,
+    pub timings: FrameTimings,
+    /// The guard band the frame was rendered with, pixels.
+    pub guard: u32,
+}
+
+/// Owns the pipelines; renders any number of frames of any scene.
+pub struct Renderer {
+    ctx: Arc<Context>,
+    raster: SplatRaster,
+    resolve: GBufferResolve,
+}
+
+fn unorm16(c: f32) -> u16 {
+    (c.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16
+}
+
+impl Renderer {
+    pub fn new(ctx: &Arc<Context>) -> Result<Renderer> {
+        Ok(Renderer {
+            ctx: ctx.clone(),
+            raster: SplatRaster::new(ctx)?,
+            resolve: GBufferResolve::new(ctx)?,
+        })
+    }
+
+    /// The context the renderer draws with.
+    pub fn ctx(&self) -> &Arc<Context> {
+        &self.ctx
+    }
+
+    /// Computes splat sizes and copies the splats to device memory.
+    pub fn upload(&self, cloud: &PointCloud, splat: SplatSize) -> Result<Scene> {
+        let count = u32::try_from(cloud.len())
+            .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
+        let diameters: Vec<f32> = match splat {
+            SplatSize::World(w) => vec![w; cloud.len()],
+            SplatSize::Pixels(_) => vec![0.0; cloud.len()],
+            SplatSize::Spacing => {
+                let spacing = cloud.local_spacing();
+                let fallback = cloud.median_spacing();
+                spacing
+                    .iter()
+                    .map(|&s| SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback })
+                    .collect()
+            }
+        };
+        let vertices: Vec<SplatVertex> = cloud
+            .positions
+            .iter()
+            .zip(&cloud.colors)
+            .zip(&diameters)
+            .map(|((p, c), d)| SplatVertex {
+                position_size: [p.x, p.y, p.z, *d],
+                color: [unorm16(c.x), unorm16(c.y), unorm16(c.z), 65535],
+            })
+            .collect();
+        let bytes = slice_as_bytes(&vertices);
+        let size = bytes.len() as u64;
+        let mut staging = Buffer::new(
+            &self.ctx,
+            "splat staging",
+            size,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        )?;
+        staging
+            .mapped_mut()
+            .ok_or_else(|| Error::Allocation("splat staging buffer is not host-visible".into()))?
+            .copy_from_slice(bytes);
+        let vertex_buffer = Buffer::new(
+            &self.ctx,
+            "splats",
+            size,
+            vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )?;
+        let mut frame = Frame::begin(&self.ctx, "upload")?;
+        frame.pass("upload", |ctx, cmd| {
+            let region = vk::BufferCopy {
+                src_offset: 0,
+                dst_offset: 0,
+                size,
+            };
+            // SAFETY: both buffers are `size` bytes and alive until the
+            // frame completes (submit_and_wait below).
+            unsafe {
+                ctx.device
+                    .cmd_copy_buffer(cmd, staging.raw, vertex_buffer.raw, &[region])
+            };
+            // Makes the copy visible to every later vertex fetch, in this
+            // and later submissions.
+            memory_barrier(
+                ctx,
+                cmd,
+                (
+                    vk::PipelineStageFlags2::COPY,
+                    vk::AccessFlags2::TRANSFER_WRITE,
+                ),
+                (
+                    vk::PipelineStageFlags2::VERTEX_ATTRIBUTE_INPUT,
+                    vk::AccessFlags2::VERTEX_ATTRIBUTE_READ,
+                ),
+            );
+        });
+        let upload_timings = frame.submit_and_wait()?;
+        drop(staging);
+        Ok(Scene {
+            vertices: vertex_buffer,
+            count,
+            positions: cloud.positions.clone(),
+            diameters,
+            splat,
+            upload_timings,
+        })
+    }
+
+    /// The raster view of `scene` through `camera` for a blur of at most
+    /// `max_coc_px`: depth range, splat rule and guard band (DESIGN §3).
+    pub fn raster_view(&self, scene: &Scene, camera: &Camera, max_coc_px: f32) -> RasterView {
+        let (near, far) = depth_range(camera, &scene.positions);
+        let max_point = self.ctx.info.point_size_max;
+        let f_px = camera.f_px();
+        let (splat_px, max_splat_px) = match scene.splat {
+            SplatSize::Pixels(p) => (p, p.min(max_point)),
+            _ => {
+                let mut m = 1.0f32;
+                for (p, d) in scene.positions.iter().zip(&scene.diameters) {
+                    let z = camera.eye_from_world(*p).z;
+                    if z >= near {
+                        m = m.max(f_px * d / z);
+                    }
+                }
+                (0.0, m.min(max_point))
+            }
+        };
+        RasterView {
+            camera: *camera,
+            guard: Camera::guard_band_px(max_coc_px, max_splat_px),
+            near,
+            far,
+            splat_px,
+            max_point_size: max_point,
+        }
+    }
+
+    /// Renders one frame of `scene`.
+    pub fn render(&self, scene: &Scene, options: &RenderOptions) -> Result<Rendered> {
+        if options.ssaa == 0 || options.ssaa > 16 {
+            return Err(Error::InvalidArgument(format!(
+                "--ssaa must be between 1 and 16, not {}",
+                options.ssaa
+            )));
+        }
+        let camera = &options.camera;
+        let max_coc = match options.method {
+            Method::Pinhole => 0.0,
+        };
+        let view = self.raster_view(scene, camera, max_coc);
+        let gbuffer = GBuffer::new(&self.ctx, &view)?;
+        let (w, h) = (camera.width, camera.height);
+        let readback = Buffer::new(
+            &self.ctx,
+            "readback",
+            w as u64 * h as u64 * 8,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+
+        let mut frame = Frame::begin(&self.ctx, "frame")?;
+        gbuffer.record(
+            &mut frame,
+            &self.raster,
+            &self.resolve,
+            &scene.vertices,
+            scene.count,
+            options.ssaa,
+            options.background,
+        );
+        let result = match options.method {
+            Method::Pinhole => &gbuffer.color,
+        };
+        frame.pass("readback", |ctx, cmd| {
+            image_barrier(ctx, cmd, result, Access::COMPUTE_WRITE, Access::COPY_SRC);
+            let g = view.guard as i32;
+            let region = vk::BufferImageCopy {
+                buffer_offset: 0,
+                buffer_row_length: 0,
+                buffer_image_height: 0,
+                image_subresource: vk::ImageSubresourceLayers {
+                    aspect_mask: vk::ImageAspectFlags::COLOR,
+                    mip_level: 0,
+                    base_array_layer: 0,
+                    layer_count: 1,
+                },
+                image_offset: vk::Offset3D { x: g, y: g, z: 0 },
+                image_extent: vk::Extent3D {
+                    width: w,
+                    height: h,
+                    depth: 1,
+                },
+            };
+            // SAFETY: the region lies inside the image (guard band on every
+            // side) and the buffer holds w*h rgba16f texels.
+            unsafe {
+                ctx.device.cmd_copy_image_to_buffer(
+                    cmd,
+                    result.raw,
+                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                    readback.raw,
+                    &[region],
+                )
+            };
+            memory_barrier(
+                ctx,
+                cmd,
+                (
+                    vk::PipelineStageFlags2::COPY,
+                    vk::AccessFlags2::TRANSFER_WRITE,
+                ),
+                (vk::PipelineStageFlags2::HOST, vk::AccessFlags2::HOST_READ),
+            );
+        });
+        let mut timings = frame.submit_and_wait()?;
+
+        let started = std::time::Instant::now();
+        let bytes = readback
+            .mapped()
+            .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))?;
+        let pixels = bytes
+            .chunks_exact(8)
+            .map(|t| {
+                let h = |i: usize| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]));
+                [h(0), h(1), h(2), h(3)]
+            })
+            .collect();
+        timings.wall_ms += started.elapsed().as_secs_f64() * 1e3;
+        Ok(Rendered {
+            image: LinearImage {
+                width: w,
+                height: h,
+                pixels,
+            },
+            timings,
+            guard: view.guard,
+        })
+    }
+}

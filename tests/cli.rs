@@ -1,0 +1,268 @@
+//! The `pointlens` binary as a user runs it: outputs, timings, and bad input
+//! giving one clear line on stderr, a non-zero exit and no output file.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use common::{root, scratch, write_ascii_ply};
+use pointlens::image_io::read_image;
+
+fn pointlens(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pointlens"))
+        .args(args)
+        .env("POINTLENS_VALIDATION", "1")
+        .output()
+        .expect("run pointlens")
+}
+
+fn bunny() -> String {
+    root().join("data/bunny_colored.ply").display().to_string()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A failed run: non-zero exit, exactly one line on stderr containing
+/// `phrase`, and no file at `output`.
+fn assert_fails(args: &[&str], phrase: &str, output: &Path) {
+    let o = pointlens(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "{args:?}: not one line:\n{err}"
+    );
+    assert!(err.contains(phrase), "{args:?}: '{phrase}' not in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!output.exists(), "{args:?} left {}", output.display());
+}
+
+#[test]
+fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
+    let dir = scratch("cli-render");
+    let png = dir.join("bunny.png");
+    let exr = dir.join("bunny.exr");
+    let json = dir.join("timings.json");
+    let common = [
+        "--width",
+        "96",
+        "--height",
+        "72",
+        "--device",
+        "llvmpipe",
+        "--validate",
+    ];
+    let bunny = bunny();
+    let mut args = vec!["render", &bunny, "-o"];
+    let png_s = png.display().to_string();
+    args.push(&png_s);
+    args.extend(common);
+    let json_s = json.display().to_string();
+    args.extend(["--timings", "--timings-json", &json_s]);
+    let o = pointlens(&args);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("validation"), "{err}");
+    for pass in [
+        "gbuffer.raster",
+        "gbuffer.resolve",
+        "readback",
+        "frame wall",
+    ] {
+        assert!(err.contains(pass), "timings lack {pass}: {err}");
+    }
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(t["passes"].as_array().unwrap().len() >= 3);
+    assert!(t["frame_wall_ms"].as_f64().unwrap() > 0.0);
+
+    let exr_s = exr.display().to_string();
+    let mut args = vec!["render", &bunny, "-o", &exr_s];
+    args.extend(common);
+    let o = pointlens(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // The EXR holds linear values: sRGB-encoding them gives the PNG's bytes.
+    let a = read_image(&png).unwrap();
+    let b = read_image(&exr).unwrap();
+    assert_eq!((a.width, a.height), (96, 72));
+    let mut max_diff = 0.0f32;
+    let mut lit = 0;
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            max_diff = max_diff.max((p[c] - q[c]).abs());
+        }
+        if q[0] + q[1] + q[2] > 0.05 {
+            lit += 1;
+        }
+    }
+    assert!(
+        max_diff < 0.01,
+        "PNG and EXR disagree by {max_diff} (linear)"
+    );
+    assert!(lit > 500, "the bunny is missing: {lit} lit pixels");
+    // Linear, not sRGB-encoded: some mid-grey values exist whose sRGB
+    // encoding is well above the stored value.
+    assert!(b.pixels.iter().any(|p| p[0] > 0.05 && p[0] < 0.2));
+}
+
+#[test]
+fn info_prints_count_bounds_and_attributes() {
+    let o = pointlens(&["info", &bunny()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("points: 35947"), "{out}");
+    assert!(out.contains("red") && out.contains("nx"), "{out}");
+    assert!(out.contains("bounds_min"), "{out}");
+}
+
+#[test]
+fn print_camera_round_trips_through_a_camera_file() {
+    let dir = scratch("cli-camera");
+    let out = dir.join("a.png");
+    let out_s = out.display().to_string();
+    let o = pointlens(&[
+        "render",
+        &bunny(),
+        "-o",
+        &out_s,
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--print-camera",
+        "--device",
+        "llvmpipe",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cam = dir.join("cam.json");
+    std::fs::write(&cam, &o.stdout).unwrap();
+    let out2 = dir.join("b.png");
+    let out2_s = out2.display().to_string();
+    let cam_s = cam.display().to_string();
+    let o = pointlens(&[
+        "render",
+        &bunny(),
+        "-o",
+        &out2_s,
+        "--camera",
+        &cam_s,
+        "--device",
+        "llvmpipe",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(read_image(&out).unwrap(), read_image(&out2).unwrap());
+}
+
+#[test]
+fn bad_input_gives_one_line_and_no_output() {
+    let dir = scratch("cli-bad");
+    let out = dir.join("out.png");
+    let out_s = out.display().to_string();
+    let b = bunny();
+
+    assert_fails(
+        &["render", "no/such.ply", "-o", &out_s],
+        "no/such.ply",
+        &out,
+    );
+    assert_fails(
+        &["render", &b, "-o", &dir.join("x.jpg").display().to_string()],
+        "unsupported output format",
+        &dir.join("x.jpg"),
+    );
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--method", "fast"],
+        "available methods: pinhole",
+        &out,
+    );
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--method", "magic"],
+        "unknown method",
+        &out,
+    );
+    assert_fails(&["render", &b, "-o", &out_s, "--ssaa", "0"], "--ssaa", &out);
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--focus-distance", "-1"],
+        "focus_distance",
+        &out,
+    );
+    assert_fails(&["render", &b, "-o", &out_s, "--width", "0"], "width", &out);
+    assert_fails(
+        &[
+            "render", &b, "-o", &out_s, "--width", "100000", "--device", "llvmpipe",
+        ],
+        "device limit",
+        &out,
+    );
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--frobnicate"],
+        "frobnicate",
+        &out,
+    );
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--device", "no-such-gpu"],
+        "no-such-gpu",
+        &out,
+    );
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &dir.join("missing/out.png").display().to_string(),
+            "--device",
+            "llvmpipe",
+        ],
+        "missing",
+        &dir.join("missing/out.png"),
+    );
+
+    let cam = dir.join("cam.json");
+    std::fs::write(&cam, r#"{"width": 64, "height": 48, "eye": [0, 0, 1], "target": [0, 0, 0], "fovy_deg": 40, "aperture_radius": 0.01}"#).unwrap();
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--camera",
+            &cam.display().to_string(),
+        ],
+        "focus_distance",
+        &out,
+    );
+    std::fs::write(&cam, "{ not json").unwrap();
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--camera",
+            &cam.display().to_string(),
+        ],
+        "cam.json",
+        &out,
+    );
+
+    let ply = dir.join("bad.ply");
+    std::fs::write(&ply, "this is not a ply file\n").unwrap();
+    assert_fails(
+        &["render", &ply.display().to_string(), "-o", &out_s],
+        "bad.ply",
+        &out,
+    );
+    write_ascii_ply(&ply, &[]);
+    assert_fails(&["info", &ply.display().to_string()], "bad.ply", &out);
+
+    // An existing output survives a failed render untouched.
+    std::fs::write(&out, b"old").unwrap();
+    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "fast"]);
+    assert!(!o.status.success());
+    assert_eq!(std::fs::read(&out).unwrap(), b"old");
+}

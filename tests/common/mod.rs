@@ -1,0 +1,114 @@
+//! The GPU test harness: every GPU test runs on lavapipe with the Khronos
+//! validation layer and synchronization validation on, and ends with the
+//! canary: no validation message, no live allocation. A missing driver or
+//! layer fails the test with an install hint; nothing is skipped.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use pointlens::image_io::{read_image, write_image, LinearImage};
+use pointlens::metrics;
+use pointlens::vk::{Context, ContextOptions};
+
+/// Runs `test` with a validated lavapipe context, then checks the canary.
+pub fn with_gpu<R>(test: impl FnOnce(&Arc<Context>) -> R) -> R {
+    let ctx = match Context::new(&ContextOptions {
+        validation: true,
+        device: Some("llvmpipe".into()),
+    }) {
+        Ok(ctx) => ctx,
+        Err(e) => panic!(
+            "GPU tests need lavapipe and the validation layer: {e}\n\
+             install: sudo apt-get install mesa-vulkan-drivers vulkan-validationlayers libvulkan1"
+        ),
+    };
+    assert!(ctx.validation_enabled());
+    let log = ctx.message_log();
+    let result = test(&ctx);
+    let live = ctx.live_allocations();
+    assert!(live.is_empty(), "allocations left alive: {live:?}");
+    assert_eq!(
+        Arc::strong_count(&ctx),
+        1,
+        "a GPU resource outlived the test"
+    );
+    drop(ctx);
+    let messages = log.messages();
+    assert!(
+        messages.is_empty(),
+        "validation reported {} message(s):\n{}",
+        messages.len(),
+        messages
+            .iter()
+            .map(|m| m.to_string())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    result
+}
+
+/// The project's root directory.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A fresh scratch directory for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pointlens-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch directory");
+    dir
+}
+
+/// Compares `actual` with the reviewed reference PNG `tests/reference/NAME.png`
+/// and requires at least `min_psnr_db`. On failure writes `NAME-actual.png`
+/// and `NAME-difference.png` beside the reference (git-ignored). A missing
+/// reference fails unless `POINTLENS_WRITE_REFERENCE=1`, which writes it.
+pub fn assert_matches_reference(name: &str, actual: &LinearImage, min_psnr_db: f64) {
+    let dir = root().join("tests/reference");
+    let reference = dir.join(format!("{name}.png"));
+    if !reference.exists() {
+        if std::env::var("POINTLENS_WRITE_REFERENCE").as_deref() == Ok("1") {
+            std::fs::create_dir_all(&dir).expect("tests/reference");
+            write_image(actual, &reference).expect("write reference");
+            eprintln!(
+                "wrote {} — review it before committing",
+                reference.display()
+            );
+            return;
+        }
+        panic!(
+            "missing reference image {}; run with POINTLENS_WRITE_REFERENCE=1 to create it, then review it",
+            reference.display()
+        );
+    }
+    let expected = read_image(&reference).expect("read reference");
+    let psnr = metrics::psnr(&expected, actual).expect("same size as the reference");
+    if psnr < min_psnr_db {
+        let out = |suffix: &str| dir.join(format!("{name}-{suffix}.png"));
+        write_image(actual, &out("actual")).expect("write actual");
+        let diff = metrics::difference_image(&expected, actual, 0.25).expect("difference");
+        write_image(&diff, &out("difference")).expect("write difference");
+        panic!(
+            "{name}: PSNR {psnr:.2} dB against {} is below {min_psnr_db} dB; see {} and {}",
+            reference.display(),
+            out("actual").display(),
+            out("difference").display()
+        );
+    }
+}
+
+/// Writes an ASCII PLY with positions and 8-bit sRGB colors.
+pub fn write_ascii_ply(path: &Path, points: &[([f32; 3], [u8; 3])]) {
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        points.len()
+    );
+    for (p, c) in points {
+        s += &format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], c[0], c[1], c[2]);
+    }
+    std::fs::write(path, s).expect("write ply");
+}

@@ -1,0 +1,301 @@
+//! G-buffer and pinhole rendering on lavapipe, under validation.
+
+mod common;
+
+use common::{assert_matches_reference, root, with_gpu};
+use glam::{Vec2, Vec3};
+use pointlens::camera::{self, Camera, CameraSpec};
+use pointlens::image_io::LinearImage;
+use pointlens::ply::load_ply;
+use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::vk::{Context, ContextOptions};
+use pointlens::PointCloud;
+
+fn cloud(points: &[(Vec3, Vec3)]) -> PointCloud {
+    PointCloud {
+        positions: points.iter().map(|p| p.0).collect(),
+        colors: points.iter().map(|p| p.1).collect(),
+        normals: None,
+        has_colors: true,
+        attributes: vec!["x".into(), "y".into(), "z".into()],
+    }
+}
+
+/// A camera at the origin looking down −z, 40° vertical field of view.
+fn camera(width: u32, height: u32) -> Camera {
+    Camera {
+        width,
+        height,
+        eye: Vec3::ZERO,
+        target: Vec3::new(0.0, 0.0, -1.0),
+        up: Vec3::Y,
+        fovy_deg: 40.0,
+        aperture_radius: 0.0,
+        focus_distance: 1.0,
+    }
+}
+
+fn render(
+    renderer: &Renderer,
+    cloud: &PointCloud,
+    splat: SplatSize,
+    cam: Camera,
+    ssaa: u32,
+) -> LinearImage {
+    let scene = renderer.upload(cloud, splat).expect("upload");
+    let options = RenderOptions {
+        camera: cam,
+        method: Method::Pinhole,
+        ssaa,
+        background: Vec3::ZERO,
+    };
+    renderer.render(&scene, &options).expect("render").image
+}
+
+/// Intensity-weighted centroid of the red channel, in pixel coordinates
+/// (pixel centres at +0.5), and the total intensity.
+fn centroid(img: &LinearImage) -> (Vec2, f32) {
+    let (mut sum, mut weighted) = (0.0f32, Vec2::ZERO);
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let v = img.pixels[(y * img.width + x) as usize][0];
+            sum += v;
+            weighted += v * Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+        }
+    }
+    (weighted / sum, sum)
+}
+
+#[test]
+fn single_point_lands_where_the_projection_says() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let cam = camera(64, 48);
+        // f_px = 24 / tan(20°) = 65.9391; x_px = 32 + 65.9391 * 0.1 / 1.0 = 38.594;
+        // y_px = 24 − 65.9391 * (−0.05) / 1.0 = 27.297.
+        let p = Vec3::new(0.1, -0.05, -1.0);
+        let expected = Vec2::new(38.594, 27.297);
+        let (projected, z) = cam.project(p).unwrap();
+        assert!((projected - expected).length() < 1e-3, "{projected}");
+        assert!((z - 1.0).abs() < 1e-6);
+        for ssaa in [1, 4] {
+            let img = render(
+                &renderer,
+                &cloud(&[(p, Vec3::ONE)]),
+                SplatSize::Pixels(1.0),
+                cam,
+                ssaa,
+            );
+            let (c, total) = centroid(&img);
+            // A 1×1 px white splat: its coverage integrates to one pixel.
+            assert!(
+                (total - 1.0).abs() < 0.01,
+                "ssaa {ssaa}: total coverage {total}"
+            );
+            assert!(
+                (c - expected).abs().max_element() <= 0.5,
+                "ssaa {ssaa}: splat centroid {c}, projection {expected}"
+            );
+        }
+    });
+}
+
+#[test]
+fn camera_file_places_points_where_the_formula_says() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        // An oblique camera from a JSON file, as `--camera` reads it.
+        let json = r#"{"width": 80, "height": 60, "eye": [1.0, 2.0, 3.0], "target": [0.0, 0.5, 0.0],
+                       "up": [0.0, 1.0, 0.0], "fovy_deg": 30.0, "aperture_radius": 0.0,
+                       "focus_distance": 3.0, "comment": "unknown fields are ignored"}"#;
+        let spec = CameraSpec::from_json_str(json).unwrap();
+        spec.require_complete().unwrap();
+        let points = [Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.3, 0.2, -0.4)];
+        let cam = camera::resolve(&spec, Vec3::splat(-1.0), Vec3::splat(1.0), &points).unwrap();
+        for p in points {
+            let (expected, _) = cam.project(p).unwrap();
+            let img = render(
+                &renderer,
+                &cloud(&[(p, Vec3::ONE)]),
+                SplatSize::Pixels(1.0),
+                cam,
+                4,
+            );
+            let (c, _) = centroid(&img);
+            assert!(
+                (c - expected).abs().max_element() <= 0.5,
+                "point {p}: centroid {c}, formula {expected}"
+            );
+        }
+        // The target itself is the image centre.
+        let (centre, _) = cam.project(points[0]).unwrap();
+        assert!((centre - Vec2::new(40.0, 30.0)).length() < 1e-3);
+    });
+}
+
+#[test]
+fn a_half_covered_pixel_gets_half_the_color() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let cam = camera(40, 40);
+        let f_px = cam.f_px();
+        // Centre at pixel (20.5, 20.5): an 8 px square spans [16.5, 24.5] on
+        // both axes, so pixels 16 and 24 are half covered, 17..=23 fully.
+        let p = Vec3::new(0.5 / f_px, -0.5 / f_px, -1.0);
+        let color = Vec3::new(0.8, 0.4, 0.2);
+        let img = render(
+            &renderer,
+            &cloud(&[(p, color)]),
+            SplatSize::Pixels(8.0),
+            cam,
+            4,
+        );
+        let at = |x: u32, y: u32| Vec3::from_slice(&img.pixels[(y * 40 + x) as usize][..3]);
+        // fp16 storage: relative error below 1e-3.
+        let close = |a: Vec3, b: Vec3| (a - b).abs().max_element() < 2e-3;
+        assert!(close(at(20, 20), color), "{}", at(20, 20));
+        assert!(close(at(16, 20), color * 0.5), "edge pixel {}", at(16, 20));
+        assert!(close(at(24, 20), color * 0.5), "edge pixel {}", at(24, 20));
+        assert!(close(at(20, 16), color * 0.5), "edge pixel {}", at(20, 16));
+        assert!(
+            close(at(16, 16), color * 0.25),
+            "corner pixel {}",
+            at(16, 16)
+        );
+        assert!(close(at(15, 20), Vec3::ZERO) && close(at(25, 20), Vec3::ZERO));
+        // With hard sprites (K = 1) the edge pixels are all or nothing.
+        let hard = render(
+            &renderer,
+            &cloud(&[(p, color)]),
+            SplatSize::Pixels(8.0),
+            cam,
+            1,
+        );
+        let v = hard.pixels[20 * 40 + 16][0];
+        assert!(v == 0.0 || (v - color.x).abs() < 2e-3, "hard edge {v}");
+    });
+}
+
+#[test]
+fn equal_depth_splats_resolve_to_the_first_in_vertex_order() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let cam = camera(32, 32);
+        let red = Vec3::new(1.0, 0.0, 0.0);
+        let green = Vec3::new(0.0, 1.0, 0.0);
+        let a = Vec3::new(0.0, 0.0, -1.0);
+        let b = Vec3::new(0.01, 0.0, -1.0); // same depth, overlapping
+        let first = render(
+            &renderer,
+            &cloud(&[(a, red), (b, green)]),
+            SplatSize::Pixels(6.0),
+            cam,
+            4,
+        );
+        let again = render(
+            &renderer,
+            &cloud(&[(a, red), (b, green)]),
+            SplatSize::Pixels(6.0),
+            cam,
+            4,
+        );
+        assert_eq!(first, again, "rendering is deterministic");
+        let centre = first.pixels[16 * 32 + 16];
+        assert!(
+            centre[0] > 0.99 && centre[1] == 0.0,
+            "first splat wins: {centre:?}"
+        );
+        let swapped = render(
+            &renderer,
+            &cloud(&[(b, green), (a, red)]),
+            SplatSize::Pixels(6.0),
+            cam,
+            4,
+        );
+        let centre = swapped.pixels[16 * 32 + 16];
+        assert!(
+            centre[1] > 0.99 && centre[0] == 0.0,
+            "first splat wins: {centre:?}"
+        );
+        // A nearer splat wins whatever its order.
+        let near = Vec3::new(0.01, 0.0, -0.9);
+        let img = render(
+            &renderer,
+            &cloud(&[(a, red), (near, green)]),
+            SplatSize::Pixels(6.0),
+            cam,
+            4,
+        );
+        assert!(img.pixels[16 * 32 + 17][1] > 0.99);
+    });
+}
+
+#[test]
+fn splats_near_the_border_are_not_clipped() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let cam = camera(32, 32);
+        let f_px = cam.f_px();
+        // Centre 2 px outside the left edge, 10 px wide: covers columns 0..=2
+        // of the image. Without a guard band the sprite would be clipped.
+        let p = Vec3::new((-2.0 - 16.0) / f_px, 0.0, -1.0);
+        let img = render(
+            &renderer,
+            &cloud(&[(p, Vec3::ONE)]),
+            SplatSize::Pixels(10.0),
+            cam,
+            4,
+        );
+        for x in 0..3 {
+            assert!(img.pixels[16 * 32 + x][0] > 0.99, "column {x}");
+        }
+        assert!(img.pixels[16 * 32 + 3][0] == 0.0);
+    });
+}
+
+#[test]
+fn bunny_pinhole_matches_the_reviewed_reference() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let cloud = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+        let (lo, hi) = cloud.bounds();
+        let spec = CameraSpec {
+            width: Some(160),
+            height: Some(120),
+            ..CameraSpec::default()
+        };
+        let cam = camera::resolve(&spec, lo, hi, &cloud.positions).unwrap();
+        let img = render(&renderer, &cloud, SplatSize::Spacing, cam, 4);
+        // Lavapipe is deterministic for a given build; 40 dB leaves room for
+        // a different LLVM's rounding, while a moved or missing splat, a
+        // wrong color space or a lost anti-aliasing costs far more.
+        assert_matches_reference("bunny_pinhole", &img, 40.0);
+    });
+}
+
+#[test]
+fn the_canary_sees_validation_errors() {
+    // The harness must fail a test on a validation message: provoke one.
+    let ctx = Context::new(&ContextOptions {
+        validation: true,
+        device: Some("llvmpipe".into()),
+    })
+    .expect("lavapipe with validation");
+    let log = ctx.message_log();
+    // Size 0 is invalid (VUID-VkBufferCreateInfo-size-00912).
+    let info = ash::vk::BufferCreateInfo::default()
+        .size(0)
+        .usage(ash::vk::BufferUsageFlags::STORAGE_BUFFER);
+    // SAFETY: deliberately invalid create info; lavapipe tolerates it and
+    // any buffer it returns is destroyed at once.
+    unsafe {
+        if let Ok(b) = ctx.device.create_buffer(&info, None) {
+            ctx.device.destroy_buffer(b, None);
+        }
+    }
+    drop(ctx);
+    assert!(
+        !log.messages().is_empty(),
+        "the validation layer reported nothing"
+    );
+}

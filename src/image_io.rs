@@ -190,8 +190,16 @@ pub fn write_image(img: &LinearImage, path: &Path) -> Result<()> {
         )));
     }
 
+    write_atomically(path, |file| encode(img, format, file, path))
+}
+
+/// Writes a file atomically: `write` fills a new temporary file beside
+/// `path` (`.NAME.tmp-PID-N`) and must sync it; the temporary is then renamed
+/// over `path`. On any failure the temporary is removed and `path` is left as
+/// it was. Used for every file pointlens writes.
+pub fn write_atomically(path: &Path, write: impl FnOnce(File) -> Result<()>) -> Result<()> {
     let (tmp_path, file) = create_temp_beside(path).map_err(|source| io_err(path, source))?;
-    let result = encode(img, format, file, path)
+    let result = write(file)
         .and_then(|()| fs::rename(&tmp_path, path).map_err(|source| io_err(path, source)));
     match result {
         Ok(()) => {
@@ -204,6 +212,12 @@ pub fn write_image(img: &LinearImage, path: &Path) -> Result<()> {
             Err(e)
         }
     }
+}
+
+/// Checks that `path` names an output format `write_image` supports, so a
+/// long render can fail before it starts.
+pub fn check_output_path(path: &Path) -> Result<()> {
+    FileFormat::from_path(path).map(|_| ())
 }
 
 /// Encodes `img` into `file` and syncs it to disk. Errors name `path`.

@@ -1,5 +1,6 @@
 //! `pointlens`: the command-line front end, a thin layer over the library.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -10,7 +11,7 @@ use glam::Vec3;
 
 use pointlens::camera::{self, CameraSpec};
 use pointlens::cloud::srgb_to_linear;
-use pointlens::image_io::write_image;
+use pointlens::image_io::{check_output_path, write_atomically, write_image};
 use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions, FrameTimings};
@@ -159,23 +160,9 @@ fn info(input: &Path) -> Result<()> {
     Ok(())
 }
 
-fn check_output_extension(path: &Path) -> Result<()> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    match ext.as_deref() {
-        Some("png" | "exr") => Ok(()),
-        _ => bail!(
-            "{}: unsupported output format (use .png or .exr)",
-            path.display()
-        ),
-    }
-}
-
 fn render(args: RenderArgs) -> Result<()> {
     let method: Method = args.method.parse()?;
-    check_output_extension(&args.output)?;
+    check_output_path(&args.output)?;
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
         bail!("--splat-size must be a positive number, not {w}");
     }
@@ -261,7 +248,14 @@ fn render(args: RenderArgs) -> Result<()> {
         eprint!("{}", report.text());
     }
     if let Some(path) = &args.timings_json {
-        write_atomically(path, report.json().as_bytes())?;
+        write_atomically(path, |mut file| {
+            let io = |source| pointlens::Error::Io {
+                path: path.clone(),
+                source,
+            };
+            file.write_all(report.json().as_bytes()).map_err(io)?;
+            file.sync_all().map_err(io)
+        })?;
     }
     drop(scene);
     drop(renderer);
@@ -341,24 +335,4 @@ impl TimingReport<'_> {
         });
         serde_json::to_string_pretty(&v).unwrap_or_default() + "\n"
     }
-}
-
-/// Writes `bytes` to a temporary file beside `path`, then renames it over
-/// `path`, so a reader never sees a half-written file.
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path.file_name().context("output path has no file name")?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| path.display().to_string())
 }

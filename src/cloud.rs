@@ -127,15 +127,15 @@ impl Grid {
         );
         let extent = (hi - lo).max(Vec3::splat(1e-12));
         let n = points.len() as f32;
-        // Start from the volume estimate (8 points per cell if the cloud
-        // filled its box) and halve while occupied cells are crowded, as
-        // they are for a surface.
-        let mut cell = (extent.x * extent.y * extent.z * 8.0 / n).cbrt();
-        cell = cell.max(extent.max_element() / 1024.0);
+        // Start coarse (8 points per cell if the cloud filled a cube of its
+        // largest extent) and halve while occupied cells are crowded, as
+        // they are for a surface or a line.
+        let largest = extent.max_element();
+        let mut cell = largest / (n / 8.0).cbrt().max(1.0);
         loop {
             let grid = Grid::build(points, lo, extent, cell);
             let mean = n / grid.cells.len() as f32;
-            if mean <= 16.0 || cell <= extent.max_element() / 4096.0 {
+            if mean <= 16.0 || cell <= largest / 4096.0 {
                 return grid;
             }
             cell /= 2.0;
@@ -176,10 +176,14 @@ impl Grid {
         let q = points[i];
         let home = ((q - self.origin) / self.cell).floor().as_ivec3();
         let max_ring = self.dims.max_element();
+        // Ring r: the cells at Chebyshev distance r from `home`, clipped to
+        // the grid (a flat cloud has one layer of cells).
+        let lo = -home;
+        let hi = self.dims - IVec3::ONE - home;
         for r in 0..=max_ring {
-            for dz in -r..=r {
-                for dy in -r..=r {
-                    for dx in -r..=r {
+            for dz in (-r).max(lo.z)..=r.min(hi.z) {
+                for dy in (-r).max(lo.y)..=r.min(hi.y) {
+                    for dx in (-r).max(lo.x)..=r.min(hi.x) {
                         if dx.abs().max(dy.abs()).max(dz.abs()) != r {
                             continue;
                         }

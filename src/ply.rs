@@ -146,7 +146,12 @@ fn guarded<T, E: std::fmt::Display>(
 ) -> std::result::Result<T, String> {
     match catch_unwind(AssertUnwindSafe(f)) {
         Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(e.to_string()),
+        // One line: ply-rs's messages may span several.
+        Ok(Err(e)) => Err(e
+            .to_string()
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")),
         Err(_) => Err("the PLY parser could not read it".to_string()),
     }
 }

@@ -1,0 +1,461 @@
+//! PLY input: every supported encoding and type, and malformed files.
+
+// The test tables P, C8 and N are indexed in parallel by vertex and axis.
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{root, scratch};
+use glam::Vec3;
+use pointlens::cloud::{srgb_to_linear, DEFAULT_COLOR};
+use pointlens::ply::load_ply;
+use pointlens::PointCloud;
+
+/// The three test points: positions, 8-bit sRGB colors, and normals (not unit
+/// length, to check normalisation).
+const P: [[f64; 3]; 3] = [[0.5, -1.25, 2.0], [1e-3, 0.0, -7.5], [-3.0, 4.0, 0.125]];
+const C8: [[u8; 3]; 3] = [[255, 0, 128], [10, 200, 64], [0, 0, 0]];
+const N: [[f32; 3]; 3] = [[0.0, 0.0, 2.0], [3.0, 4.0, 0.0], [0.0, 0.0, 0.0]];
+
+#[derive(Clone, Copy, PartialEq)]
+enum Enc {
+    Ascii,
+    Le,
+    Be,
+}
+
+#[derive(Clone, Copy)]
+enum ColorType {
+    UChar,
+    UShort,
+    Float,
+}
+
+struct Spec {
+    enc: Enc,
+    double: bool,
+    colors: Option<(ColorType, [&'static str; 3])>,
+    normals: bool,
+    extras: bool,
+}
+
+impl Spec {
+    fn header(&self) -> String {
+        let fmt = match self.enc {
+            Enc::Ascii => "ascii",
+            Enc::Le => "binary_little_endian",
+            Enc::Be => "binary_big_endian",
+        };
+        let coord = if self.double { "double" } else { "float" };
+        let mut h = format!("ply\nformat {fmt} 1.0\ncomment test\nelement vertex 3\n");
+        for a in ["x", "y", "z"] {
+            h += &format!("property {coord} {a}\n");
+            if self.extras && a == "x" {
+                h += "property float confidence\n";
+            }
+        }
+        if self.normals {
+            for a in ["nx", "ny", "nz"] {
+                h += &format!("property float {a}\n");
+            }
+        }
+        if let Some((t, names)) = self.colors {
+            let t = match t {
+                ColorType::UChar => "uchar",
+                ColorType::UShort => "ushort",
+                ColorType::Float => "float",
+            };
+            for n in names {
+                h += &format!("property {t} {n}\n");
+            }
+            h += &format!("property {t} alpha\n");
+        }
+        if self.extras {
+            h += "property uchar intensity\nelement face 1\nproperty list uchar int vertex_indices\n";
+        }
+        h + "end_header\n"
+    }
+
+    /// The channel value as stored, and the sRGB value in [0, 1] it means.
+    fn color(&self, i: usize, c: usize) -> (f64, f32) {
+        let v8 = C8[i][c];
+        match self.colors.map(|c| c.0) {
+            Some(ColorType::UShort) => {
+                let v = v8 as u32 * 257;
+                (v as f64, v as f32 / 65535.0)
+            }
+            Some(ColorType::Float) => (v8 as f64 / 255.0, v8 as f32 / 255.0),
+            _ => (v8 as f64, v8 as f32 / 255.0),
+        }
+    }
+
+    fn bytes(&self) -> Vec<u8> {
+        let mut out = self.header().into_bytes();
+        let mut ascii = String::new();
+        // `put(_, "eol")` ends an ASCII line.
+        let mut put = |v: f64, ty: &str| match self.enc {
+            Enc::Ascii if ty == "eol" => ascii += "\n",
+            Enc::Ascii => ascii += &format!("{v} "),
+            _ if ty == "eol" => {}
+            _ => {
+                let le = self.enc == Enc::Le;
+                let b: Vec<u8> = match ty {
+                    "float" => {
+                        if le {
+                            (v as f32).to_le_bytes().to_vec()
+                        } else {
+                            (v as f32).to_be_bytes().to_vec()
+                        }
+                    }
+                    "double" => {
+                        if le {
+                            v.to_le_bytes().to_vec()
+                        } else {
+                            v.to_be_bytes().to_vec()
+                        }
+                    }
+                    "uchar" => vec![v as u8],
+                    "ushort" => {
+                        if le {
+                            (v as u16).to_le_bytes().to_vec()
+                        } else {
+                            (v as u16).to_be_bytes().to_vec()
+                        }
+                    }
+                    "int" => {
+                        if le {
+                            (v as i32).to_le_bytes().to_vec()
+                        } else {
+                            (v as i32).to_be_bytes().to_vec()
+                        }
+                    }
+                    _ => unreachable!(),
+                };
+                out.extend(b);
+            }
+        };
+        let coord = if self.double { "double" } else { "float" };
+        let ctype = match self.colors.map(|c| c.0) {
+            Some(ColorType::UShort) => "ushort",
+            Some(ColorType::Float) => "float",
+            _ => "uchar",
+        };
+        for i in 0..3 {
+            for a in 0..3 {
+                put(P[i][a], coord);
+                if self.extras && a == 0 {
+                    put(0.75, "float");
+                }
+            }
+            if self.normals {
+                for a in 0..3 {
+                    put(N[i][a] as f64, "float");
+                }
+            }
+            if self.colors.is_some() {
+                for c in 0..3 {
+                    put(self.color(i, c).0, ctype);
+                }
+                put(if ctype == "float" { 1.0 } else { 255.0 }, ctype);
+            }
+            if self.extras {
+                put(7.0, "uchar");
+            }
+            put(0.0, "eol");
+        }
+        if self.extras {
+            // One face: 3 vertex indices.
+            put(3.0, "uchar");
+            for v in 0..3 {
+                put(v as f64, "int");
+            }
+            put(0.0, "eol");
+        }
+        if self.enc == Enc::Ascii {
+            out.extend(ascii.into_bytes());
+        }
+        out
+    }
+
+    fn check(&self, cloud: &PointCloud) {
+        assert_eq!(cloud.len(), 3);
+        for i in 0..3 {
+            let expected = Vec3::new(P[i][0] as f32, P[i][1] as f32, P[i][2] as f32);
+            assert_eq!(cloud.positions[i], expected, "position {i}");
+            let color = match self.colors {
+                Some(_) => Vec3::from_array([0, 1, 2].map(|c| srgb_to_linear(self.color(i, c).1))),
+                None => DEFAULT_COLOR,
+            };
+            assert!(
+                (cloud.colors[i] - color).abs().max_element() < 1e-6,
+                "color {i}: {} vs {color}",
+                cloud.colors[i]
+            );
+        }
+        assert_eq!(cloud.has_colors, self.colors.is_some());
+        match (&cloud.normals, self.normals) {
+            (Some(n), true) => {
+                assert_eq!(n[0], Vec3::Z);
+                assert!((n[1] - Vec3::new(0.6, 0.8, 0.0)).length() < 1e-6);
+                assert_eq!(n[2], Vec3::ZERO, "a zero normal stays zero");
+            }
+            (None, false) => {}
+            (n, want) => panic!("normals {:?}, wanted {want}", n.is_some()),
+        }
+        assert_eq!(
+            &cloud.attributes[..3],
+            &[
+                "x",
+                if self.extras { "confidence" } else { "y" },
+                if self.extras { "y" } else { "z" }
+            ]
+        );
+    }
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn every_encoding_type_and_naming_loads_exactly() {
+    let dir = scratch("ply-variants");
+    let mut n = 0;
+    for enc in [Enc::Ascii, Enc::Le, Enc::Be] {
+        for double in [false, true] {
+            for colors in [
+                None,
+                Some((ColorType::UChar, ["red", "green", "blue"])),
+                Some((ColorType::UShort, ["r", "g", "b"])),
+                Some((
+                    ColorType::Float,
+                    ["diffuse_red", "diffuse_green", "diffuse_blue"],
+                )),
+                Some((
+                    ColorType::UChar,
+                    ["diffuse_red", "diffuse_green", "diffuse_blue"],
+                )),
+            ] {
+                for normals in [false, true] {
+                    for extras in [false, true] {
+                        let spec = Spec {
+                            enc,
+                            double,
+                            colors,
+                            normals,
+                            extras,
+                        };
+                        let path = write(&dir, &format!("v{n}.ply"), &spec.bytes());
+                        let cloud = load_ply(&path).unwrap_or_else(|e| {
+                            panic!("{}: {e}\n{}", path.display(), spec.header())
+                        });
+                        spec.check(&cloud);
+                        n += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(n, 120);
+}
+
+fn assert_error(path: &Path, phrase: &str) {
+    let err = load_ply(path)
+        .expect_err("malformed file loaded")
+        .to_string();
+    let name = path.file_name().unwrap().to_string_lossy();
+    assert!(err.contains(&*name), "error does not name the file: {err}");
+    assert!(err.contains(phrase), "'{phrase}' not in: {err}");
+    assert_eq!(err.lines().count(), 1, "not one line: {err}");
+}
+
+#[test]
+fn malformed_files_are_errors_that_say_what_is_wrong() {
+    let dir = scratch("ply-malformed");
+    let good = Spec {
+        enc: Enc::Le,
+        double: false,
+        colors: Some((ColorType::UChar, ["red", "green", "blue"])),
+        normals: false,
+        extras: false,
+    };
+    let ascii = Spec {
+        enc: Enc::Ascii,
+        ..good
+    };
+
+    assert_error(&dir.join("missing.ply"), "No such file");
+    assert_error(
+        &write(&dir, "magic.ply", b"PLY\nformat ascii 1.0\n"),
+        "not a PLY file",
+    );
+    let bytes = good.bytes();
+    assert_error(
+        &write(&dir, "truncated.ply", &bytes[..bytes.len() - 5]),
+        "truncated",
+    );
+    let text = String::from_utf8(ascii.bytes()).unwrap();
+    let short: String = text
+        .lines()
+        .take(text.lines().count() - 1)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert_error(&write(&dir, "short.ply", short.as_bytes()), "vertices");
+    assert_error(
+        &write(
+            &dir,
+            "noz.ply",
+            text.replace("property float z\n", "").as_bytes(),
+        ),
+        "lacks the 'z' coordinate",
+    );
+    assert_error(
+        &write(
+            &dir,
+            "novertex.ply",
+            text.replace("element vertex", "element point").as_bytes(),
+        ),
+        "no 'vertex' element",
+    );
+    // A NaN in binary data (ASCII "nan" is already a parse error).
+    let mut nan = good.bytes();
+    let at = good.header().len() + 4; // vertex 0, y
+    nan[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    assert_error(
+        &write(&dir, "nan.ply", &nan),
+        "vertex 0 has a non-finite coordinate",
+    );
+    let ascii_nan = text.replacen("-1.25", "nan", 1);
+    assert_error(
+        &write(&dir, "ascii-nan.ply", ascii_nan.as_bytes()),
+        "malformed data",
+    );
+    let empty = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    assert_error(&write(&dir, "empty.ply", empty.as_bytes()), "empty");
+    let list = "ply\nformat ascii 1.0\nelement vertex 1\nproperty list uchar float x\nproperty float y\nproperty float z\nend_header\n1 0.5 1 2\n";
+    assert_error(&write(&dir, "list.ply", list.as_bytes()), "'x' is a list");
+    assert_error(
+        &write(
+            &dir,
+            "header.ply",
+            b"ply\nformat ascii 1.0\nelement vertex three\n",
+        ),
+        "header",
+    );
+}
+
+#[test]
+fn garbage_and_every_truncation_never_panic() {
+    let dir = scratch("ply-garbage");
+    let bytes = Spec {
+        enc: Enc::Be,
+        double: true,
+        colors: Some((ColorType::UShort, ["r", "g", "b"])),
+        normals: true,
+        extras: true,
+    }
+    .bytes();
+    let path = dir.join("t.ply");
+    for len in 0..bytes.len() {
+        std::fs::write(&path, &bytes[..len]).unwrap();
+        assert!(load_ply(&path).is_err(), "a {len}-byte prefix loaded");
+    }
+    // Deterministic pseudo-random bytes after a valid magic.
+    let mut x = 0x2545_f491_4f6c_dd1du64;
+    for _ in 0..200 {
+        let mut junk = b"ply\n".to_vec();
+        for _ in 0..64 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            junk.push(x as u8);
+        }
+        std::fs::write(&path, &junk).unwrap();
+        assert!(load_ply(&path).is_err());
+    }
+}
+
+#[test]
+fn bundled_clouds_load() {
+    let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+    assert_eq!(bunny.len(), 35947);
+    assert!(bunny.has_colors && bunny.normals.is_some());
+    let zipper = load_ply(&root().join("data/bun_zipper.ply")).unwrap();
+    assert_eq!(zipper.len(), 35947);
+    assert!(!zipper.has_colors && zipper.normals.is_none());
+    assert_eq!(
+        zipper.attributes,
+        ["x", "y", "z", "confidence", "intensity"]
+    );
+    // The same points in both files.
+    assert_eq!(bunny.bounds(), zipper.bounds());
+    let pcl = load_ply(&root().join("data/pcl_table_scene_mug_rgb.ply")).unwrap();
+    assert_eq!(pcl.len(), 209_280);
+}
+
+#[test]
+fn local_spacing_of_a_grid_is_the_analytic_mean() {
+    // A 2D square grid of spacing h: an interior point's 8 nearest are 4 at
+    // h and 4 at h·√2, so the mean is h·(1 + √2)/2.
+    let h = 0.01f32;
+    let positions: Vec<Vec3> = (0..40 * 40)
+        .map(|i| Vec3::new((i % 40) as f32 * h, (i / 40) as f32 * h, 0.5))
+        .collect();
+    let cloud = PointCloud {
+        colors: vec![Vec3::ONE; positions.len()],
+        positions,
+        ..Default::default()
+    };
+    let s = cloud.local_spacing();
+    let expected = h * (1.0 + 2f32.sqrt()) / 2.0;
+    let interior = 20 * 40 + 20;
+    assert!(
+        (s[interior] - expected).abs() < 1e-6,
+        "{} vs {expected}",
+        s[interior]
+    );
+    assert!((cloud.median_spacing() - expected).abs() < 1e-6);
+}
+
+#[test]
+fn local_spacing_equals_brute_force() {
+    let mut x = 12345u64;
+    let mut rnd = || {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (x >> 40) as f32 / (1u64 << 24) as f32
+    };
+    // A thin slab (surface-like) plus a few duplicates and outliers.
+    let mut positions: Vec<Vec3> = (0..2000)
+        .map(|_| Vec3::new(rnd(), rnd(), rnd() * 0.01))
+        .collect();
+    positions.push(positions[7]);
+    positions.push(positions[7]);
+    positions.push(Vec3::splat(5.0));
+    let cloud = PointCloud {
+        colors: vec![Vec3::ONE; positions.len()],
+        positions: positions.clone(),
+        ..Default::default()
+    };
+    let fast = cloud.local_spacing();
+    for (i, p) in positions.iter().enumerate() {
+        let mut d: Vec<f32> = positions
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, q)| p.distance(*q))
+            .collect();
+        d.sort_by(f32::total_cmp);
+        let brute = d[..8].iter().sum::<f32>() / 8.0;
+        assert!(
+            (fast[i] - brute).abs() <= 1e-5 * brute.max(1e-6),
+            "point {i}: {} vs {brute}",
+            fast[i]
+        );
+    }
+}

@@ -299,3 +299,38 @@ fn the_canary_sees_validation_errors() {
         "the validation layer reported nothing"
     );
 }
+
+#[test]
+fn every_pass_of_a_many_sample_frame_is_timed() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let scene = renderer
+            .upload(
+                &cloud(&[(Vec3::new(0.0, 0.0, -1.0), Vec3::ONE)]),
+                SplatSize::Pixels(3.0),
+            )
+            .unwrap();
+        // 12×12 samples: 289 timed scopes, more than one query pool holds.
+        let options = RenderOptions {
+            camera: camera(16, 16),
+            method: Method::Pinhole,
+            ssaa: 12,
+            background: Vec3::ZERO,
+        };
+        let timings = renderer.render(&scene, &options).unwrap().timings;
+        let count = |name: &str| {
+            timings
+                .passes
+                .iter()
+                .find(|p| p.name == name)
+                .map(|p| p.count)
+        };
+        assert_eq!(count("gbuffer.raster"), Some(144));
+        assert_eq!(count("gbuffer.resolve"), Some(144));
+        assert_eq!(count("readback"), Some(1));
+        assert!(timings
+            .passes
+            .iter()
+            .all(|p| p.gpu_ms >= 0.0 && p.gpu_ms.is_finite()));
+    });
+}

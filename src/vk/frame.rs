@@ -7,7 +7,7 @@ use std::time::Instant;
 use ash::vk;
 
 use super::Context;
-use crate::error::{Result, VkContext};
+use crate::error::{Error, Result, VkContext};
 
 /// Time spent by one named pass (summed when the name occurs several times).
 #[derive(Debug, Clone, PartialEq)]
@@ -57,7 +57,8 @@ fn add_pass(passes: &mut Vec<PassTiming>, name: &str, gpu_ms: f64, count: u32) {
     }
 }
 
-const MAX_SCOPES: u32 = 512;
+/// Scopes per timestamp query pool; a frame adds pools as it needs them.
+const POOL_SCOPES: u32 = 256;
 
 /// A command buffer being recorded. Create with [`Frame::begin`], record
 /// passes with [`Frame::pass`], finish with [`Frame::submit_and_wait`].
@@ -66,7 +67,11 @@ pub struct Frame {
     pool: vk::CommandPool,
     pub cmd: vk::CommandBuffer,
     fence: vk::Fence,
-    queries: vk::QueryPool,
+    /// Timestamp pools; scope i owns queries 2(i mod P) and 2(i mod P)+1 of
+    /// pool i div P (P = POOL_SCOPES).
+    pools: Vec<vk::QueryPool>,
+    /// The first error met while recording, returned by `submit_and_wait`.
+    deferred_error: Option<Error>,
     scopes: Vec<(String, u32)>,
     started: Instant,
 }
@@ -86,7 +91,8 @@ impl Frame {
                 .vk("vkCreateCommandPool")?,
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
-            queries: vk::QueryPool::null(),
+            pools: Vec::new(),
+            deferred_error: None,
             scopes: Vec::new(),
             started,
         };
@@ -103,26 +109,16 @@ impl Frame {
                 .create_fence(&vk::FenceCreateInfo::default(), None)
         }
         .vk("vkCreateFence")?;
-        let qinfo = vk::QueryPoolCreateInfo::default()
-            .query_type(vk::QueryType::TIMESTAMP)
-            .query_count(2 * MAX_SCOPES);
-        // SAFETY: plain object creation.
-        frame.queries =
-            unsafe { ctx.device.create_query_pool(&qinfo, None) }.vk("vkCreateQueryPool")?;
         ctx.set_name(frame.pool, name);
         ctx.set_name(frame.cmd, name);
         ctx.set_name(frame.fence, name);
-        ctx.set_name(frame.queries, name);
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: a freshly allocated buffer, recorded once; the query pool
-        // is reset before any timestamp is written into it.
+        // SAFETY: a freshly allocated buffer, recorded once.
         unsafe {
             ctx.device
                 .begin_command_buffer(frame.cmd, &begin)
                 .vk("vkBeginCommandBuffer")?;
-            ctx.device
-                .cmd_reset_query_pool(frame.cmd, frame.queries, 0, 2 * MAX_SCOPES);
         }
         Ok(frame)
     }
@@ -140,8 +136,15 @@ impl Frame {
         record: impl FnOnce(&Context, vk::CommandBuffer) -> R,
     ) -> R {
         let index = self.scopes.len() as u32;
-        let timed = index < MAX_SCOPES;
         self.ctx.begin_label(self.cmd, name);
+        // A pool that cannot be created fails the frame at submit.
+        let timed = match self.reserve_scope(index) {
+            Ok(()) => true,
+            Err(e) => {
+                self.deferred_error.get_or_insert(e);
+                false
+            }
+        };
         if timed {
             self.timestamp(2 * index);
         }
@@ -154,22 +157,49 @@ impl Frame {
         result
     }
 
-    /// Writes timestamp `query` once every earlier command has completed.
+    /// Makes sure scope `index` has a query pool, creating and resetting a
+    /// new one when the last is full.
+    fn reserve_scope(&mut self, index: u32) -> Result<()> {
+        if (index / POOL_SCOPES) < self.pools.len() as u32 {
+            return Ok(());
+        }
+        let info = vk::QueryPoolCreateInfo::default()
+            .query_type(vk::QueryType::TIMESTAMP)
+            .query_count(2 * POOL_SCOPES);
+        // SAFETY: plain object creation; the pool is reset in this command
+        // buffer (outside any render pass: passes record whole render passes)
+        // before any of its queries is written.
+        let pool =
+            unsafe { self.ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
+        self.pools.push(pool);
+        self.ctx.set_name(pool, "frame timestamps");
+        // SAFETY: see above.
+        unsafe {
+            self.ctx
+                .device
+                .cmd_reset_query_pool(self.cmd, pool, 0, 2 * POOL_SCOPES)
+        };
+        Ok(())
+    }
+
+    /// Writes timestamp `query` (a frame-wide index) once every earlier
+    /// command has completed.
     fn timestamp(&self, query: u32) {
-        // SAFETY: recording; the query was reset at `begin` and is written
-        // once (scope index i owns queries 2i and 2i+1).
+        let per_pool = 2 * POOL_SCOPES;
+        // SAFETY: recording; the query's pool exists (reserve_scope) and was
+        // reset, and the query is written once.
         unsafe {
             self.ctx.device.cmd_write_timestamp2(
                 self.cmd,
                 vk::PipelineStageFlags2::ALL_COMMANDS,
-                self.queries,
-                query,
+                self.pools[(query / per_pool) as usize],
+                query % per_pool,
             )
         };
     }
 
     /// Ends recording, submits, waits for completion and reads the timestamps.
-    pub fn submit_and_wait(self) -> Result<FrameTimings> {
+    pub fn submit_and_wait(mut self) -> Result<FrameTimings> {
         let ctx = &self.ctx;
         let cmds = [self.cmd];
         let submit = vk::SubmitInfo::default().command_buffers(&cmds);
@@ -187,21 +217,30 @@ impl Frame {
                 .vk("vkWaitForFences")?;
         }
         let wall_ms = self.started.elapsed().as_secs_f64() * 1e3;
+        if let Some(e) = self.deferred_error.take() {
+            return Err(e);
+        }
         let mut passes = Vec::new();
         let n = self.scopes.len() as u32;
         if n > 0 && ctx.info.timestamp_valid_bits > 0 {
-            let mut ticks = vec![0u64; 2 * n as usize];
-            // SAFETY: queries 0..2n were written by this completed submission.
-            unsafe {
-                ctx.device
-                    .get_query_pool_results(
-                        self.queries,
-                        0,
-                        &mut ticks,
-                        vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-                    )
-                    .vk("vkGetQueryPoolResults")?
-            };
+            let mut ticks = Vec::with_capacity(2 * n as usize);
+            for (p, pool) in self.pools.iter().enumerate() {
+                let used = (n - p as u32 * POOL_SCOPES).min(POOL_SCOPES);
+                let mut part = vec![0u64; 2 * used as usize];
+                // SAFETY: queries 0..2*used of this pool were written by this
+                // completed submission.
+                unsafe {
+                    ctx.device
+                        .get_query_pool_results(
+                            *pool,
+                            0,
+                            &mut part,
+                            vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                        )
+                        .vk("vkGetQueryPoolResults")?
+                };
+                ticks.extend(part);
+            }
             let mask = if ctx.info.timestamp_valid_bits >= 64 {
                 u64::MAX
             } else {
@@ -227,7 +266,9 @@ impl Drop for Frame {
         // the fence) or nothing was submitted; destroying the pool frees the
         // command buffer. Null handles are ignored by Vulkan.
         unsafe {
-            self.ctx.device.destroy_query_pool(self.queries, None);
+            for pool in &self.pools {
+                self.ctx.device.destroy_query_pool(*pool, None);
+            }
             self.ctx.device.destroy_fence(self.fence, None);
             self.ctx.device.destroy_command_pool(self.pool, None);
         }

@@ -31,11 +31,11 @@ rust_ok() {
 [ -f "$HOME/.cargo/env" ] && . "$HOME/.cargo/env"
 if ! rust_ok; then
     if command -v rustup >/dev/null 2>&1; then
-        rustup toolchain install stable --profile minimal >&2
+        rustup toolchain install stable --profile default >&2
         rustup default stable >&2
     else
         echo "pointlens setup: installing Rust with rustup (https://rustup.rs)" >&2
-        curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile minimal >&2
+        curl --proto "=https" --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y --profile default >&2
     fi
     . "$HOME/.cargo/env"
 fi

@@ -462,6 +462,7 @@ fn pick_device(
     for pd in devices {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: `pd` comes from this instance; `props2` chains only `driver`.
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
         let props = props2.properties;
         let name = props
@@ -486,6 +487,7 @@ fn pick_device(
                 continue;
             }
         }
+        // SAFETY: plain queries on a physical device of this instance.
         let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
         let Some((family, fprops)) = families.iter().enumerate().find(|(_, f)| {
             f.queue_flags
@@ -493,6 +495,7 @@ fn pick_device(
         }) else {
             continue;
         };
+        // SAFETY: as above.
         let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
         let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
             .iter()

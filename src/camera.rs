@@ -173,6 +173,36 @@ impl Camera {
     }
 }
 
+/// Shirley–Chiu concentric map: the square [−1, 1]² onto the unit disk,
+/// area-preserving (equal areas of the square map to equal areas of the
+/// disk) and continuous, so stratified square samples stay stratified.
+pub fn concentric_disk(a: Vec2) -> Vec2 {
+    if a == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let quarter = std::f32::consts::FRAC_PI_4;
+    let (r, theta) = if a.x.abs() > a.y.abs() {
+        (a.x, quarter * (a.y / a.x))
+    } else {
+        (a.y, 2.0 * quarter - quarter * (a.x / a.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// `count` normalised lens positions stratified over the unit disk: a
+/// Fibonacci lattice on the square ((i + ½)/S, frac(i/φ + ½)), mapped by
+/// [`concentric_disk`]. Deterministic; one sample is the lens centre.
+pub fn lens_samples(count: u32) -> Vec<Vec2> {
+    let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
+    (0..count)
+        .map(|i| {
+            let x = (i as f64 + 0.5) / count as f64;
+            let y = (i as f64 * inv_phi + 0.5).fract();
+            concentric_disk(Vec2::new(2.0 * x as f32 - 1.0, 2.0 * y as f32 - 1.0))
+        })
+        .collect()
+}
+
 /// A camera file (`--camera FILE.json`, DESIGN §2) or the camera flags: every
 /// field optional, named as in the JSON. Unknown JSON fields are ignored.
 /// [`resolve`] fills in the defaults.

@@ -80,9 +80,9 @@ pub fn ssaa_jitter(index: u32, k: u32) -> Vec2 {
     )
 }
 
-/// The eye-depth range of `positions` seen by `camera`, widened so that no
-/// point in front of the camera is clipped: (near, far), near > 0.
-pub fn depth_range(camera: &Camera, positions: &[Vec3]) -> (f32, f32) {
+/// The eye-depth range (z_min, z_max) of the `positions` in front of
+/// `camera`; None when no point is in front.
+pub fn depth_range(camera: &Camera, positions: &[Vec3]) -> Option<(f32, f32)> {
     let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
     for p in positions {
         let z = camera.eye_from_world(*p).z;
@@ -91,12 +91,37 @@ pub fn depth_range(camera: &Camera, positions: &[Vec3]) -> (f32, f32) {
             hi = hi.max(z);
         }
     }
-    if hi <= 0.0 {
+    (hi > 0.0).then_some((lo, hi))
+}
+
+/// The depth-buffer range for points in (z_min, z_max), widened so that
+/// none of them is clipped: (near, far), 0 < near < z_min.
+pub fn clip_range(range: Option<(f32, f32)>) -> (f32, f32) {
+    match range {
+        Some((lo, hi)) => {
+            let near = (lo * 0.5).max(hi * 1e-6);
+            (near, hi * 1.5 + near)
+        }
         // Nothing in front of the camera: any valid range draws nothing.
-        return (1.0, 2.0);
+        None => (1.0, 2.0),
     }
-    let near = (lo * 0.5).max(hi * 1e-6);
-    (near, hi * 1.5 + near)
+}
+
+/// One raster sample: sub-pixel jitter and normalised lens position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub jitter: Vec2,
+    pub lens_u: Vec2,
+}
+
+/// The K×K SSAA samples of a pinhole G-buffer.
+pub fn pinhole_samples(ssaa: u32) -> Vec<Sample> {
+    (0..ssaa * ssaa)
+        .map(|s| Sample {
+            jitter: ssaa_jitter(s, ssaa),
+            lens_u: Vec2::ZERO,
+        })
+        .collect()
 }
 
 /// The G-buffer images (with guard band), in `GENERAL` layout after the
@@ -146,7 +171,9 @@ impl GBuffer {
         })
     }
 
-    /// Records the K×K raster samples, each followed by its resolve.
+    /// Records one raster per sample, each followed by its resolve, as
+    /// passes `{label}.raster` and `{label}.resolve`. The color is the mean
+    /// over all samples; the eye position is the nearest sample's.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -155,10 +182,12 @@ impl GBuffer {
         resolve: &GBufferResolve,
         splats: &Buffer,
         count: u32,
-        ssaa: u32,
+        samples: &[Sample],
         background: Vec3,
+        label: &str,
     ) {
-        let n = ssaa * ssaa;
+        let n = samples.len() as u32;
+        let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let t = &self.targets;
         let resolve_images = ResolveImages {
             sample_color: &t.color,
@@ -167,9 +196,9 @@ impl GBuffer {
             gbuffer_eye: &self.eye,
             gbuffer_color: &self.color,
         };
-        for s in 0..n {
-            let push = self.view.push(ssaa_jitter(s, ssaa), Vec2::ZERO);
-            frame.pass("gbuffer.raster", |ctx, cmd| {
+        for (s, sample) in (0..n).zip(samples) {
+            let push = self.view.push(sample.jitter, sample.lens_u);
+            frame.pass(&raster_name, |ctx, cmd| {
                 let (color_src, depth_src) = if s == 0 {
                     (Access::NONE, Access::NONE)
                 } else {
@@ -194,7 +223,7 @@ impl GBuffer {
                     ],
                 );
             });
-            frame.pass("gbuffer.resolve", |ctx, cmd| {
+            frame.pass(&resolve_name, |ctx, cmd| {
                 let src = if s == 0 {
                     Access::NONE
                 } else {

@@ -52,9 +52,12 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole (more methods in later versions).
+    /// pinhole | accum (fast, rdb and layered are being built).
     #[arg(long, default_value = "pinhole")]
     method: String,
+    /// Lens samples of the accumulation reference (--method accum).
+    #[arg(long, default_value_t = 256)]
+    samples: u32,
     /// K: the G-buffer takes K×K samples per pixel (1 = hard sprites).
     #[arg(long, default_value_t = 4)]
     ssaa: u32,
@@ -224,6 +227,7 @@ fn render(args: RenderArgs) -> Result<()> {
         method,
         ssaa: args.ssaa,
         background,
+        samples: args.samples,
     };
     let rendered = renderer.render(&scene, &options)?;
 

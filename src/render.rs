@@ -8,10 +8,11 @@ use ash::vk;
 use glam::Vec3;
 use gpu_allocator::MemoryLocation;
 
+use crate::camera::lens_samples;
 use crate::camera::Camera;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
-use crate::gbuffer::{depth_range, GBuffer, RasterView};
+use crate::gbuffer::{clip_range, depth_range, pinhole_samples, GBuffer, RasterView, Sample};
 use crate::image_io::{f16_to_f32, LinearImage};
 use crate::passes::gbuffer_resolve::GBufferResolve;
 use crate::passes::splat_raster::{SplatRaster, SplatVertex};
@@ -29,14 +30,18 @@ pub const SPACING_TO_DIAMETER: f32 = 1.0;
 pub enum Method {
     /// No depth of field: the resolved G-buffer color.
     Pinhole,
+    /// The accumulation-buffer reference (DESIGN §7): the splats rendered
+    /// through `samples` lens positions with the sheared projection, each
+    /// sample anti-aliased like the G-buffer, averaged in linear light.
+    Accum,
 }
 
 /// Every method name DESIGN §8 lists, implemented or not.
-const PLANNED_METHODS: [&str; 4] = ["fast", "rdb", "layered", "accum"];
+const PLANNED_METHODS: [&str; 3] = ["fast", "rdb", "layered"];
 
 impl Method {
     /// The names of the methods this build implements.
-    pub const AVAILABLE: [&'static str; 1] = ["pinhole"];
+    pub const AVAILABLE: [&'static str; 2] = ["pinhole", "accum"];
 }
 
 impl FromStr for Method {
@@ -45,6 +50,7 @@ impl FromStr for Method {
         let available = Method::AVAILABLE.join(", ");
         match s {
             "pinhole" => Ok(Method::Pinhole),
+            "accum" => Ok(Method::Accum),
             s if PLANNED_METHODS.contains(&s) => Err(Error::InvalidArgument(format!(
                 "method '{s}' is not implemented yet; available methods: {available}"
             ))),
@@ -75,6 +81,8 @@ pub struct RenderOptions {
     pub ssaa: u32,
     /// Linear-light background color.
     pub background: Vec3,
+    /// Lens samples of `accum` (DESIGN §7; default 256).
+    pub samples: u32,
 }
 
 /// A cloud on the GPU: its splats, and what the CPU needs to frame them.
@@ -220,10 +228,17 @@ impl Renderer {
         })
     }
 
-    /// The raster view of `scene` through `camera` for a blur of at most
-    /// `max_coc_px`: depth range, splat rule and guard band (DESIGN §3).
-    pub fn raster_view(&self, scene: &Scene, camera: &Camera, max_coc_px: f32) -> RasterView {
-        let (near, far) = depth_range(camera, &scene.positions);
+    /// The raster view of `scene` through `camera`: depth range, splat rule
+    /// and a guard band for the blur of `method` (DESIGN §3).
+    pub fn raster_view(&self, scene: &Scene, camera: &Camera, method: Method) -> RasterView {
+        let range = depth_range(camera, &scene.positions);
+        let (near, far) = clip_range(range);
+        // Background pixels are a uniform color and do not move with the
+        // lens, so only the points' CoCs widen the guard band.
+        let max_coc_px = match (method, range) {
+            (Method::Pinhole, _) | (_, None) => 0.0,
+            (Method::Accum, Some((lo, hi))) => camera.max_coc_px(lo, hi),
+        };
         let max_point = self.ctx.info.point_size_max;
         let f_px = camera.f_px();
         let (splat_px, max_splat_px) = match scene.splat {
@@ -257,11 +272,13 @@ impl Renderer {
                 options.ssaa
             )));
         }
+        if options.method == Method::Accum && options.samples == 0 {
+            return Err(Error::InvalidArgument(
+                "--samples must be at least 1".to_string(),
+            ));
+        }
         let camera = &options.camera;
-        let max_coc = match options.method {
-            Method::Pinhole => 0.0,
-        };
-        let view = self.raster_view(scene, camera, max_coc);
+        let view = self.raster_view(scene, camera, options.method);
         let gbuffer = GBuffer::new(&self.ctx, &view)?;
         let (w, h) = (camera.width, camera.height);
         let readback = Buffer::new(
@@ -273,18 +290,34 @@ impl Renderer {
         )?;
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
+        let (samples, label) = match options.method {
+            Method::Pinhole => (pinhole_samples(options.ssaa), "gbuffer"),
+            Method::Accum => {
+                let jitters = pinhole_samples(options.ssaa);
+                let samples: Vec<Sample> = lens_samples(options.samples)
+                    .into_iter()
+                    .flat_map(|u| {
+                        jitters.iter().map(move |j| Sample {
+                            jitter: j.jitter,
+                            lens_u: u,
+                        })
+                    })
+                    .collect();
+                (samples, "accum")
+            }
+        };
         gbuffer.record(
             &mut frame,
             &self.raster,
             &self.resolve,
             &scene.vertices,
             scene.count,
-            options.ssaa,
+            &samples,
             options.background,
+            label,
         );
-        let result = match options.method {
-            Method::Pinhole => &gbuffer.color,
-        };
+        // Both methods' result is the color the samples resolved to.
+        let result = &gbuffer.color;
         frame.pass("readback", |ctx, cmd| {
             image_barrier(ctx, cmd, result, Access::COMPUTE_WRITE, Access::COPY_SRC);
             let g = view.guard as i32;

@@ -1091,3 +1091,36 @@ fn print_camera_round_trips() {
         );
     }
 }
+
+#[test]
+fn concentric_map_is_area_preserving_and_inside_the_disk() {
+    use pointlens::camera::{concentric_disk, lens_samples};
+    // Corners and edge midpoints of the square land on the unit circle.
+    for a in [
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 1.0),
+        Vec2::new(-1.0, 0.0),
+        Vec2::new(1.0, 1.0),
+    ] {
+        assert!((concentric_disk(a).length() - 1.0).abs() < 1e-6, "{a}");
+    }
+    assert_eq!(concentric_disk(Vec2::ZERO), Vec2::ZERO);
+    // (1, 0) maps to angle 0; (1, 1) to 45°; (0, 1) to 90°.
+    assert!((concentric_disk(Vec2::new(1.0, 1.0)) - Vec2::splat(0.5f32.sqrt())).length() < 1e-6);
+    assert!((concentric_disk(Vec2::new(0.0, 1.0)) - Vec2::Y).length() < 1e-6);
+    // Area preservation: the inner half-size square [−½, ½]² (a quarter of
+    // the area) maps onto the disk of radius ½ (a quarter of the area).
+    assert!((concentric_disk(Vec2::new(0.5, 0.2)).length() - 0.5).abs() < 1e-6);
+    // Lens samples: inside the disk, centred, and spread evenly: a quarter
+    // of them within radius ½ (equal area), within one sample.
+    let s = lens_samples(256);
+    assert!(s.iter().all(|u| u.length() <= 1.0 + 1e-6));
+    let mean = s.iter().copied().sum::<Vec2>() / 256.0;
+    assert!(mean.length() < 0.02, "mean {mean}");
+    let inner = s.iter().filter(|u| u.length() < 0.5).count();
+    assert!(
+        (63..=65).contains(&inner),
+        "{inner} of 256 within radius 1/2"
+    );
+    assert_eq!(lens_samples(1), vec![Vec2::ZERO]);
+}

@@ -177,7 +177,7 @@ fn bad_input_gives_one_line_and_no_output() {
     );
     assert_fails(
         &["render", &b, "-o", &out_s, "--method", "fast"],
-        "available methods: pinhole",
+        "available methods: pinhole, accum",
         &out,
     );
     assert_fails(

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{assert_matches_reference, root, with_gpu};
+use common::{assert_matches_reference, camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
@@ -10,30 +10,6 @@ use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
-
-fn cloud(points: &[(Vec3, Vec3)]) -> PointCloud {
-    PointCloud {
-        positions: points.iter().map(|p| p.0).collect(),
-        colors: points.iter().map(|p| p.1).collect(),
-        normals: None,
-        has_colors: true,
-        attributes: vec!["x".into(), "y".into(), "z".into()],
-    }
-}
-
-/// A camera at the origin looking down −z, 40° vertical field of view.
-fn camera(width: u32, height: u32) -> Camera {
-    Camera {
-        width,
-        height,
-        eye: Vec3::ZERO,
-        target: Vec3::new(0.0, 0.0, -1.0),
-        up: Vec3::Y,
-        fovy_deg: 40.0,
-        aperture_radius: 0.0,
-        focus_distance: 1.0,
-    }
-}
 
 fn render(
     renderer: &Renderer,
@@ -48,6 +24,7 @@ fn render(
         method: Method::Pinhole,
         ssaa,
         background: Vec3::ZERO,
+        samples: 1,
     };
     renderer.render(&scene, &options).expect("render").image
 }
@@ -316,6 +293,7 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
             method: Method::Pinhole,
             ssaa: 12,
             background: Vec3::ZERO,
+            samples: 1,
         };
         let timings = renderer.render(&scene, &options).unwrap().timings;
         let count = |name: &str| {

@@ -8,9 +8,12 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use glam::Vec3;
+use pointlens::camera::Camera;
 use pointlens::image_io::{read_image, write_image, LinearImage};
 use pointlens::metrics;
 use pointlens::vk::{Context, ContextOptions};
+use pointlens::PointCloud;
 
 /// Runs `test` with a validated lavapipe context, then checks the canary.
 pub fn with_gpu<R>(test: impl FnOnce(&Arc<Context>) -> R) -> R {
@@ -111,4 +114,29 @@ pub fn write_ascii_ply(path: &Path, points: &[([f32; 3], [u8; 3])]) {
         s += &format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], c[0], c[1], c[2]);
     }
     std::fs::write(path, s).expect("write ply");
+}
+
+/// A cloud of (position, linear color) pairs.
+pub fn cloud(points: &[(Vec3, Vec3)]) -> PointCloud {
+    PointCloud {
+        positions: points.iter().map(|p| p.0).collect(),
+        colors: points.iter().map(|p| p.1).collect(),
+        normals: None,
+        has_colors: true,
+        attributes: vec!["x".into(), "y".into(), "z".into()],
+    }
+}
+
+/// A pinhole camera at the origin looking down −z, 40° vertical field of view.
+pub fn camera(width: u32, height: u32) -> Camera {
+    Camera {
+        width,
+        height,
+        eye: Vec3::ZERO,
+        target: Vec3::new(0.0, 0.0, -1.0),
+        up: Vec3::Y,
+        fovy_deg: 40.0,
+        aperture_radius: 0.0,
+        focus_distance: 1.0,
+    }
 }

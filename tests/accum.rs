@@ -1,0 +1,196 @@
+//! The accumulation reference (`--method accum`, DESIGN §7) on lavapipe.
+
+mod common;
+
+use common::{camera, cloud, root, with_gpu};
+use glam::{Vec2, Vec3};
+use pointlens::camera::{self, Camera, CameraSpec};
+use pointlens::image_io::LinearImage;
+use pointlens::metrics::psnr;
+use pointlens::ply::load_ply;
+use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::PointCloud;
+
+fn accum(
+    renderer: &Renderer,
+    cloud: &PointCloud,
+    splat: SplatSize,
+    cam: Camera,
+    ssaa: u32,
+    samples: u32,
+) -> LinearImage {
+    let scene = renderer.upload(cloud, splat).unwrap();
+    let options = RenderOptions {
+        camera: cam,
+        method: Method::Accum,
+        ssaa,
+        background: Vec3::ZERO,
+        samples,
+    };
+    renderer.render(&scene, &options).unwrap().image
+}
+
+/// Energy (sum of the red channel), centroid and radius of gyration
+/// (sqrt of the mean squared distance to the centroid) of an image.
+fn moments(img: &LinearImage) -> (f32, Vec2, f32) {
+    let at = |i: usize| {
+        Vec2::new(
+            (i as u32 % img.width) as f32 + 0.5,
+            (i as u32 / img.width) as f32 + 0.5,
+        )
+    };
+    let energy: f32 = img.pixels.iter().map(|p| p[0]).sum();
+    let c = img
+        .pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p[0] * at(i))
+        .sum::<Vec2>()
+        / energy;
+    let m2 = img
+        .pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p[0] * at(i).distance_squared(c))
+        .sum::<f32>()
+        / energy;
+    (energy, c, m2.sqrt())
+}
+
+#[test]
+fn an_out_of_focus_point_blurs_to_a_disk_of_the_coc_diameter() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let mut cam = camera(64, 64);
+        cam.focus_distance = 0.5;
+        // f_px = 32 / tan 20° = 87.919; at z = 1, S = 0.5:
+        // c = 2R · f_px · |z − S| / (z S) = 2R · 87.919 · 1 = 20 px for R = 0.113741.
+        cam.aperture_radius = 0.113741;
+        let p = Vec3::new(0.05, 0.02, -1.0);
+        assert!((cam.coc_px(1.0) - 20.0).abs() < 1e-3);
+        let img = accum(
+            &renderer,
+            &cloud(&[(p, Vec3::ONE)]),
+            SplatSize::Pixels(1.0),
+            cam,
+            2,
+            256,
+        );
+        let (energy, centre, gyration) = moments(&img);
+        // A uniform disk of radius r has a radius of gyration r/√2; the
+        // 1-px splat adds 1/6 px² of its own.
+        let diameter = 2.0 * (2.0 * (gyration * gyration - 1.0 / 6.0)).sqrt();
+        assert!(
+            (diameter - 20.0).abs() <= 1.0,
+            "disk diameter {diameter}, CoC 20"
+        );
+        assert!(
+            (energy - 1.0).abs() < 0.01,
+            "energy {energy}: blur neither adds nor loses light"
+        );
+        let (projected, _) = cam.project(p).unwrap();
+        assert!(
+            centre.distance(projected) < 0.25,
+            "disk centre {centre}, projection {projected}"
+        );
+        // Nothing lands outside the disk (+1 px for the splat and AA).
+        for (i, px) in img.pixels.iter().enumerate() {
+            let q = Vec2::new((i % 64) as f32 + 0.5, (i / 64) as f32 + 0.5);
+            if q.distance(projected) > 11.5 {
+                assert_eq!(px[0], 0.0, "light at {q}");
+            }
+        }
+    });
+}
+
+#[test]
+fn a_point_in_focus_stays_one_splat() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let mut cam = camera(32, 32);
+        cam.focus_distance = 1.0;
+        cam.aperture_radius = 0.2;
+        let f_px = cam.f_px();
+        // Centred on pixel (20, 12): the 1-px splat covers that pixel exactly.
+        let p = Vec3::new(4.5 / f_px, 3.5 / f_px, -1.0);
+        let img = accum(
+            &renderer,
+            &cloud(&[(p, Vec3::ONE)]),
+            SplatSize::Pixels(1.0),
+            cam,
+            2,
+            64,
+        );
+        let lit: Vec<usize> = (0..img.pixels.len())
+            .filter(|&i| img.pixels[i][0] > 1e-3)
+            .collect();
+        assert_eq!(lit, vec![12 * 32 + 20]);
+        assert!((img.pixels[12 * 32 + 20][0] - 1.0).abs() < 2e-3);
+    });
+}
+
+#[test]
+fn a_constant_plane_keeps_its_color_at_every_coc() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let color = Vec3::new(0.7, 0.3, 0.1);
+        // A fronto-parallel plane at z = 2, much wider than the view, points
+        // every 5 mm as 6 mm squares (no gaps).
+        let mut points = Vec::new();
+        for j in -200..=200 {
+            for i in -200..=200 {
+                points.push((Vec3::new(i as f32 * 0.005, j as f32 * 0.005, -2.0), color));
+            }
+        }
+        let plane = cloud(&points);
+        for (focus, radius) in [(2.0, 0.05), (1.0, 0.01), (1.0, 0.04), (4.0, 0.1)] {
+            let mut cam = camera(40, 30);
+            cam.focus_distance = focus;
+            cam.aperture_radius = radius;
+            let img = accum(&renderer, &plane, SplatSize::World(0.006), cam, 2, 16);
+            for (i, px) in img.pixels.iter().enumerate() {
+                let got = Vec3::from_slice(&px[..3]);
+                assert!(
+                    (got - color).abs().max_element() < 2e-3,
+                    "S {focus}, R {radius} (CoC {:.1} px): pixel {i} is {got}",
+                    cam.coc_px(2.0)
+                );
+            }
+        }
+    });
+}
+
+#[test]
+fn accum_converges_as_samples_grow() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+        let (lo, hi) = bunny.bounds();
+        let spec = CameraSpec {
+            width: Some(64),
+            height: Some(48),
+            ..CameraSpec::default()
+        };
+        // The default camera: focus on the centre, front and back blurred.
+        let cam = camera::resolve(&spec, lo, hi, &bunny.positions).unwrap();
+        let reference = accum(&renderer, &bunny, SplatSize::Spacing, cam, 2, 256);
+        let errors: Vec<f64> = [4, 16, 64]
+            .map(|s| {
+                psnr(
+                    &reference,
+                    &accum(&renderer, &bunny, SplatSize::Spacing, cam, 2, s),
+                )
+                .unwrap()
+            })
+            .to_vec();
+        assert!(
+            errors[0] < errors[1] && errors[1] < errors[2],
+            "PSNR against 256 samples: {errors:?}"
+        );
+        assert!(
+            errors[2] > 30.0,
+            "64 samples only {} dB from 256",
+            errors[2]
+        );
+    });
+}

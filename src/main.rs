@@ -11,7 +11,8 @@ use glam::Vec3;
 
 use pointlens::camera::{self, CameraSpec};
 use pointlens::cloud::srgb_to_linear;
-use pointlens::image_io::{check_output_path, write_atomically, write_image};
+use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
+use pointlens::metrics;
 use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions, FrameTimings};
@@ -31,6 +32,16 @@ struct Cli {
 enum Command {
     /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float) image.
     Render(Box<RenderArgs>),
+    /// Compare two images (PNG or EXR) of the same size: PSNR (dB) and max
+    /// absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
+    Compare {
+        a: PathBuf,
+        b: PathBuf,
+        /// Write the per-pixel difference as a heat map (black: none, white:
+        /// the largest difference).
+        #[arg(long, value_name = "D.png")]
+        diff: Option<PathBuf>,
+    },
     /// Print point count, bounds and attributes of a point cloud.
     Info {
         /// PLY file.
@@ -144,6 +155,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Render(args) => render(*args),
+        Command::Compare { a, b, diff } => compare(&a, &b, diff.as_deref()),
         Command::Info { input } => info(&input),
     };
     match result {
@@ -160,6 +172,28 @@ fn main() -> ExitCode {
 fn info(input: &Path) -> Result<()> {
     let cloud = load_ply(input)?;
     print!("{}", cloud.info_text(input));
+    Ok(())
+}
+
+fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
+    if let Some(d) = diff {
+        check_output_path(d)?;
+    }
+    let (ia, ib) = (read_image(a)?, read_image(b)?);
+    let psnr = metrics::psnr(&ia, &ib)?;
+    let ssim = metrics::ssim(&ia, &ib)?;
+    let max = metrics::max_abs_error(&ia, &ib)?;
+    if let Some(d) = diff {
+        let heat = metrics::difference_image(&ia, &ib, max.max(1.0 / 255.0))?;
+        write_image(&heat, d)?;
+    }
+    if psnr.is_infinite() {
+        println!("psnr: inf");
+    } else {
+        println!("psnr: {psnr:.4}");
+    }
+    println!("ssim: {ssim:.6}");
+    println!("max_abs_error: {max:.6}");
     Ok(())
 }
 

@@ -1,5 +1,6 @@
-//! Image error metrics (DESIGN §8 `compare`): computed on sRGB-encoded
-//! R, G, B values in [0, 1].
+//! Image error metrics (DESIGN §8 `compare`): PSNR and max error over the
+//! sRGB-encoded R, G, B values in [0, 1]; SSIM (Wang et al. 2004) on their
+//! luma.
 
 use crate::error::{Error, Result};
 use crate::image_io::{linear_to_srgb, LinearImage};
@@ -78,4 +79,85 @@ pub fn difference_image(a: &LinearImage, b: &LinearImage, full_scale: f64) -> Re
         height: a.height,
         pixels,
     })
+}
+
+/// Luma of the sRGB-encoded image (Y′ = 0.299 R′ + 0.587 G′ + 0.114 B′).
+fn luma(img: &LinearImage) -> Vec<f64> {
+    img.pixels
+        .iter()
+        .map(|p| {
+            let [r, g, b] = [0, 1, 2].map(|c| linear_to_srgb(p[c]) as f64);
+            0.299 * r + 0.587 * g + 0.114 * b
+        })
+        .collect()
+}
+
+/// Normalised 1D Gaussian of `size` taps, σ = 1.5.
+fn gaussian(size: usize) -> Vec<f64> {
+    let c = (size as f64 - 1.0) / 2.0;
+    let w: Vec<f64> = (0..size)
+        .map(|i| (-((i as f64 - c).powi(2)) / (2.0 * 1.5 * 1.5)).exp())
+        .collect();
+    let sum: f64 = w.iter().sum();
+    w.into_iter().map(|v| v / sum).collect()
+}
+
+/// Separable 'valid' filtering of a w×h image with kernels `kx`, `ky`.
+fn filter_valid(img: &[f64], w: usize, h: usize, kx: &[f64], ky: &[f64]) -> Vec<f64> {
+    let (ow, oh) = (w + 1 - kx.len(), h + 1 - ky.len());
+    let rows: Vec<f64> = (0..h)
+        .flat_map(|y| {
+            (0..ow).map(move |x| {
+                kx.iter()
+                    .enumerate()
+                    .map(|(i, k)| k * img[y * w + x + i])
+                    .sum()
+            })
+        })
+        .collect();
+    (0..oh)
+        .flat_map(|y| {
+            let rows = &rows;
+            (0..ow).map(move |x| {
+                ky.iter()
+                    .enumerate()
+                    .map(|(j, k)| k * rows[(y + j) * ow + x])
+                    .sum()
+            })
+        })
+        .collect()
+}
+
+/// Mean SSIM (Wang, Bovik, Sheikh and Simoncelli 2004) on luma: an 11×11
+/// Gaussian window with σ = 1.5 over every position where it fits inside the
+/// image (a window as large as the image where the image is smaller),
+/// K1 = 0.01, K2 = 0.03, dynamic range 1. Identical images give 1.
+pub fn ssim(a: &LinearImage, b: &LinearImage) -> Result<f64> {
+    check_sizes(a, b)?;
+    let (w, h) = (a.width as usize, a.height as usize);
+    if w == 0 || h == 0 {
+        return Ok(1.0);
+    }
+    let (kx, ky) = (gaussian(w.min(11)), gaussian(h.min(11)));
+    let (x, y) = (luma(a), luma(b));
+    let product = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(u, v)| u * v).collect::<Vec<f64>>();
+    let f = |img: &[f64]| filter_valid(img, w, h, &kx, &ky);
+    let (mx, my) = (f(&x), f(&y));
+    let (sxx, syy, sxy) = (
+        f(&product(&x, &x)),
+        f(&product(&y, &y)),
+        f(&product(&x, &y)),
+    );
+    let (c1, c2) = (0.01f64.powi(2), 0.03f64.powi(2));
+    let n = mx.len() as f64;
+    let total: f64 = (0..mx.len())
+        .map(|i| {
+            let (ux, uy) = (mx[i], my[i]);
+            let vx = sxx[i] - ux * ux;
+            let vy = syy[i] - uy * uy;
+            let cxy = sxy[i] - ux * uy;
+            ((2.0 * ux * uy + c1) * (2.0 * cxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
+        })
+        .sum();
+    Ok(total / n)
 }

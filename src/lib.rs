@@ -13,6 +13,7 @@ pub mod image_io;
 pub mod metrics;
 pub mod passes;
 pub mod ply;
+pub mod reference;
 pub mod render;
 pub mod vk;
 

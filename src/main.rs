@@ -13,6 +13,7 @@ use pointlens::camera::{self, CameraSpec};
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
 use pointlens::metrics;
+use pointlens::passes::fast::FastWeights;
 use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions, FrameTimings};
@@ -63,9 +64,13 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole | accum (fast, rdb and layered are being built).
+    /// pinhole | fast | accum (rdb and layered are being built).
     #[arg(long, default_value = "pinhole")]
     method: String,
+    /// Weights of the fast method: area (by inverse CoC area) or uniform
+    /// (the paper's plain mean).
+    #[arg(long, default_value = "area", value_parser = ["area", "uniform"])]
+    fast_weights: String,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = 256)]
     samples: u32,
@@ -198,7 +203,10 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let method: Method = args.method.parse()?;
+    let method = match args.method.parse()? {
+        Method::Fast(_) if args.fast_weights == "uniform" => Method::Fast(FastWeights::Uniform),
+        m => m,
+    };
     check_output_path(&args.output)?;
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
         bail!("--splat-size must be a positive number, not {w}");

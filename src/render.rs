@@ -14,10 +14,12 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range, pinhole_samples, GBuffer, RasterView, Sample};
 use crate::image_io::{f16_to_f32, LinearImage};
+use crate::passes::fast::{Fast, FastImages, FastWeights};
 use crate::passes::gbuffer_resolve::GBufferResolve;
-use crate::passes::splat_raster::{SplatRaster, SplatVertex};
+use crate::passes::splat_raster::{SplatRaster, SplatVertex, EYE_FORMAT};
 use crate::vk::{
-    image_barrier, memory_barrier, slice_as_bytes, Access, Buffer, Context, Frame, FrameTimings,
+    image_barriers, memory_barrier, slice_as_bytes, Access, Buffer, Context, Frame, FrameTimings,
+    Image,
 };
 
 /// A splat's default world diameter is this multiple of its local point
@@ -30,6 +32,9 @@ pub const SPACING_TO_DIAMETER: f32 = 1.0;
 pub enum Method {
     /// No depth of field: the resolved G-buffer color.
     Pinhole,
+    /// Zhao's fast approximation: a z-tested gather bounded by tile CoCs
+    /// (DESIGN §4).
+    Fast(FastWeights),
     /// The accumulation-buffer reference (DESIGN §7): the splats rendered
     /// through `samples` lens positions with the sheared projection, each
     /// sample anti-aliased like the G-buffer, averaged in linear light.
@@ -37,11 +42,11 @@ pub enum Method {
 }
 
 /// Every method name DESIGN §8 lists, implemented or not.
-const PLANNED_METHODS: [&str; 3] = ["fast", "rdb", "layered"];
+const PLANNED_METHODS: [&str; 2] = ["rdb", "layered"];
 
 impl Method {
     /// The names of the methods this build implements.
-    pub const AVAILABLE: [&'static str; 2] = ["pinhole", "accum"];
+    pub const AVAILABLE: [&'static str; 3] = ["pinhole", "fast", "accum"];
 }
 
 impl FromStr for Method {
@@ -51,6 +56,7 @@ impl FromStr for Method {
         match s {
             "pinhole" => Ok(Method::Pinhole),
             "accum" => Ok(Method::Accum),
+            "fast" => Ok(Method::Fast(FastWeights::Area)),
             s if PLANNED_METHODS.contains(&s) => Err(Error::InvalidArgument(format!(
                 "method '{s}' is not implemented yet; available methods: {available}"
             ))),
@@ -117,11 +123,21 @@ pub struct Rendered {
     pub guard: u32,
 }
 
+/// The largest CoC a G-buffer pixel can have: a point's in `range`, or the
+/// background's (the surface at infinity).
+fn max_gbuffer_coc(camera: &Camera, range: Option<(f32, f32)>) -> f32 {
+    let background = camera.coc_px(f32::INFINITY);
+    range.map_or(background, |(lo, hi)| {
+        camera.max_coc_px(lo, hi).max(background)
+    })
+}
+
 /// Owns the pipelines; renders any number of frames of any scene.
 pub struct Renderer {
     ctx: Arc<Context>,
     raster: SplatRaster,
     resolve: GBufferResolve,
+    fast: Fast,
 }
 
 fn unorm16(c: f32) -> u16 {
@@ -134,6 +150,7 @@ impl Renderer {
             ctx: ctx.clone(),
             raster: SplatRaster::new(ctx)?,
             resolve: GBufferResolve::new(ctx)?,
+            fast: Fast::new(ctx)?,
         })
     }
 
@@ -235,9 +252,10 @@ impl Renderer {
         let (near, far) = clip_range(range);
         // Background pixels are a uniform color and do not move with the
         // lens, so only the points' CoCs widen the guard band.
-        let max_coc_px = match (method, range) {
-            (Method::Pinhole, _) | (_, None) => 0.0,
-            (Method::Accum, Some((lo, hi))) => camera.max_coc_px(lo, hi),
+        let max_coc_px = match method {
+            Method::Pinhole => 0.0,
+            Method::Accum => range.map_or(0.0, |(lo, hi)| camera.max_coc_px(lo, hi)),
+            Method::Fast(_) => max_gbuffer_coc(camera, range),
         };
         let max_point = self.ctx.info.point_size_max;
         let f_px = camera.f_px();
@@ -266,6 +284,25 @@ impl Renderer {
 
     /// Renders one frame of `scene`.
     pub fn render(&self, scene: &Scene, options: &RenderOptions) -> Result<Rendered> {
+        self.render_frame(scene, options, false).map(|(r, _)| r)
+    }
+
+    /// Renders one frame of `scene` and also reads back its G-buffer.
+    pub fn render_with_gbuffer(
+        &self,
+        scene: &Scene,
+        options: &RenderOptions,
+    ) -> Result<(Rendered, HostGBuffer)> {
+        let (rendered, gbuffer) = self.render_frame(scene, options, true)?;
+        Ok((rendered, gbuffer.expect("asked for")))
+    }
+
+    fn render_frame(
+        &self,
+        scene: &Scene,
+        options: &RenderOptions,
+        keep_gbuffer: bool,
+    ) -> Result<(Rendered, Option<HostGBuffer>)> {
         if options.ssaa == 0 || options.ssaa > 16 {
             return Err(Error::InvalidArgument(format!(
                 "--ssaa must be between 1 and 16, not {}",
@@ -281,6 +318,16 @@ impl Renderer {
         let view = self.raster_view(scene, camera, options.method);
         let gbuffer = GBuffer::new(&self.ctx, &view)?;
         let (w, h) = (camera.width, camera.height);
+        let host = |name: &str, image: &Image| {
+            let texel = if image.format == EYE_FORMAT { 16 } else { 8 };
+            Buffer::new(
+                &self.ctx,
+                name,
+                image.width as u64 * image.height as u64 * texel,
+                vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuToCpu,
+            )
+        };
         let readback = Buffer::new(
             &self.ctx,
             "readback",
@@ -288,10 +335,17 @@ impl Renderer {
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
+        let gbuffer_readback = match keep_gbuffer {
+            true => Some((
+                host("gbuffer color readback", &gbuffer.color)?,
+                host("gbuffer eye readback", &gbuffer.eye)?,
+            )),
+            false => None,
+        };
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         let (samples, label) = match options.method {
-            Method::Pinhole => (pinhole_samples(options.ssaa), "gbuffer"),
+            Method::Pinhole | Method::Fast(_) => (pinhole_samples(options.ssaa), "gbuffer"),
             Method::Accum => {
                 let jitters = pinhole_samples(options.ssaa);
                 let samples: Vec<Sample> = lens_samples(options.samples)
@@ -316,39 +370,39 @@ impl Renderer {
             options.background,
             label,
         );
-        // Both methods' result is the color the samples resolved to.
-        let result = &gbuffer.color;
+        let fast_images = match options.method {
+            Method::Fast(weights) => {
+                let images = FastImages::new(&self.ctx, &gbuffer)?;
+                let range = depth_range(camera, &scene.positions);
+                let max_coc = max_gbuffer_coc(camera, range);
+                self.fast
+                    .record(&mut frame, &gbuffer, &images, camera, weights, max_coc);
+                Some(images)
+            }
+            _ => None,
+        };
+        // Pinhole and accum: the color the samples resolved to.
+        let result = fast_images.as_ref().map_or(&gbuffer.color, |f| &f.result);
         frame.pass("readback", |ctx, cmd| {
-            image_barrier(ctx, cmd, result, Access::COMPUTE_WRITE, Access::COPY_SRC);
-            let g = view.guard as i32;
-            let region = vk::BufferImageCopy {
-                buffer_offset: 0,
-                buffer_row_length: 0,
-                buffer_image_height: 0,
-                image_subresource: vk::ImageSubresourceLayers {
-                    aspect_mask: vk::ImageAspectFlags::COLOR,
-                    mip_level: 0,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                },
-                image_offset: vk::Offset3D { x: g, y: g, z: 0 },
-                image_extent: vk::Extent3D {
-                    width: w,
-                    height: h,
-                    depth: 1,
-                },
-            };
-            // SAFETY: the region lies inside the image (guard band on every
-            // side) and the buffer holds w*h rgba16f texels.
-            unsafe {
-                ctx.device.cmd_copy_image_to_buffer(
-                    cmd,
-                    result.raw,
-                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-                    readback.raw,
-                    &[region],
-                )
-            };
+            let mut images = vec![result];
+            if gbuffer_readback.is_some() && !std::ptr::eq(result, &gbuffer.color) {
+                images.push(&gbuffer.color);
+            }
+            if gbuffer_readback.is_some() {
+                images.push(&gbuffer.eye);
+            }
+            let list: Vec<_> = images
+                .iter()
+                .map(|i| (*i, Access::COMPUTE_READ_WRITE, Access::COPY_SRC))
+                .collect();
+            image_barriers(ctx, cmd, &list);
+            let g = view.guard;
+            copy_to_host(ctx, cmd, result, [g, g], [w, h], &readback);
+            if let Some((color, eye)) = &gbuffer_readback {
+                let full = [gbuffer.color.width, gbuffer.color.height];
+                copy_to_host(ctx, cmd, &gbuffer.color, [0, 0], full, color);
+                copy_to_host(ctx, cmd, &gbuffer.eye, [0, 0], full, eye);
+            }
             memory_barrier(
                 ctx,
                 cmd,
@@ -362,18 +416,9 @@ impl Renderer {
         let mut timings = frame.submit_and_wait()?;
 
         let started = std::time::Instant::now();
-        let bytes = readback
-            .mapped()
-            .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))?;
-        let pixels = bytes
-            .chunks_exact(8)
-            .map(|t| {
-                let h = |i: usize| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]));
-                [h(0), h(1), h(2), h(3)]
-            })
-            .collect();
+        let pixels = rgba16f_texels(host_bytes(&readback)?);
         timings.wall_ms += started.elapsed().as_secs_f64() * 1e3;
-        Ok(Rendered {
+        let rendered = Rendered {
             image: LinearImage {
                 width: w,
                 height: h,
@@ -381,6 +426,105 @@ impl Renderer {
             },
             timings,
             guard: view.guard,
-        })
+        };
+        let host_gbuffer = match &gbuffer_readback {
+            Some((color, eye)) => {
+                let mapped = host_bytes;
+                Some(HostGBuffer {
+                    width: gbuffer.color.width,
+                    height: gbuffer.color.height,
+                    guard: view.guard,
+                    color: rgba16f_texels(mapped(color)?),
+                    eye: mapped(eye)?
+                        .chunks_exact(16)
+                        .map(|t| {
+                            std::array::from_fn(|i| {
+                                f32::from_le_bytes([
+                                    t[4 * i],
+                                    t[4 * i + 1],
+                                    t[4 * i + 2],
+                                    t[4 * i + 3],
+                                ])
+                            })
+                        })
+                        .collect(),
+                })
+            }
+            None => None,
+        };
+        Ok((rendered, host_gbuffer))
     }
+}
+
+/// A G-buffer read back to the host (guard band included), for CPU
+/// references and tests.
+#[derive(Debug, Clone)]
+pub struct HostGBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub guard: u32,
+    /// Linear color, alpha = coverage.
+    pub color: Vec<[f32; 4]>,
+    /// Eye position (DESIGN §2's eye space; z = +inf for background),
+    /// w = coverage.
+    pub eye: Vec<[f32; 4]>,
+}
+
+/// The bytes of a host-visible readback buffer.
+fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
+    buffer
+        .mapped()
+        .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))
+}
+
+/// Decodes tightly packed rgba16f texels.
+fn rgba16f_texels(bytes: &[u8]) -> Vec<[f32; 4]> {
+    bytes
+        .chunks_exact(8)
+        .map(|t| std::array::from_fn(|i| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))))
+        .collect()
+}
+
+/// Records a copy of the `extent` region at `offset` of a color image in
+/// `TRANSFER_SRC_OPTIMAL` layout into `buffer`, tightly packed.
+fn copy_to_host(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    image: &Image,
+    offset: [u32; 2],
+    extent: [u32; 2],
+    buffer: &Buffer,
+) {
+    let region = vk::BufferImageCopy {
+        buffer_offset: 0,
+        buffer_row_length: 0,
+        buffer_image_height: 0,
+        image_subresource: vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        },
+        image_offset: vk::Offset3D {
+            x: offset[0] as i32,
+            y: offset[1] as i32,
+            z: 0,
+        },
+        image_extent: vk::Extent3D {
+            width: extent[0],
+            height: extent[1],
+            depth: 1,
+        },
+    };
+    // SAFETY: the caller's region lies inside the image and the buffer holds
+    // extent[0]·extent[1] texels of the image's format.
+    unsafe {
+        ctx.device.cmd_copy_image_to_buffer(
+            cmd,
+            image.raw,
+            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+            buffer.raw,
+            &[region],
+        )
+    };
 }

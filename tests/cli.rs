@@ -176,8 +176,8 @@ fn bad_input_gives_one_line_and_no_output() {
         &dir.join("x.jpg"),
     );
     assert_fails(
-        &["render", &b, "-o", &out_s, "--method", "fast"],
-        "available methods: pinhole, accum",
+        &["render", &b, "-o", &out_s, "--method", "rdb"],
+        "available methods: pinhole, fast, accum",
         &out,
     );
     assert_fails(
@@ -262,7 +262,7 @@ fn bad_input_gives_one_line_and_no_output() {
 
     // An existing output survives a failed render untouched.
     std::fs::write(&out, b"old").unwrap();
-    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "fast"]);
+    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "rdb"]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"old");
 }

@@ -1,0 +1,51 @@
+#version 460
+// Fast DOF, pass 4 (Zhao §3.3, DESIGN §4): each output pixel Q averages the
+// colors of the pixels P with |p − q| <= c_P / 2 and z_P <= z_Q, weighted
+// by P's weight, gathering only as far as its tile's dilated radius.
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
+layout(binding = 1, rgba32f) uniform readonly image2D gbuffer_eye;
+layout(binding = 2, rg32f) uniform readonly image2D coc_weight;
+layout(binding = 3, r32f) uniform readonly image2D tile_radius;
+layout(binding = 4, rgba16f) uniform writeonly image2D result;
+
+layout(push_constant, std430) uniform Push {
+    ivec2 extent;   // G-buffer size
+    ivec2 origin;   // first output pixel (the guard band)
+    ivec2 size;     // output size
+    int tile;
+} pc;
+
+void main() {
+    ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(gl_GlobalInvocationID.xy, uvec2(pc.size)))) {
+        return;
+    }
+    float zq = imageLoad(gbuffer_eye, q).z;
+    float radius = imageLoad(tile_radius, q / pc.tile).x;
+    int r = int(floor(radius));
+    vec3 sum = vec3(0.0);
+    float weight = 0.0;
+    for (int dy = -r; dy <= r; ++dy) {
+        for (int dx = -r; dx <= r; ++dx) {
+            ivec2 p = q + ivec2(dx, dy);
+            if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, pc.extent))) {
+                continue;
+            }
+            vec2 cw = imageLoad(coc_weight, p).xy;
+            float d2 = float(dx * dx + dy * dy);
+            if (d2 > 0.25 * cw.x * cw.x) {
+                continue;
+            }
+            if (imageLoad(gbuffer_eye, p).z > zq) {
+                continue;
+            }
+            sum += cw.y * imageLoad(gbuffer_color, p).rgb;
+            weight += cw.y;
+        }
+    }
+    // Q itself always takes part (distance 0, same depth): weight > 0.
+    imageStore(result, q, vec4(sum / weight, 1.0));
+}

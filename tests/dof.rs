@@ -1,0 +1,57 @@
+//! Properties every depth-of-field method must have, checked for each.
+
+mod common;
+
+use common::{camera, cloud, with_gpu};
+use glam::Vec3;
+use pointlens::passes::fast::FastWeights;
+use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+
+const METHODS: [Method; 3] = [
+    Method::Fast(FastWeights::Area),
+    Method::Fast(FastWeights::Uniform),
+    Method::Accum,
+];
+
+#[test]
+fn a_constant_plane_keeps_its_color_at_every_coc() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let color = Vec3::new(0.7, 0.3, 0.1);
+        // A fronto-parallel plane at z = 2, much wider than the view, points
+        // every 5 mm as 6 mm squares (no gaps).
+        let mut points = Vec::new();
+        for j in -200..=200 {
+            for i in -200..=200 {
+                points.push((Vec3::new(i as f32 * 0.005, j as f32 * 0.005, -2.0), color));
+            }
+        }
+        let scene = renderer
+            .upload(&cloud(&points), SplatSize::World(0.006))
+            .unwrap();
+        for method in METHODS {
+            for (focus, radius) in [(2.0, 0.05), (1.0, 0.01), (1.0, 0.04), (4.0, 0.1)] {
+                let mut cam = camera(40, 30);
+                cam.focus_distance = focus;
+                cam.aperture_radius = radius;
+                let options = RenderOptions {
+                    camera: cam,
+                    method,
+                    ssaa: 2,
+                    background: Vec3::ZERO,
+                    samples: 16,
+                };
+                let img = renderer.render(&scene, &options).unwrap().image;
+                for (i, px) in img.pixels.iter().enumerate() {
+                    let got = Vec3::from_slice(&px[..3]);
+                    // fp16 storage: within 2e-3 of the plane's color.
+                    assert!(
+                        (got - color).abs().max_element() < 2e-3,
+                        "{method:?}, S {focus}, R {radius} (CoC {:.1} px): pixel {i} is {got}",
+                        cam.coc_px(2.0)
+                    );
+                }
+            }
+        }
+    });
+}

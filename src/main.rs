@@ -107,6 +107,9 @@ struct RenderArgs {
     /// Background color R,G,B, sRGB values in [0, 1] (default black).
     #[arg(long, value_parser = parse_vec3)]
     background: Option<[f32; 3]>,
+    /// Focus on the nearest surface seen at output pixel X,Y.
+    #[arg(long, value_name = "X,Y", value_parser = parse_pixel)]
+    focus_pixel: Option<[u32; 2]>,
     /// Print the effective camera as a camera file (JSON) on stdout.
     #[arg(long)]
     print_camera: bool,
@@ -140,6 +143,17 @@ fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
             .ok_or_else(|| format!("'{p}' is not a finite number in '{s}'"))?;
     }
     Ok(v)
+}
+
+fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    match parts[..] {
+        [x, y] => match (x.trim().parse(), y.trim().parse()) {
+            (Ok(x), Ok(y)) => Ok([x, y]),
+            _ => Err(format!("expected pixel X,Y, got '{s}'")),
+        },
+        _ => Err(format!("expected pixel X,Y, got '{s}'")),
+    }
 }
 
 fn main() -> ExitCode {
@@ -248,10 +262,7 @@ fn render(args: RenderArgs) -> Result<()> {
         None => flags,
     };
     let (lo, hi) = cloud.bounds();
-    let cam = camera::resolve(&spec, lo, hi, &cloud.positions)?;
-    if args.print_camera {
-        println!("{}", cam.to_json());
-    }
+    let mut cam = camera::resolve(&spec, lo, hi, &cloud.positions)?;
 
     let splat = match (args.splat_size, args.splat_px) {
         (Some(w), _) => SplatSize::World(w),
@@ -264,6 +275,12 @@ fn render(args: RenderArgs) -> Result<()> {
     ))?;
     let renderer = Renderer::new(&ctx)?;
     let scene = renderer.upload(&cloud, splat)?;
+    if let Some([x, y]) = args.focus_pixel {
+        cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, x, y)?;
+    }
+    if args.print_camera {
+        println!("{}", cam.to_json());
+    }
     let options = RenderOptions {
         camera: cam,
         method,

@@ -287,6 +287,42 @@ impl Renderer {
         self.render_frame(scene, options, false).map(|(r, _)| r)
     }
 
+    /// The eye depth of the nearest surface at output pixel (x, y) of a
+    /// pinhole G-buffer (`--focus-pixel`): the focus distance that makes it
+    /// sharp. An error names the pixel when it is outside the image or sees
+    /// only background.
+    pub fn depth_at_pixel(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        ssaa: u32,
+        x: u32,
+        y: u32,
+    ) -> Result<f32> {
+        if x >= camera.width || y >= camera.height {
+            return Err(Error::InvalidArgument(format!(
+                "--focus-pixel {x},{y} is outside the {}x{} image",
+                camera.width, camera.height
+            )));
+        }
+        let options = RenderOptions {
+            camera: *camera,
+            method: Method::Pinhole,
+            ssaa,
+            background: Vec3::ZERO,
+            samples: 1,
+        };
+        let (_, gbuffer) = self.render_with_gbuffer(scene, &options)?;
+        let g = gbuffer.guard;
+        let z = gbuffer.eye[((y + g) * gbuffer.width + x + g) as usize][2];
+        if !z.is_finite() {
+            return Err(Error::InvalidArgument(format!(
+                "--focus-pixel {x},{y} sees no point (background)"
+            )));
+        }
+        Ok(z)
+    }
+
     /// Renders one frame of `scene` and also reads back its G-buffer.
     pub fn render_with_gbuffer(
         &self,

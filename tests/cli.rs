@@ -260,9 +260,53 @@ fn bad_input_gives_one_line_and_no_output() {
     write_ascii_ply(&ply, &[]);
     assert_fails(&["info", &ply.display().to_string()], "bad.ply", &out);
 
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--focus-pixel",
+            "0,0",
+            "--device",
+            "llvmpipe",
+        ],
+        "sees no point",
+        &out,
+    );
+    assert_fails(
+        &["render", &b, "-o", &out_s, "--focus-pixel", "3"],
+        "X,Y",
+        &out,
+    );
+
     // An existing output survives a failed render untouched.
     std::fs::write(&out, b"old").unwrap();
     let o = pointlens(&["render", &b, "-o", &out_s, "--method", "rdb"]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"old");
+}
+
+#[test]
+fn focus_pixel_sets_the_printed_focus_distance() {
+    let dir = scratch("cli-focus");
+    let out = dir.join("f.png").display().to_string();
+    let b = bunny();
+    let focus = |extra: &[&str]| -> f64 {
+        let mut args = vec!["render", &b, "-o", &out, "--width", "64", "--height", "48"];
+        args.extend(["--device", "llvmpipe", "--print-camera", "--method", "fast"]);
+        args.extend(extra);
+        let o = pointlens(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let cam: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        cam["focus_distance"].as_f64().unwrap()
+    };
+    let centre = focus(&[]);
+    let at_pixel = focus(&["--focus-pixel", "32,24"]);
+    // The default focuses on the model's centre; the pixel at the image
+    // centre sees the bunny's front surface, nearer than its centre.
+    assert!(
+        at_pixel > 0.0 && at_pixel < centre,
+        "{at_pixel} vs {centre}"
+    );
 }

@@ -55,3 +55,50 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
         }
     });
 }
+
+#[test]
+fn focus_pixel_focuses_on_the_surface_seen_there() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        // Left half of the view: a plane at z = 1; right half: one at z = 2.5.
+        let mut points = Vec::new();
+        for j in -100..=100 {
+            for i in -100..0 {
+                points.push((
+                    Vec3::new(i as f32 * 0.005, j as f32 * 0.005, -1.0),
+                    Vec3::ONE,
+                ));
+            }
+            for i in 0..=250 {
+                points.push((
+                    Vec3::new(i as f32 * 0.0125, j as f32 * 0.0125, -2.5),
+                    Vec3::ONE,
+                ));
+            }
+        }
+        let scene = renderer
+            .upload(&cloud(&points), SplatSize::Pixels(3.0))
+            .unwrap();
+        let cam = camera(40, 30);
+        let near = renderer.depth_at_pixel(&scene, &cam, 2, 5, 15).unwrap();
+        let far = renderer.depth_at_pixel(&scene, &cam, 2, 35, 15).unwrap();
+        assert!((near - 1.0).abs() < 1e-5, "{near}");
+        assert!((far - 2.5).abs() < 1e-5, "{far}");
+        let outside = renderer
+            .depth_at_pixel(&scene, &cam, 2, 40, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(outside.contains("outside"), "{outside}");
+        let lone = renderer
+            .upload(
+                &cloud(&[(Vec3::new(0.0, 0.0, -1.0), Vec3::ONE)]),
+                SplatSize::Pixels(1.0),
+            )
+            .unwrap();
+        let empty = renderer
+            .depth_at_pixel(&lone, &cam, 2, 2, 2)
+            .unwrap_err()
+            .to_string();
+        assert!(empty.contains("background"), "{empty}");
+    });
+}

@@ -11,12 +11,17 @@ layout(binding = 1, r32f) uniform writeonly image2D tile_radius;
 layout(push_constant, std430) uniform Push {
     ivec2 tiles;
     int tile;       // tile edge, pixels
-    int reach;      // tiles to search on each side: ceil(max CoC / 2 / tile)
+    int reach;      // tiles to search on each side: ceil(max CoC / 2 / tile) + 1
+    float fixed_radius; // > 0: every tile gets this radius (the fixed-window baseline)
 } pc;
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(t, pc.tiles))) {
+        return;
+    }
+    if (pc.fixed_radius > 0.0) {
+        imageStore(tile_radius, t, vec4(pc.fixed_radius));
         return;
     }
     float radius = 0.0;

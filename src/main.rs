@@ -13,7 +13,7 @@ use pointlens::camera::{self, CameraSpec};
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
 use pointlens::metrics;
-use pointlens::passes::fast::FastWeights;
+use pointlens::passes::fast::{FastWeights, GatherWindow};
 use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions, FrameTimings};
@@ -71,6 +71,10 @@ struct RenderArgs {
     /// (the paper's plain mean).
     #[arg(long, default_value = "area", value_parser = ["area", "uniform"])]
     fast_weights: String,
+    /// Gather window of the fast method: tiles (bounded by the tiles' CoCs)
+    /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
+    #[arg(long, default_value = "tiles", value_parser = ["tiles", "fixed"])]
+    fast_window: String,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = 256)]
     samples: u32,
@@ -218,7 +222,16 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
 
 fn render(args: RenderArgs) -> Result<()> {
     let method = match args.method.parse()? {
-        Method::Fast(_) if args.fast_weights == "uniform" => Method::Fast(FastWeights::Uniform),
+        Method::Fast(..) => Method::Fast(
+            match args.fast_weights.as_str() {
+                "uniform" => FastWeights::Uniform,
+                _ => FastWeights::Area,
+            },
+            match args.fast_window.as_str() {
+                "fixed" => GatherWindow::Fixed,
+                _ => GatherWindow::Tiles,
+            },
+        ),
         m => m,
     };
     check_output_path(&args.output)?;

@@ -14,7 +14,7 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range, pinhole_samples, GBuffer, RasterView, Sample};
 use crate::image_io::{f16_to_f32, LinearImage};
-use crate::passes::fast::{Fast, FastImages, FastWeights};
+use crate::passes::fast::{Fast, FastImages, FastWeights, GatherWindow};
 use crate::passes::gbuffer_resolve::GBufferResolve;
 use crate::passes::splat_raster::{SplatRaster, SplatVertex, EYE_FORMAT};
 use crate::vk::{
@@ -34,7 +34,7 @@ pub enum Method {
     Pinhole,
     /// Zhao's fast approximation: a z-tested gather bounded by tile CoCs
     /// (DESIGN §4).
-    Fast(FastWeights),
+    Fast(FastWeights, GatherWindow),
     /// The accumulation-buffer reference (DESIGN §7): the splats rendered
     /// through `samples` lens positions with the sheared projection, each
     /// sample anti-aliased like the G-buffer, averaged in linear light.
@@ -56,7 +56,7 @@ impl FromStr for Method {
         match s {
             "pinhole" => Ok(Method::Pinhole),
             "accum" => Ok(Method::Accum),
-            "fast" => Ok(Method::Fast(FastWeights::Area)),
+            "fast" => Ok(Method::Fast(FastWeights::Area, GatherWindow::Tiles)),
             s if PLANNED_METHODS.contains(&s) => Err(Error::InvalidArgument(format!(
                 "method '{s}' is not implemented yet; available methods: {available}"
             ))),
@@ -255,7 +255,7 @@ impl Renderer {
         let max_coc_px = match method {
             Method::Pinhole => 0.0,
             Method::Accum => range.map_or(0.0, |(lo, hi)| camera.max_coc_px(lo, hi)),
-            Method::Fast(_) => max_gbuffer_coc(camera, range),
+            Method::Fast(..) => max_gbuffer_coc(camera, range),
         };
         let max_point = self.ctx.info.point_size_max;
         let f_px = camera.f_px();
@@ -381,7 +381,7 @@ impl Renderer {
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         let (samples, label) = match options.method {
-            Method::Pinhole | Method::Fast(_) => (pinhole_samples(options.ssaa), "gbuffer"),
+            Method::Pinhole | Method::Fast(..) => (pinhole_samples(options.ssaa), "gbuffer"),
             Method::Accum => {
                 let jitters = pinhole_samples(options.ssaa);
                 let samples: Vec<Sample> = lens_samples(options.samples)
@@ -407,12 +407,13 @@ impl Renderer {
             label,
         );
         let fast_images = match options.method {
-            Method::Fast(weights) => {
+            Method::Fast(weights, window) => {
                 let images = FastImages::new(&self.ctx, &gbuffer)?;
                 let range = depth_range(camera, &scene.positions);
                 let max_coc = max_gbuffer_coc(camera, range);
-                self.fast
-                    .record(&mut frame, &gbuffer, &images, camera, weights, max_coc);
+                self.fast.record(
+                    &mut frame, &gbuffer, &images, camera, weights, window, max_coc,
+                );
                 Some(images)
             }
             _ => None,

@@ -4,12 +4,12 @@ mod common;
 
 use common::{camera, cloud, with_gpu};
 use glam::Vec3;
-use pointlens::passes::fast::FastWeights;
+use pointlens::passes::fast::{FastWeights, GatherWindow};
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 
 const METHODS: [Method; 3] = [
-    Method::Fast(FastWeights::Area),
-    Method::Fast(FastWeights::Uniform),
+    Method::Fast(FastWeights::Area, GatherWindow::Tiles),
+    Method::Fast(FastWeights::Uniform, GatherWindow::Tiles),
     Method::Accum,
 ];
 

@@ -6,7 +6,7 @@ use common::{camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
-use pointlens::passes::fast::FastWeights;
+use pointlens::passes::fast::{FastWeights, GatherWindow};
 use pointlens::ply::load_ply;
 use pointlens::reference;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
@@ -36,7 +36,7 @@ fn render(
         .image
 }
 
-const FAST: Method = Method::Fast(FastWeights::Area);
+const FAST: Method = Method::Fast(FastWeights::Area, GatherWindow::Tiles);
 
 #[test]
 fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
@@ -61,9 +61,24 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
             for focus in [1.0, 1.3] {
                 cam.focus_distance = focus;
                 let (gpu, gbuffer) = renderer
-                    .render_with_gbuffer(&scene, &options(cam, Method::Fast(weights)))
+                    .render_with_gbuffer(
+                        &scene,
+                        &options(cam, Method::Fast(weights, GatherWindow::Tiles)),
+                    )
                     .unwrap();
                 let cpu = reference::fast(&gbuffer, &cam, weights);
+                // The tile-bounded window finds exactly what the worst-case
+                // window finds, in the same order: identical bits.
+                let fixed = renderer
+                    .render(
+                        &scene,
+                        &options(cam, Method::Fast(weights, GatherWindow::Fixed)),
+                    )
+                    .unwrap();
+                assert_eq!(
+                    gpu.image, fixed.image,
+                    "{weights:?}: tiles and fixed window differ"
+                );
                 let mut worst = 0.0f32;
                 for (a, b) in gpu.image.pixels.iter().zip(&cpu.pixels) {
                     for c in 0..3 {

@@ -57,6 +57,7 @@ struct DilatePush {
     tiles: [i32; 2],
     tile: i32,
     reach: i32,
+    fixed_radius: f32,
 }
 
 #[repr(C)]
@@ -66,6 +67,17 @@ struct GatherPush {
     origin: [i32; 2],
     size: [i32; 2],
     tile: i32,
+}
+
+/// How far the gather looks (`--fast-window`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum GatherWindow {
+    /// Each tile's dilated maximum CoC (DESIGN §4).
+    #[default]
+    Tiles,
+    /// The frame's largest CoC everywhere: the fixed worst-case window, kept
+    /// only as the benchmark baseline.
+    Fixed,
 }
 
 /// The four pipelines of the method.
@@ -170,6 +182,7 @@ impl Fast {
     /// Records the four passes after the G-buffer (whose color and eye
     /// images were last written by compute). `max_coc_px` bounds every
     /// pixel's CoC, the background's included.
+    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         frame: &mut Frame,
@@ -177,6 +190,7 @@ impl Fast {
         images: &FastImages,
         camera: &Camera,
         weights: FastWeights,
+        window: GatherWindow,
         max_coc_px: f32,
     ) {
         let (w, h) = (gbuffer.color.width as i32, gbuffer.color.height as i32);
@@ -257,6 +271,10 @@ impl Fast {
                 tiles,
                 tile: TILE as i32,
                 reach: (max_coc_px / 2.0 / TILE as f32).ceil() as i32 + 1,
+                fixed_radius: match window {
+                    GatherWindow::Tiles => 0.0,
+                    GatherWindow::Fixed => (max_coc_px / 2.0).max(0.5),
+                },
             };
             self.tile_dilate.dispatch(
                 cmd,

@@ -23,6 +23,9 @@ pub struct RasterView {
     pub camera: Camera,
     /// Pixels added on every side of the frame (DESIGN §3).
     pub guard: u32,
+    /// The largest CoC (pixels) the view's method can meet, which the guard
+    /// band was sized for.
+    pub max_coc_px: f32,
     /// Eye-depth range mapped to the depth buffer; points outside are dropped.
     pub near: f32,
     pub far: f32,

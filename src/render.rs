@@ -16,15 +16,16 @@ use crate::gbuffer::{clip_range, depth_range, pinhole_samples, GBuffer, RasterVi
 use crate::image_io::{f16_to_f32, LinearImage};
 use crate::passes::fast::{Fast, FastImages, FastWeights, GatherWindow};
 use crate::passes::gbuffer_resolve::GBufferResolve;
-use crate::passes::splat_raster::{SplatRaster, SplatVertex, EYE_FORMAT};
+use crate::passes::splat_raster::{SplatRaster, SplatVertex};
 use crate::vk::{
     image_barriers, memory_barrier, slice_as_bytes, Access, Buffer, Context, Frame, FrameTimings,
     Image,
 };
 
 /// A splat's default world diameter is this multiple of its local point
-/// spacing (mean distance to its 8 nearest neighbours), enough to close the
-/// gaps of an irregular scan without visibly fattening edges.
+/// spacing (mean distance to its 8 nearest neighbours): it closes the bunny's
+/// surface without fattening edges. Scans with depth-quantised rows (the
+/// PCL stereo scan) keep some holes; `--splat-size` / `--splat-px` cover them.
 pub const SPACING_TO_DIAMETER: f32 = 1.0;
 
 /// The depth-of-field methods of DESIGN §8.
@@ -41,7 +42,7 @@ pub enum Method {
     Accum,
 }
 
-/// Every method name DESIGN §8 lists, implemented or not.
+/// The method names DESIGN §8 lists that this build does not implement yet.
 const PLANNED_METHODS: [&str; 2] = ["rdb", "layered"];
 
 impl Method {
@@ -275,6 +276,7 @@ impl Renderer {
         RasterView {
             camera: *camera,
             guard: Camera::guard_band_px(max_coc_px, max_splat_px),
+            max_coc_px,
             near,
             far,
             splat_px,
@@ -354,27 +356,22 @@ impl Renderer {
         let view = self.raster_view(scene, camera, options.method);
         let gbuffer = GBuffer::new(&self.ctx, &view)?;
         let (w, h) = (camera.width, camera.height);
-        let host = |name: &str, image: &Image| {
-            let texel = if image.format == EYE_FORMAT { 16 } else { 8 };
+        let host = |name: &str, width: u32, height: u32, texel: u64| {
             Buffer::new(
                 &self.ctx,
                 name,
-                image.width as u64 * image.height as u64 * texel,
+                width as u64 * height as u64 * texel,
                 vk::BufferUsageFlags::TRANSFER_DST,
                 MemoryLocation::GpuToCpu,
             )
         };
-        let readback = Buffer::new(
-            &self.ctx,
-            "readback",
-            w as u64 * h as u64 * 8,
-            vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuToCpu,
-        )?;
+        // rgba16f result; the G-buffer's rgba16f color and rgba32f eye position.
+        let readback = host("readback", w, h, 8)?;
+        let (gw, gh) = (gbuffer.color.width, gbuffer.color.height);
         let gbuffer_readback = match keep_gbuffer {
             true => Some((
-                host("gbuffer color readback", &gbuffer.color)?,
-                host("gbuffer eye readback", &gbuffer.eye)?,
+                host("gbuffer color readback", gw, gh, 8)?,
+                host("gbuffer eye readback", gw, gh, 16)?,
             )),
             false => None,
         };
@@ -409,8 +406,7 @@ impl Renderer {
         let fast_images = match options.method {
             Method::Fast(weights, window) => {
                 let images = FastImages::new(&self.ctx, &gbuffer)?;
-                let range = depth_range(camera, &scene.positions);
-                let max_coc = max_gbuffer_coc(camera, range);
+                let max_coc = view.max_coc_px;
                 self.fast.record(
                     &mut frame, &gbuffer, &images, camera, weights, window, max_coc,
                 );
@@ -436,9 +432,8 @@ impl Renderer {
             let g = view.guard;
             copy_to_host(ctx, cmd, result, [g, g], [w, h], &readback);
             if let Some((color, eye)) = &gbuffer_readback {
-                let full = [gbuffer.color.width, gbuffer.color.height];
-                copy_to_host(ctx, cmd, &gbuffer.color, [0, 0], full, color);
-                copy_to_host(ctx, cmd, &gbuffer.eye, [0, 0], full, eye);
+                copy_to_host(ctx, cmd, &gbuffer.color, [0, 0], [gw, gh], color);
+                copy_to_host(ctx, cmd, &gbuffer.eye, [0, 0], [gw, gh], eye);
             }
             memory_barrier(
                 ctx,
@@ -465,28 +460,20 @@ impl Renderer {
             guard: view.guard,
         };
         let host_gbuffer = match &gbuffer_readback {
-            Some((color, eye)) => {
-                let mapped = host_bytes;
-                Some(HostGBuffer {
-                    width: gbuffer.color.width,
-                    height: gbuffer.color.height,
-                    guard: view.guard,
-                    color: rgba16f_texels(mapped(color)?),
-                    eye: mapped(eye)?
-                        .chunks_exact(16)
-                        .map(|t| {
-                            std::array::from_fn(|i| {
-                                f32::from_le_bytes([
-                                    t[4 * i],
-                                    t[4 * i + 1],
-                                    t[4 * i + 2],
-                                    t[4 * i + 3],
-                                ])
-                            })
+            Some((color, eye)) => Some(HostGBuffer {
+                width: gw,
+                height: gh,
+                guard: view.guard,
+                color: rgba16f_texels(host_bytes(color)?),
+                eye: host_bytes(eye)?
+                    .chunks_exact(16)
+                    .map(|t| {
+                        std::array::from_fn(|i| {
+                            f32::from_le_bytes([t[4 * i], t[4 * i + 1], t[4 * i + 2], t[4 * i + 3]])
                         })
-                        .collect(),
-                })
-            }
+                    })
+                    .collect(),
+            }),
             None => None,
         };
         Ok((rendered, host_gbuffer))

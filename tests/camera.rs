@@ -1,6 +1,8 @@
 //! The thin-lens camera of DESIGN §2 against hand-computed numbers, the
 //! camera file, and the defaults (auto-framing, automatic aperture).
 
+mod common;
+
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::Error;
@@ -27,16 +29,7 @@ fn assert_close2(actual: Vec2, expected: Vec2, tol: f32) {
 
 /// 640 × 480, 40°, at the origin looking down −z.
 fn axis_camera() -> Camera {
-    Camera {
-        width: 640,
-        height: 480,
-        eye: Vec3::ZERO,
-        target: Vec3::new(0.0, 0.0, -1.0),
-        up: Vec3::Y,
-        fovy_deg: 40.0,
-        aperture_radius: 0.0,
-        focus_distance: 1.0,
-    }
+    common::camera(640, 480)
 }
 
 /// H = 100 and θ = 90° give f_px = 50 / tan(45°) = 50; R = 0.1, S = 2.

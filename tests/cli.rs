@@ -223,32 +223,22 @@ fn bad_input_gives_one_line_and_no_output() {
     );
 
     let cam = dir.join("cam.json");
-    std::fs::write(&cam, r#"{"width": 64, "height": 48, "eye": [0, 0, 1], "target": [0, 0, 0], "fovy_deg": 40, "aperture_radius": 0.01}"#).unwrap();
-    assert_fails(
-        &[
-            "render",
-            &b,
-            "-o",
-            &out_s,
-            "--camera",
-            &cam.display().to_string(),
-        ],
-        "focus_distance",
-        &out,
-    );
-    std::fs::write(&cam, "{ not json").unwrap();
-    assert_fails(
-        &[
-            "render",
-            &b,
-            "-o",
-            &out_s,
-            "--camera",
-            &cam.display().to_string(),
-        ],
-        "cam.json",
-        &out,
-    );
+    let cam_s = cam.display().to_string();
+    for (content, phrase) in [
+        // A camera file must be complete: this one lacks the focus distance.
+        (
+            r#"{"width": 64, "height": 48, "eye": [0, 0, 1], "target": [0, 0, 0], "fovy_deg": 40, "aperture_radius": 0.01}"#,
+            "focus_distance",
+        ),
+        ("{ not json", "cam.json"),
+    ] {
+        std::fs::write(&cam, content).unwrap();
+        assert_fails(
+            &["render", &b, "-o", &out_s, "--camera", &cam_s],
+            phrase,
+            &out,
+        );
+    }
 
     let ply = dir.join("bad.ply");
     std::fs::write(&ply, "this is not a ply file\n").unwrap();

@@ -14,6 +14,7 @@ use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
 use pointlens::metrics;
 use pointlens::passes::fast::{FastWeights, GatherWindow};
+use pointlens::passes::rdb::RdbMode;
 use pointlens::ply::load_ply;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions, FrameTimings};
@@ -64,7 +65,7 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole | fast | accum (rdb and layered are being built).
+    /// pinhole | fast | rdb | accum (layered is being built).
     #[arg(long, default_value = "pinhole")]
     method: String,
     /// Weights of the fast method: area (by inverse CoC area) or uniform
@@ -75,6 +76,13 @@ struct RenderArgs {
     /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
     #[arg(long, default_value = "tiles", value_parser = ["tiles", "fixed"])]
     fast_window: String,
+    /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.
+    #[arg(long, default_value_t = 9)]
+    rdb_bins: u32,
+    /// Which rays a bin receives: centre (the ray through the bin's lens
+    /// cell centre) or pairs (the paper's pair-to-bin assignment).
+    #[arg(long, default_value = "centre", value_parser = ["centre", "pairs"])]
+    rdb_mode: String,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = 256)]
     samples: u32,
@@ -184,9 +192,18 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // One line: the chain joined, innermost cause last.
-            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-            eprintln!("error: {}", msg.join(": "));
+            // One line: the chain joined, innermost cause last, without the
+            // causes a message already quotes.
+            let mut msg = String::new();
+            for cause in e.chain().map(|c| c.to_string()) {
+                if !msg.contains(&cause) {
+                    if !msg.is_empty() {
+                        msg += ": ";
+                    }
+                    msg += &cause;
+                }
+            }
+            eprintln!("error: {msg}");
             ExitCode::FAILURE
         }
     }
@@ -230,6 +247,13 @@ fn render(args: RenderArgs) -> Result<()> {
             match args.fast_window.as_str() {
                 "fixed" => GatherWindow::Fixed,
                 _ => GatherWindow::Tiles,
+            },
+        ),
+        Method::Rdb(..) => Method::Rdb(
+            args.rdb_bins,
+            match args.rdb_mode.as_str() {
+                "pairs" => RdbMode::Pairs,
+                _ => RdbMode::Centre,
             },
         ),
         m => m,

@@ -1,9 +1,12 @@
 //! CPU references of the DOF methods, written for clarity, not speed: the
 //! tests check the GPU passes against them texel by texel on small images.
 
-use crate::camera::Camera;
+use glam::Vec2;
+
+use crate::camera::{rdb_bin, rdb_lens_table, Camera};
 use crate::image_io::LinearImage;
 use crate::passes::fast::FastWeights;
+use crate::passes::rdb::RdbMode;
 use crate::render::HostGBuffer;
 
 /// The number of pixel centres (integer offsets) within distance c/2 of a
@@ -59,6 +62,85 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
             }
             let mean = sum.map(|s| (s / total) as f32);
             out.set(x as u32, y as u32, [mean[0], mean[1], mean[2], 1.0]);
+        }
+    }
+    out
+}
+
+/// The ray distribution buffer (DESIGN §5), as `rdb_scatter.comp` and
+/// `rdb_resolve.comp` compute it: per output pixel and lens bin the nearest
+/// source (smallest depth, then smallest G-buffer index), then the mean color
+/// of the filled bins (the G-buffer color where no bin is filled).
+pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> LinearImage {
+    let (gw, gh) = (gbuffer.width as i64, gbuffer.height as i64);
+    let (w, h) = (camera.width as i64, camera.height as i64);
+    let g = gbuffer.guard as i64;
+    let n2 = (bins * bins) as usize;
+    let table = rdb_lens_table(bins);
+    // (depth bits, source index) per (q, bin); u32::MAX: empty.
+    let mut cells = vec![(u32::MAX, u32::MAX); (w * h) as usize * n2];
+    let mut offer = |q: (i64, i64), bin: usize, key: (u32, u32)| {
+        if q.0 >= 0 && q.1 >= 0 && q.0 < w && q.1 < h {
+            let cell = &mut cells[(q.1 * w + q.0) as usize * n2 + bin];
+            *cell = (*cell).min(key);
+        }
+    };
+    for py in 0..gh {
+        for px in 0..gw {
+            let source = (py * gw + px) as u32;
+            let z = gbuffer.eye[source as usize][2];
+            let key = (z.to_bits(), source);
+            let p = (px - g, py - g);
+            let c = camera.coc_px(z);
+            match mode {
+                RdbMode::Centre => {
+                    for (b, u) in table.iter().enumerate() {
+                        let o = camera.lens_offset_px(z, *u);
+                        let d = ((o.x + 0.5).floor() as i64, (o.y + 0.5).floor() as i64);
+                        offer((p.0 + d.0, p.1 + d.1), b, key);
+                    }
+                }
+                RdbMode::Pairs if c < 2.0 => {
+                    for b in 0..n2 {
+                        offer(p, b, key);
+                    }
+                }
+                RdbMode::Pairs => {
+                    let r = (0.5 * c).floor() as i64;
+                    for dy in -r..=r {
+                        for dx in -r..=r {
+                            if ((dx * dx + dy * dy) as f32) > 0.25 * c * c {
+                                continue;
+                            }
+                            let u = camera.lens_sign(z) * 2.0 * Vec2::new(dx as f32, dy as f32) / c;
+                            offer((p.0 + dx, p.1 + dy), rdb_bin(u, bins) as usize, key);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut out = LinearImage::new(camera.width, camera.height, [0.0; 4]);
+    for y in 0..h {
+        for x in 0..w {
+            let filled: Vec<u32> = cells[(y * w + x) as usize * n2..][..n2]
+                .iter()
+                .filter(|c| c.1 != u32::MAX)
+                .map(|c| c.1)
+                .collect();
+            let color = if filled.is_empty() {
+                let c = gbuffer.color[((y + g) * gw + x + g) as usize];
+                [c[0], c[1], c[2]]
+            } else {
+                let mut sum = [0.0f32; 3];
+                for s in &filled {
+                    for (acc, v) in sum.iter_mut().zip(&gbuffer.color[*s as usize]) {
+                        *acc += v;
+                    }
+                }
+                sum.map(|v| v / filled.len() as f32)
+            };
+            out.set(x as u32, y as u32, [color[0], color[1], color[2], 1.0]);
         }
     }
     out

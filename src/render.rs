@@ -16,6 +16,7 @@ use crate::gbuffer::{clip_range, depth_range, pinhole_samples, GBuffer, RasterVi
 use crate::image_io::{f16_to_f32, LinearImage};
 use crate::passes::fast::{Fast, FastImages, FastWeights, GatherWindow};
 use crate::passes::gbuffer_resolve::GBufferResolve;
+use crate::passes::rdb::{Rdb, RdbImages, RdbMode};
 use crate::passes::splat_raster::{SplatRaster, SplatVertex};
 use crate::vk::{
     image_barriers, memory_barrier, slice_as_bytes, Access, Buffer, Context, Frame, FrameTimings,
@@ -36,6 +37,8 @@ pub enum Method {
     /// Zhao's fast approximation: a z-tested gather bounded by tile CoCs
     /// (DESIGN §4).
     Fast(FastWeights, GatherWindow),
+    /// The ray distribution buffer (DESIGN §5): N×N lens bins per pixel.
+    Rdb(u32, RdbMode),
     /// The accumulation-buffer reference (DESIGN §7): the splats rendered
     /// through `samples` lens positions with the sheared projection, each
     /// sample anti-aliased like the G-buffer, averaged in linear light.
@@ -43,11 +46,11 @@ pub enum Method {
 }
 
 /// The method names DESIGN §8 lists that this build does not implement yet.
-const PLANNED_METHODS: [&str; 2] = ["rdb", "layered"];
+const PLANNED_METHODS: [&str; 1] = ["layered"];
 
 impl Method {
     /// The names of the methods this build implements.
-    pub const AVAILABLE: [&'static str; 3] = ["pinhole", "fast", "accum"];
+    pub const AVAILABLE: [&'static str; 4] = ["pinhole", "fast", "rdb", "accum"];
 }
 
 impl FromStr for Method {
@@ -58,6 +61,7 @@ impl FromStr for Method {
             "pinhole" => Ok(Method::Pinhole),
             "accum" => Ok(Method::Accum),
             "fast" => Ok(Method::Fast(FastWeights::Area, GatherWindow::Tiles)),
+            "rdb" => Ok(Method::Rdb(9, RdbMode::Centre)),
             s if PLANNED_METHODS.contains(&s) => Err(Error::InvalidArgument(format!(
                 "method '{s}' is not implemented yet; available methods: {available}"
             ))),
@@ -139,6 +143,7 @@ pub struct Renderer {
     raster: SplatRaster,
     resolve: GBufferResolve,
     fast: Fast,
+    rdb: Rdb,
 }
 
 fn unorm16(c: f32) -> u16 {
@@ -152,6 +157,7 @@ impl Renderer {
             raster: SplatRaster::new(ctx)?,
             resolve: GBufferResolve::new(ctx)?,
             fast: Fast::new(ctx)?,
+            rdb: Rdb::new(ctx)?,
         })
     }
 
@@ -256,7 +262,7 @@ impl Renderer {
         let max_coc_px = match method {
             Method::Pinhole => 0.0,
             Method::Accum => range.map_or(0.0, |(lo, hi)| camera.max_coc_px(lo, hi)),
-            Method::Fast(..) => max_gbuffer_coc(camera, range),
+            Method::Fast(..) | Method::Rdb(..) => max_gbuffer_coc(camera, range),
         };
         let max_point = self.ctx.info.point_size_max;
         let f_px = camera.f_px();
@@ -378,7 +384,9 @@ impl Renderer {
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         let (samples, label) = match options.method {
-            Method::Pinhole | Method::Fast(..) => (pinhole_samples(options.ssaa), "gbuffer"),
+            Method::Pinhole | Method::Fast(..) | Method::Rdb(..) => {
+                (pinhole_samples(options.ssaa), "gbuffer")
+            }
             Method::Accum => {
                 let jitters = pinhole_samples(options.ssaa);
                 let samples: Vec<Sample> = lens_samples(options.samples)
@@ -414,8 +422,20 @@ impl Renderer {
             }
             _ => None,
         };
+        let rdb_images = match options.method {
+            Method::Rdb(bins, mode) => {
+                let images = RdbImages::new(&self.ctx, &gbuffer, bins)?;
+                self.rdb.record(&mut frame, &gbuffer, &images, camera, mode);
+                Some(images)
+            }
+            _ => None,
+        };
         // Pinhole and accum: the color the samples resolved to.
-        let result = fast_images.as_ref().map_or(&gbuffer.color, |f| &f.result);
+        let result = match (&fast_images, &rdb_images) {
+            (Some(f), _) => &f.result,
+            (_, Some(r)) => &r.result,
+            _ => &gbuffer.color,
+        };
         frame.pass("readback", |ctx, cmd| {
             let mut images = vec![result];
             if gbuffer_readback.is_some() && !std::ptr::eq(result, &gbuffer.color) {

@@ -1117,3 +1117,63 @@ fn concentric_map_is_area_preserving_and_inside_the_disk() {
     );
     assert_eq!(lens_samples(1), vec![Vec2::ZERO]);
 }
+
+#[test]
+fn rdb_bins_round_trip_through_the_concentric_map() {
+    use pointlens::camera::{concentric_disk, concentric_square, rdb_bin, rdb_lens_table};
+    for n in [2, 5, 9, 16] {
+        let table = rdb_lens_table(n);
+        assert_eq!(table.len(), (n * n) as usize);
+        for (b, u) in table.iter().enumerate() {
+            assert_eq!(
+                rdb_bin(*u, n),
+                b as u32,
+                "N = {n}: bin {b}'s centre {u} maps elsewhere"
+            );
+        }
+    }
+    // 5×5: bin 12 is the centre cell, u = 0; bin 0 the (−x, −y) corner cell.
+    let t = rdb_lens_table(5);
+    assert_eq!(t[12], Vec2::ZERO);
+    assert!(t[0].x < 0.0 && t[0].y < 0.0);
+    for a in [
+        Vec2::new(0.3, -0.7),
+        Vec2::new(-0.9, 0.2),
+        Vec2::new(0.5, 0.5),
+        Vec2::new(-0.1, -0.95),
+    ] {
+        let back = concentric_square(concentric_disk(a));
+        assert!((back - a).length() < 1e-5, "{a} -> {back}");
+    }
+}
+
+#[test]
+fn a_near_and_a_far_point_through_the_same_lens_position_land_in_the_same_bin() {
+    use pointlens::camera::{rdb_bin, rdb_lens_table};
+    // S = 2, R = 0.1, f_px = 50 (H = 100, 90°). A near point (z = 1) and a
+    // far one (z = 4) whose pinhole images are both p = (50, 50); the pixel
+    // q they reach through lens position u_b, mapped back by the pair rule
+    // u = sign · 2 (q − p) / c, gives bin b again for both.
+    let cam = Camera {
+        width: 100,
+        height: 100,
+        fovy_deg: 90.0,
+        aperture_radius: 0.1,
+        focus_distance: 2.0,
+        ..axis_camera()
+    };
+    let n = 9;
+    for (b, u) in rdb_lens_table(n).iter().enumerate() {
+        for z in [1.0f32, 4.0] {
+            let offset = cam.lens_offset_px(z, *u);
+            let c = cam.coc_px(z);
+            let back = cam.lens_sign(z) * 2.0 * offset / c;
+            assert_eq!(rdb_bin(back, n), b as u32, "z = {z}, bin {b}");
+        }
+        // Through a bin off the centre, the two points move in opposite directions.
+        if u.length() > 0.0 {
+            let (near, far) = (cam.lens_offset_px(1.0, *u), cam.lens_offset_px(4.0, *u));
+            assert!(near.dot(far) < 0.0);
+        }
+    }
+}

@@ -176,8 +176,8 @@ fn bad_input_gives_one_line_and_no_output() {
         &dir.join("x.jpg"),
     );
     assert_fails(
-        &["render", &b, "-o", &out_s, "--method", "rdb"],
-        "available methods: pinhole, fast, accum",
+        &["render", &b, "-o", &out_s, "--method", "layered"],
+        "available methods: pinhole, fast, rdb, accum",
         &out,
     );
     assert_fails(
@@ -272,7 +272,7 @@ fn bad_input_gives_one_line_and_no_output() {
 
     // An existing output survives a failed render untouched.
     std::fs::write(&out, b"old").unwrap();
-    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "rdb"]);
+    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "layered"]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"old");
 }

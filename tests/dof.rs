@@ -5,11 +5,14 @@ mod common;
 use common::{camera, cloud, with_gpu};
 use glam::Vec3;
 use pointlens::passes::fast::{FastWeights, GatherWindow};
+use pointlens::passes::rdb::RdbMode;
 use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
 
-const METHODS: [Method; 3] = [
+const METHODS: [Method; 5] = [
     Method::Fast(FastWeights::Area, GatherWindow::Tiles),
     Method::Fast(FastWeights::Uniform, GatherWindow::Tiles),
+    Method::Rdb(9, RdbMode::Centre),
+    Method::Rdb(9, RdbMode::Pairs),
     Method::Accum,
 ];
 
@@ -19,18 +22,25 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
         let renderer = Renderer::new(ctx).unwrap();
         let color = Vec3::new(0.7, 0.3, 0.1);
         // A fronto-parallel plane at z = 2, much wider than the view, points
-        // every 5 mm as 6 mm squares (no gaps).
+        // every 10 mm as 12 mm squares (no gaps), 4 m wide: far beyond the view
+        // and its largest blur.
         let mut points = Vec::new();
         for j in -200..=200 {
             for i in -200..=200 {
-                points.push((Vec3::new(i as f32 * 0.005, j as f32 * 0.005, -2.0), color));
+                points.push((Vec3::new(i as f32 * 0.01, j as f32 * 0.01, -2.0), color));
             }
         }
         let scene = renderer
-            .upload(&cloud(&points), SplatSize::World(0.006))
+            .upload(&cloud(&points), SplatSize::World(0.012))
             .unwrap();
         for method in METHODS {
-            for (focus, radius) in [(2.0, 0.05), (1.0, 0.01), (1.0, 0.04), (4.0, 0.1)] {
+            for (focus, radius) in [
+                (2.0, 0.05),
+                (1.0, 0.01),
+                (1.0, 0.04),
+                (4.0, 0.1),
+                (1.0, 0.2),
+            ] {
                 let mut cam = camera(40, 30);
                 cam.focus_distance = focus;
                 cam.aperture_radius = radius;

@@ -4,4 +4,5 @@
 
 pub mod fast;
 pub mod gbuffer_resolve;
+pub mod rdb;
 pub mod splat_raster;

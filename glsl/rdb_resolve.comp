@@ -1,0 +1,36 @@
+#version 460
+// Ray distribution buffer, resolve: each output pixel is the mean, in
+// linear light, of the colors of the sources its filled bins kept. A pixel
+// with no filled bin keeps its G-buffer color.
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
+layout(binding = 1, r32ui) uniform readonly uimage2DArray rdb_source;
+layout(binding = 2, rgba16f) uniform writeonly image2D result;
+
+layout(push_constant, std430) uniform Push {
+    ivec2 extent;   // G-buffer size
+    ivec2 origin;   // the guard band
+    ivec2 size;     // output size
+    int bins;
+} pc;
+
+void main() {
+    ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(q, pc.size))) {
+        return;
+    }
+    vec3 sum = vec3(0.0);
+    float n = 0.0;
+    for (int b = 0; b < pc.bins * pc.bins; ++b) {
+        uint source = imageLoad(rdb_source, ivec3(q, b)).x;
+        if (source != 0xFFFFFFFFu) {
+            ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
+            sum += imageLoad(gbuffer_color, p).rgb;
+            n += 1.0;
+        }
+    }
+    vec3 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin).rgb;
+    imageStore(result, q + pc.origin, vec4(color, 1.0));
+}

@@ -11,20 +11,22 @@ layout(binding = 2, rgba16f) uniform writeonly image2D result;
 
 layout(push_constant, std430) uniform Push {
     ivec2 extent;   // G-buffer size
-    ivec2 origin;   // the guard band
-    ivec2 size;     // output size
+    ivec2 origin;      // the guard band
+    ivec2 tile_origin; // output pixel of RDB texel (0, 0)
+    ivec2 tile_size;   // output pixels the RDB holds
     int bins;
 } pc;
 
 void main() {
-    ivec2 q = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(q, pc.size))) {
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(t, pc.tile_size))) {
         return;
     }
+    ivec2 q = pc.tile_origin + t;
     vec3 sum = vec3(0.0);
     float n = 0.0;
     for (int b = 0; b < pc.bins * pc.bins; ++b) {
-        uint source = imageLoad(rdb_source, ivec3(q, b)).x;
+        uint source = imageLoad(rdb_source, ivec3(t, b)).x;
         if (source != 0xFFFFFFFFu) {
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
             sum += imageLoad(gbuffer_color, p).rgb;

@@ -18,9 +18,11 @@ layout(binding = 2, r32ui) uniform uimage2DArray rdb_source;
 layout(binding = 3, std430) readonly buffer LensTable { vec2 lens_u[]; };
 
 layout(push_constant, std430) uniform Push {
-    ivec2 extent;   // G-buffer size
-    ivec2 origin;   // G-buffer pixel of output pixel (0, 0): the guard band
-    ivec2 size;     // output (and RDB) size
+    ivec2 extent;      // G-buffer size
+    ivec2 origin;      // G-buffer pixel of output pixel (0, 0): the guard band
+    ivec2 scan_origin; // G-buffer pixel of invocation (0, 0)
+    ivec2 tile_origin; // output pixel of RDB texel (0, 0)
+    ivec2 tile_size;   // output pixels the RDB holds (a tile or the frame)
     int bins;       // N: N×N bins
     uint pairs;     // 0: centre mode, 1: pairs mode
     uint pass_index; // 0: depth, 1: source index
@@ -46,11 +48,14 @@ vec2 concentric_square(vec2 u) {
     return vec2(s * r * (1.5707963267948966 - theta) * four_over_pi, s * r);
 }
 
+// Offers source `source` at depth `depth_bits` to bin `bin` of output pixel
+// q; pixels outside the tile are left to the tile that holds them.
 void offer(ivec2 q, int bin, uint depth_bits, uint source) {
-    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, pc.size))) {
+    ivec2 t = q - pc.tile_origin;
+    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, pc.tile_size))) {
         return;
     }
-    ivec3 at = ivec3(q, bin);
+    ivec3 at = ivec3(t, bin);
     if (pc.pass_index == 0u) {
         imageAtomicMin(rdb_depth, at, depth_bits);
     } else if (imageLoad(rdb_depth, at).x == depth_bits) {
@@ -59,7 +64,7 @@ void offer(ivec2 q, int bin, uint depth_bits, uint source) {
 }
 
 void main() {
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 p = pc.scan_origin + ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }

@@ -83,6 +83,11 @@ struct RenderArgs {
     /// cell centre) or pairs (the paper's pair-to-bin assignment).
     #[arg(long, default_value = "centre", value_parser = ["centre", "pairs"])]
     rdb_mode: String,
+    /// Memory for the bins of the ray distribution buffer, MiB (default a
+    /// quarter of the device-local heap); above it the frame is processed
+    /// in tiles, with the same result.
+    #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
+    rdb_memory_mb: Option<u64>,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = 256)]
     samples: u32,
@@ -324,6 +329,7 @@ fn render(args: RenderArgs) -> Result<()> {
         ssaa: args.ssaa,
         background,
         samples: args.samples,
+        rdb_memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
     };
     let rendered = renderer.render(&scene, &options)?;
 

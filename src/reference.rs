@@ -67,17 +67,36 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
     out
 }
 
-/// The ray distribution buffer (DESIGN §5), as `rdb_scatter.comp` and
-/// `rdb_resolve.comp` compute it: per output pixel and lens bin the nearest
-/// source (smallest depth, then smallest G-buffer index), then the mean color
-/// of the filled bins (the G-buffer color where no bin is filled).
-pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> LinearImage {
+/// The bins of a ray distribution buffer: per output pixel and lens bin the
+/// G-buffer index of the source that won it, if any.
+pub struct RdbBins {
+    pub width: u32,
+    pub height: u32,
+    pub bins: u32,
+    /// (depth bits, source index) per (pixel, bin), bin fastest;
+    /// (u32::MAX, u32::MAX) for an empty bin.
+    cells: Vec<(u32, u32)>,
+}
+
+impl RdbBins {
+    /// The G-buffer index of the source bin `bin` of output pixel (x, y)
+    /// kept, None when no ray reached it.
+    pub fn winner(&self, x: u32, y: u32, bin: u32) -> Option<u32> {
+        let n2 = (self.bins * self.bins) as usize;
+        let cell = self.cells[(y * self.width + x) as usize * n2 + bin as usize];
+        (cell.1 != u32::MAX).then_some(cell.1)
+    }
+}
+
+/// The scatter of the ray distribution buffer (DESIGN §5), as
+/// `rdb_scatter.comp` computes it: per output pixel and lens bin the nearest
+/// source offered to it (smallest depth, then smallest G-buffer index).
+pub fn rdb_bins(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> RdbBins {
     let (gw, gh) = (gbuffer.width as i64, gbuffer.height as i64);
     let (w, h) = (camera.width as i64, camera.height as i64);
     let g = gbuffer.guard as i64;
     let n2 = (bins * bins) as usize;
     let table = rdb_lens_table(bins);
-    // (depth bits, source index) per (q, bin); u32::MAX: empty.
     let mut cells = vec![(u32::MAX, u32::MAX); (w * h) as usize * n2];
     let mut offer = |q: (i64, i64), bin: usize, key: (u32, u32)| {
         if q.0 >= 0 && q.1 >= 0 && q.0 < w && q.1 < h {
@@ -120,13 +139,26 @@ pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> 
             }
         }
     }
+    RdbBins {
+        width: camera.width,
+        height: camera.height,
+        bins,
+        cells,
+    }
+}
+
+/// The ray distribution buffer (DESIGN §5), as `rdb_scatter.comp` and
+/// `rdb_resolve.comp` compute it: the bins of [`rdb_bins`], then per output
+/// pixel the mean color of the filled bins' sources (the G-buffer color
+/// where no bin is filled).
+pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> LinearImage {
+    let buffer = rdb_bins(gbuffer, camera, bins, mode);
+    let (gw, g) = (gbuffer.width, gbuffer.guard);
     let mut out = LinearImage::new(camera.width, camera.height, [0.0; 4]);
-    for y in 0..h {
-        for x in 0..w {
-            let filled: Vec<u32> = cells[(y * w + x) as usize * n2..][..n2]
-                .iter()
-                .filter(|c| c.1 != u32::MAX)
-                .map(|c| c.1)
+    for y in 0..camera.height {
+        for x in 0..camera.width {
+            let filled: Vec<u32> = (0..bins * bins)
+                .filter_map(|b| buffer.winner(x, y, b))
                 .collect();
             let color = if filled.is_empty() {
                 let c = gbuffer.color[((y + g) * gw + x + g) as usize];
@@ -140,7 +172,7 @@ pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> 
                 }
                 sum.map(|v| v / filled.len() as f32)
             };
-            out.set(x as u32, y as u32, [color[0], color[1], color[2], 1.0]);
+            out.set(x, y, [color[0], color[1], color[2], 1.0]);
         }
     }
     out

@@ -94,6 +94,9 @@ pub struct RenderOptions {
     pub background: Vec3,
     /// Lens samples of `accum` (DESIGN §7; default 256).
     pub samples: u32,
+    /// Memory for the bins of `rdb`, bytes; above it the frame is processed
+    /// in tiles. None: a quarter of the largest device-local heap.
+    pub rdb_memory_bytes: Option<u64>,
 }
 
 /// A cloud on the GPU: its splats, and what the CPU needs to frame them.
@@ -319,6 +322,7 @@ impl Renderer {
             ssaa,
             background: Vec3::ZERO,
             samples: 1,
+            rdb_memory_bytes: None,
         };
         let (_, gbuffer) = self.render_with_gbuffer(scene, &options)?;
         let g = gbuffer.guard;
@@ -424,7 +428,10 @@ impl Renderer {
         };
         let rdb_images = match options.method {
             Method::Rdb(bins, mode) => {
-                let images = RdbImages::new(&self.ctx, &gbuffer, bins)?;
+                let budget = options
+                    .rdb_memory_bytes
+                    .unwrap_or(self.ctx.info.device_local_heap_bytes / 4);
+                let images = RdbImages::new(&self.ctx, &gbuffer, bins, budget)?;
                 self.rdb.record(&mut frame, &gbuffer, &images, camera, mode);
                 Some(images)
             }

@@ -26,6 +26,7 @@ fn accum(
         ssaa,
         background: Vec3::ZERO,
         samples,
+        rdb_memory_bytes: None,
     };
     renderer.render(&scene, &options).unwrap().image
 }

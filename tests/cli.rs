@@ -8,6 +8,7 @@ use std::process::{Command, Output};
 
 use common::{root, scratch, write_ascii_ply};
 use pointlens::image_io::read_image;
+use pointlens::passes::rdb::TilePlan;
 
 fn pointlens(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pointlens"))
@@ -200,6 +201,34 @@ fn bad_input_gives_one_line_and_no_output() {
         &out,
     );
     assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--method",
+            "rdb",
+            "--rdb-memory-mb",
+            "0",
+        ],
+        "--rdb-memory-mb",
+        &out,
+    );
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--method",
+            "rdb",
+            "--rdb-bins",
+            "17",
+        ],
+        "--rdb-bins",
+        &out,
+    );
+    assert_fails(
         &["render", &b, "-o", &out_s, "--frobnicate"],
         "frobnicate",
         &out,
@@ -299,4 +328,38 @@ fn focus_pixel_sets_the_printed_focus_distance() {
         at_pixel > 0.0 && at_pixel < centre,
         "{at_pixel} vs {centre}"
     );
+}
+
+#[test]
+fn rdb_memory_budget_tiles_the_frame_without_changing_a_bit() {
+    let dir = scratch("cli-rdb-tiles");
+    let b = bunny();
+    let render = |name: &str, extra: &[&str]| -> Vec<u8> {
+        let out = dir.join(name).display().to_string();
+        let mut args = vec!["render", &b, "-o", &out, "--width", "64", "--height", "48"];
+        args.extend(["--method", "rdb", "--rdb-bins", "16", "--timings"]);
+        args.extend(["--device", "llvmpipe"]);
+        args.extend(extra);
+        let o = pointlens(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let report = stderr(&o);
+        let resolves = report
+            .lines()
+            .find(|l| l.starts_with("rdb.resolve"))
+            .and_then(|l| l.split_whitespace().last())
+            .unwrap_or_else(|| panic!("no rdb.resolve in the timings:\n{report}"));
+        // 64×48 pixels of 16×16 bins are 6.3 MB: tiles of 1 MiB or less.
+        let tiles = match extra.is_empty() {
+            true => 1,
+            false => TilePlan::new(64, 48, 16, 1 << 20, u64::MAX)
+                .unwrap()
+                .tiles
+                .len(),
+        };
+        assert_eq!(resolves, tiles.to_string(), "timings:\n{report}");
+        std::fs::read(&out).unwrap()
+    };
+    let whole = render("whole.exr", &[]);
+    let tiled = render("tiled.exr", &["--rdb-memory-mb", "1"]);
+    assert!(whole == tiled, "the tiled EXR differs from the untiled one");
 }

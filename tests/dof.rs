@@ -50,6 +50,7 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
                     ssaa: 2,
                     background: Vec3::ZERO,
                     samples: 16,
+                    rdb_memory_bytes: None,
                 };
                 let img = renderer.render(&scene, &options).unwrap().image;
                 for (i, px) in img.pixels.iter().enumerate() {

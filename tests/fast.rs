@@ -19,6 +19,7 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         ssaa: 2,
         background: Vec3::ZERO,
         samples: 64,
+        rdb_memory_bytes: None,
     }
 }
 

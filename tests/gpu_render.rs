@@ -25,6 +25,7 @@ fn render(
         ssaa,
         background: Vec3::ZERO,
         samples: 1,
+        rdb_memory_bytes: None,
     };
     renderer.render(&scene, &options).expect("render").image
 }
@@ -294,6 +295,7 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
             ssaa: 12,
             background: Vec3::ZERO,
             samples: 1,
+            rdb_memory_bytes: None,
         };
         let timings = renderer.render(&scene, &options).unwrap().timings;
         let count = |name: &str| {

@@ -4,14 +4,15 @@ mod common;
 
 use common::{camera, cloud, root, with_gpu};
 use glam::Vec3;
+use pointlens::camera::rdb_lens_table;
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::passes::fast::{FastWeights, GatherWindow};
-use pointlens::passes::rdb::RdbMode;
+use pointlens::passes::rdb::{bytes_per_pixel, RdbMode, TilePlan};
 use pointlens::ply::load_ply;
 use pointlens::reference;
-use pointlens::render::{Method, RenderOptions, Renderer, Scene, SplatSize};
+use pointlens::render::{HostGBuffer, Method, RenderOptions, Renderer, Scene, SplatSize};
 
 fn options(cam: Camera, method: Method, samples: u32) -> RenderOptions {
     RenderOptions {
@@ -20,6 +21,7 @@ fn options(cam: Camera, method: Method, samples: u32) -> RenderOptions {
         ssaa: 2,
         background: Vec3::ZERO,
         samples,
+        rdb_memory_bytes: None,
     }
 }
 
@@ -148,4 +150,175 @@ fn with_partial_occlusion_rdb_is_closer_to_accum_than_fast() {
             "RDB {rdb:.2} dB, fast {fast:.2} dB against accum"
         );
     });
+}
+
+#[test]
+fn tile_plans_cover_the_frame_once_within_the_budget() {
+    for (w, h, bins, budget) in [
+        (64, 48, 9, 1 << 20),
+        (64, 48, 16, 1 << 20),
+        (37, 29, 5, 3000),
+        (3840, 2160, 16, 512 << 20),
+        (5, 400, 2, 32 * 7),
+    ] {
+        let plan = TilePlan::new(w, h, bins, budget, u64::MAX).unwrap();
+        let [tw, th] = plan.tile_size;
+        assert!(
+            tw as u64 * th as u64 * bytes_per_pixel(bins) <= budget,
+            "{w}×{h}, {bins}: tile {tw}×{th} over {budget} bytes"
+        );
+        let mut covered = vec![0u8; (w * h) as usize];
+        for t in &plan.tiles {
+            assert!(t.size[0] <= tw && t.size[1] <= th && t.size[0] > 0 && t.size[1] > 0);
+            for y in t.origin[1]..t.origin[1] + t.size[1] {
+                for x in t.origin[0]..t.origin[0] + t.size[0] {
+                    covered[(y * w + x) as usize] += 1;
+                }
+            }
+        }
+        assert!(
+            covered.iter().all(|&c| c == 1),
+            "{w}×{h}: not one tile per pixel"
+        );
+    }
+    // A frame within the budget is one tile of the frame's size.
+    let whole = TilePlan::new(64, 48, 9, 64 * 48 * 648, u64::MAX).unwrap();
+    assert_eq!(whole.tile_size, [64, 48]);
+    assert_eq!(whole.tiles.len(), 1);
+    // 3840×2160 at N = 16 is 17.0 GB of bins: 512 MiB tiles are 32 or more.
+    let big = TilePlan::new(3840, 2160, 16, 512 << 20, u64::MAX).unwrap();
+    assert!(big.tiles.len() >= 32, "{} tiles", big.tiles.len());
+    // Each of the two images is one allocation: the device's limit binds too.
+    let capped = TilePlan::new(64, 48, 9, u64::MAX, 1000 * 324).unwrap();
+    let [tw, th] = capped.tile_size;
+    assert!(tw * th <= 1000, "tile {tw}×{th} over the allocation limit");
+    // Not even one pixel fits: an error naming the flag.
+    let err = TilePlan::new(64, 48, 16, 2047, u64::MAX).unwrap_err();
+    assert!(err.to_string().contains("--rdb-memory-mb"), "{err}");
+}
+
+/// The scanner's view of the mug from the PCL scan, `width`×`height`,
+/// blurred around it.
+fn mug_camera(width: u32, height: u32) -> Camera {
+    Camera {
+        width,
+        height,
+        eye: Vec3::ZERO,
+        target: Vec3::new(0.08, 0.08, 1.0),
+        up: Vec3::new(0.0, -1.0, 0.0),
+        fovy_deg: 5.0 * height as f32 / 32.0,
+        aperture_radius: 0.02,
+        focus_distance: 1.1,
+    }
+}
+
+#[test]
+fn tiled_equals_untiled_bitwise() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let scan = load_ply(&root().join("data/pcl_table_scene_mug_rgb.ply")).unwrap();
+        let scene = renderer.upload(&scan, SplatSize::Spacing).unwrap();
+        let cam = mug_camera(61, 45);
+        for (bins, mode, budget) in [
+            (5, RdbMode::Centre, 100_000),
+            // --rdb-memory-mb 1
+            (16, RdbMode::Centre, 1 << 20),
+            (9, RdbMode::Pairs, 1 << 20),
+            // Tiles of a few pixels, far smaller than their apron.
+            (4, RdbMode::Centre, 128 * 30),
+        ] {
+            let method = Method::Rdb(bins, mode);
+            let whole = renderer.render(&scene, &options(cam, method, 1)).unwrap();
+            let mut tiled_options = options(cam, method, 1);
+            tiled_options.rdb_memory_bytes = Some(budget);
+            let tiled = renderer.render(&scene, &tiled_options).unwrap();
+            let tiles = |r: &pointlens::render::Rendered| {
+                r.timings
+                    .passes
+                    .iter()
+                    .find(|p| p.name == "rdb.resolve")
+                    .map_or(0, |p| p.count)
+            };
+            assert_eq!(tiles(&whole), 1, "{bins}×{bins} {mode:?}: untiled");
+            let expected = TilePlan::new(61, 45, bins, budget, u64::MAX).unwrap();
+            assert!(expected.tiles.len() > 1);
+            assert_eq!(
+                tiles(&tiled) as usize,
+                expected.tiles.len(),
+                "{bins}×{bins} {mode:?}: tiles"
+            );
+            let differ = whole
+                .image
+                .pixels
+                .iter()
+                .zip(&tiled.image.pixels)
+                .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
+                .count();
+            assert_eq!(
+                differ,
+                0,
+                "{bins}×{bins} {mode:?} in {} tiles: {differ} pixels differ",
+                expected.tiles.len()
+            );
+        }
+    });
+}
+
+#[test]
+fn a_near_and_a_far_point_seen_through_one_lens_position_share_its_bin() {
+    // An axis camera focused at 2; a G-buffer of background (z = +∞) with a
+    // point in front of the focus plane (z = 1, c ≈ 33 px) and one behind it
+    // (z = 4, c ≈ 16 px), each placed where the ray from lens position u_b
+    // through output pixel Q meets its depth.
+    let mut cam = camera(64, 64);
+    cam.focus_distance = 2.0;
+    cam.aperture_radius = 0.25;
+    let bins = 5;
+    let q = (32i64, 32i64);
+    let guard = 40u32;
+    let size = 64 + 2 * guard;
+    for (b, u) in rdb_lens_table(bins).iter().enumerate() {
+        for mode in [RdbMode::Centre, RdbMode::Pairs] {
+            let mut eye = vec![[0.0, 0.0, f32::INFINITY, 1.0]; (size * size) as usize];
+            let mut place = |z: f32| {
+                let o = cam.lens_offset_px(z, *u);
+                let p = (
+                    q.0 - (o.x + 0.5).floor() as i64,
+                    q.1 - (o.y + 0.5).floor() as i64,
+                );
+                let index = (p.1 + guard as i64) * size as i64 + p.0 + guard as i64;
+                eye[index as usize][2] = z;
+                index as u32
+            };
+            let (near, far) = (place(1.0), place(4.0));
+            if near == far {
+                // The lens centre: both points on Q's own pixel ray.
+                continue;
+            }
+            let gbuffer = |eye: Vec<[f32; 4]>| HostGBuffer {
+                width: size,
+                height: size,
+                guard,
+                color: vec![[0.5; 4]; (size * size) as usize],
+                eye,
+            };
+            // Alone, the far point is what Q sees through bin b ...
+            let mut far_only = eye.clone();
+            far_only[near as usize][2] = f32::INFINITY;
+            let alone = reference::rdb_bins(&gbuffer(far_only), &cam, bins, mode);
+            assert_eq!(
+                alone.winner(q.0 as u32, q.1 as u32, b as u32),
+                Some(far),
+                "{mode:?} bin {b}: the far point is not in the bin"
+            );
+            // ... and with the near point on the same ray, the near one wins
+            // that same bin.
+            let both = reference::rdb_bins(&gbuffer(eye), &cam, bins, mode);
+            assert_eq!(
+                both.winner(q.0 as u32, q.1 as u32, b as u32),
+                Some(near),
+                "{mode:?} bin {b}: the near point is not in the bin"
+            );
+        }
+    }
 }

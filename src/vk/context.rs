@@ -78,6 +78,9 @@ pub struct DeviceInfo {
     pub timestamp_valid_bits: u32,
     /// Size of the largest device-local heap, bytes.
     pub device_local_heap_bytes: u64,
+    /// The largest single allocation the driver promises, bytes.
+    pub max_memory_allocation_bytes: u64,
+    pub max_image_array_layers: u32,
 }
 
 impl DeviceInfo {
@@ -461,8 +464,12 @@ fn pick_device(
     let mut seen = Vec::new();
     for pd in devices {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
-        // SAFETY: `pd` comes from this instance; `props2` chains only `driver`.
+        let mut maintenance3 = vk::PhysicalDeviceMaintenance3Properties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut driver)
+            .push_next(&mut maintenance3);
+        // SAFETY: `pd` comes from this instance; `props2` chains only
+        // `driver` and `maintenance3`, both core in Vulkan 1.1.
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
         let props = props2.properties;
         let name = props
@@ -514,6 +521,8 @@ fn pick_device(
             timestamp_period_ns: props.limits.timestamp_period,
             timestamp_valid_bits: fprops.timestamp_valid_bits,
             device_local_heap_bytes,
+            max_memory_allocation_bytes: maintenance3.max_memory_allocation_size,
+            max_image_array_layers: props.limits.max_image_array_layers,
         };
         candidates.push((pd, family as u32, info));
     }

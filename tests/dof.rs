@@ -21,6 +21,7 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         let color = Vec3::new(0.7, 0.3, 0.1);
+        // CoCs 0, 0.4, 1.6, 2.1, 4.9 and 8.2 px (f_px = 41.2).
         // A fronto-parallel plane at z = 2, much wider than the view, points
         // every 10 mm as 12 mm squares (no gaps), 4 m wide: far beyond the view
         // and its largest blur.
@@ -39,6 +40,7 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
                 (1.0, 0.01),
                 (1.0, 0.04),
                 (4.0, 0.1),
+                (1.0, 0.12),
                 (1.0, 0.2),
             ] {
                 let mut cam = camera(40, 30);

@@ -61,13 +61,24 @@ impl PointCloud {
             return vec![0.0; n];
         }
         let grid = Grid::new(&self.positions);
-        let mut best = Vec::with_capacity(k + 1);
-        (0..n)
-            .map(|i| {
-                grid.nearest(&self.positions, i, k, &mut best);
-                best.iter().map(|d2: &f32| d2.sqrt()).sum::<f32>() / k as f32
-            })
-            .collect()
+        let mut spacing = vec![0.0; n];
+        // Each point's search is independent: split the points into one
+        // contiguous chunk per core. Same result whatever the split.
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let chunk = n.div_ceil(threads).max(1024);
+        std::thread::scope(|scope| {
+            for (c, out) in spacing.chunks_mut(chunk).enumerate() {
+                let (grid, points) = (&grid, &self.positions);
+                scope.spawn(move || {
+                    let mut best = Vec::with_capacity(k + 1);
+                    for (j, s) in out.iter_mut().enumerate() {
+                        grid.nearest(points, c * chunk + j, k, &mut best);
+                        *s = best.iter().map(|d2: &f32| d2.sqrt()).sum::<f32>() / k as f32;
+                    }
+                });
+            }
+        });
+        spacing
     }
 
     /// The median of `local_spacing` (0 for fewer than two points): a robust
@@ -97,7 +108,8 @@ impl PointCloud {
     }
 }
 
-fn median(mut v: Vec<f32>) -> f32 {
+/// The median of a series (the upper one of an even count; 0 when empty).
+pub fn median(mut v: Vec<f32>) -> f32 {
     if v.is_empty() {
         return 0.0;
     }

@@ -109,6 +109,9 @@ pub struct Scene {
     splat: SplatSize,
     /// GPU time of the upload copy.
     pub upload_timings: FrameTimings,
+    /// Wall time of computing the splat sizes on the CPU (the k-nearest
+    /// neighbour spacing for `SplatSize::Spacing`), milliseconds.
+    pub splat_sizes_ms: f64,
 }
 
 impl Scene {
@@ -173,18 +176,20 @@ impl Renderer {
     pub fn upload(&self, cloud: &PointCloud, splat: SplatSize) -> Result<Scene> {
         let count = u32::try_from(cloud.len())
             .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
+        let started = std::time::Instant::now();
         let diameters: Vec<f32> = match splat {
             SplatSize::World(w) => vec![w; cloud.len()],
             SplatSize::Pixels(_) => vec![0.0; cloud.len()],
             SplatSize::Spacing => {
                 let spacing = cloud.local_spacing();
-                let fallback = cloud.median_spacing();
+                let fallback = crate::cloud::median(spacing.clone());
                 spacing
                     .iter()
                     .map(|&s| SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback })
                     .collect()
             }
         };
+        let splat_sizes_ms = started.elapsed().as_secs_f64() * 1e3;
         let vertices: Vec<SplatVertex> = cloud
             .positions
             .iter()
@@ -252,6 +257,7 @@ impl Renderer {
             diameters,
             splat,
             upload_timings,
+            splat_sizes_ms,
         })
     }
 
@@ -386,6 +392,23 @@ impl Renderer {
             false => None,
         };
 
+        // The method's images too are made before recording starts, so that
+        // a frame's wall time (recording to readable result) excludes every
+        // allocation, whatever the method.
+        let fast_images = match options.method {
+            Method::Fast(..) => Some(FastImages::new(&self.ctx, &gbuffer)?),
+            _ => None,
+        };
+        let rdb_images = match options.method {
+            Method::Rdb(bins, _) => {
+                let budget = options
+                    .rdb_memory_bytes
+                    .unwrap_or(self.ctx.info.device_local_heap_bytes / 4);
+                Some(RdbImages::new(&self.ctx, &gbuffer, bins, budget)?)
+            }
+            _ => None,
+        };
+
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         let (samples, label) = match options.method {
             Method::Pinhole | Method::Fast(..) | Method::Rdb(..) => {
@@ -415,28 +438,15 @@ impl Renderer {
             options.background,
             label,
         );
-        let fast_images = match options.method {
-            Method::Fast(weights, window) => {
-                let images = FastImages::new(&self.ctx, &gbuffer)?;
-                let max_coc = view.max_coc_px;
-                self.fast.record(
-                    &mut frame, &gbuffer, &images, camera, weights, window, max_coc,
-                );
-                Some(images)
-            }
-            _ => None,
-        };
-        let rdb_images = match options.method {
-            Method::Rdb(bins, mode) => {
-                let budget = options
-                    .rdb_memory_bytes
-                    .unwrap_or(self.ctx.info.device_local_heap_bytes / 4);
-                let images = RdbImages::new(&self.ctx, &gbuffer, bins, budget)?;
-                self.rdb.record(&mut frame, &gbuffer, &images, camera, mode);
-                Some(images)
-            }
-            _ => None,
-        };
+        if let (Method::Fast(weights, window), Some(images)) = (options.method, &fast_images) {
+            let max_coc = view.max_coc_px;
+            self.fast.record(
+                &mut frame, &gbuffer, images, camera, weights, window, max_coc,
+            );
+        }
+        if let (Method::Rdb(_, mode), Some(images)) = (options.method, &rdb_images) {
+            self.rdb.record(&mut frame, &gbuffer, images, camera, mode);
+        }
         // Pinhole and accum: the color the samples resolved to.
         let result = match (&fast_images, &rdb_images) {
             (Some(f), _) => &f.result,

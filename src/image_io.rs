@@ -221,6 +221,40 @@ pub fn check_output_path(path: &Path) -> Result<()> {
 }
 
 /// Encodes `img` into `file` and syncs it to disk. Errors name `path`.
+/// The PNG bytes [`write_image`] would write for `img` (8-bit sRGB RGB),
+/// encoded in memory: what `bench` times as the encoding cost.
+pub fn encode_png(img: &LinearImage) -> Result<Vec<u8>> {
+    let rgb: Vec<u8> = img
+        .pixels
+        .iter()
+        .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
+        .collect();
+    let mut bytes = Vec::new();
+    PngEncoder::new(&mut bytes)
+        .write_image(&rgb, img.width, img.height, ExtendedColorType::Rgb8)
+        .map_err(|e| image_msg(Path::new("(memory)"), format!("cannot encode PNG: {e}")))?;
+    Ok(bytes)
+}
+
+/// Writes 8-bit RGB pixels (already display-encoded, e.g. a chart) as a
+/// PNG, atomically like [`write_image`].
+pub fn write_rgb8_png(rgb: &[u8], width: u32, height: u32, path: &Path) -> Result<()> {
+    if FileFormat::from_path(path)? != FileFormat::Png {
+        return Err(Error::InvalidArgument(format!(
+            "{}: this output is a PNG (use .png)",
+            path.display()
+        )));
+    }
+    write_atomically(path, |file| {
+        let mut out = BufWriter::new(file);
+        PngEncoder::new(&mut out)
+            .write_image(rgb, width, height, ExtendedColorType::Rgb8)
+            .map_err(|e| image_msg(path, format!("cannot encode PNG: {e}")))?;
+        let file = out.into_inner().map_err(|e| io_err(path, e.into_error()))?;
+        file.sync_all().map_err(|source| io_err(path, source))
+    })
+}
+
 fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Result<()> {
     let mut out = BufWriter::new(file);
     let encoded = match format {

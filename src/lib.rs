@@ -5,7 +5,9 @@
 //! → [`gbuffer`] (K×K splat raster samples, resolved) → DOF method → readback
 //! → [`image_io`].
 
+pub mod bench;
 pub mod camera;
+pub mod chart;
 pub mod cloud;
 pub mod error;
 pub mod gbuffer;

@@ -9,7 +9,10 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 
+use indicatif::{ProgressBar, ProgressStyle};
+use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
 use pointlens::camera::{self, CameraSpec};
+use pointlens::chart;
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
 use pointlens::metrics;
@@ -44,11 +47,70 @@ enum Command {
         #[arg(long, value_name = "D.png")]
         diff: Option<PathBuf>,
     },
+    /// Time a matrix of methods × models × resolutions (Zhao's Table 1,
+    /// extended): per-pass GPU times and frame wall time, min/median/max.
+    Bench(Box<BenchArgs>),
     /// Print point count, bounds and attributes of a point cloud.
     Info {
         /// PLY file.
         input: PathBuf,
     },
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// One resolution instead of 640×480 and 1920×1080 (needs --height).
+    #[arg(long, requires = "height")]
+    width: Option<u32>,
+    #[arg(long, requires = "width")]
+    height: Option<u32>,
+    /// Comma-separated methods: pinhole, fast, fast-uniform, rdbN,
+    /// rdbN-pairs, accumS.
+    #[arg(long, default_value = BenchMethod::DEFAULT)]
+    methods: String,
+    /// Comma-separated models: bunny, mug, synthetic, or PLY files.
+    #[arg(long, default_value = BenchModel::DEFAULT)]
+    models: String,
+    /// Points of the synthetic model.
+    #[arg(long, default_value_t = 1_000_000)]
+    points: usize,
+    /// Timed runs per cell.
+    #[arg(long, default_value_t = 5)]
+    runs: u32,
+    /// Untimed runs before them.
+    #[arg(long, default_value_t = 2)]
+    warmup: u32,
+    /// K: the G-buffer takes K×K samples per pixel.
+    #[arg(long, default_value_t = 4)]
+    ssaa: u32,
+    /// Also PSNR and SSIM of each cell against accum with 256 lens samples.
+    #[arg(long)]
+    quality: bool,
+    /// Write every measurement as JSON.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Write every measurement as CSV (one row per cell and measure).
+    #[arg(long, value_name = "FILE")]
+    csv: Option<PathBuf>,
+    /// Draw the median frame times as a bar chart (PNG).
+    #[arg(long, value_name = "FILE.png")]
+    chart: Option<PathBuf>,
+    /// Directory of the bundled clouds (default: ./data, else the source tree's).
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// Use the Vulkan device whose name or driver contains NAME.
+    #[arg(long, value_name = "NAME")]
+    device: Option<String>,
+    /// Enable the validation layer (also POINTLENS_VALIDATION=1).
+    #[arg(long)]
+    validate: bool,
+    /// Measure nothing: read a report written by --json (on this or another
+    /// machine) and print its table, CSV and chart.
+    #[arg(long, value_name = "FILE", conflicts_with_all = [
+        "width", "height", "methods", "models", "points", "runs", "warmup",
+        "ssaa", "quality", "data", "device", "validate",
+    ])]
+    from_json: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -193,6 +255,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render(*args),
         Command::Compare { a, b, diff } => compare(&a, &b, diff.as_deref()),
         Command::Info { input } => info(&input),
+        Command::Bench(args) => bench(*args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -212,6 +275,124 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Fails early when `path`'s directory does not exist, so a long run does
+/// not end without a place for its result.
+fn check_parent_dir(path: &Path, flag: &str) -> Result<()> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => {
+            bail!("{flag} {}: no directory {}", path.display(), dir.display())
+        }
+        _ => Ok(()),
+    }
+}
+
+fn bench(args: BenchArgs) -> Result<()> {
+    for (path, flag) in [(&args.json, "--json"), (&args.csv, "--csv")] {
+        if let Some(p) = path {
+            check_parent_dir(p, flag)?;
+        }
+    }
+    if let Some(p) = &args.chart {
+        check_parent_dir(p, "--chart")?;
+        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+            bail!("--chart {}: the chart is a PNG (use .png)", p.display());
+        }
+    }
+    let report = match &args.from_json {
+        Some(path) => read_bench_report(path)?,
+        None => measure(&args)?,
+    };
+    print!("{}", report.to_markdown());
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        write_text(path, &text)?;
+    }
+    if let Some(path) = &args.csv {
+        write_text(path, &report.to_csv())?;
+    }
+    if let Some(path) = &args.chart {
+        chart::write_chart(&report, path)?;
+    }
+    Ok(())
+}
+
+fn read_bench_report(path: &Path) -> Result<bench::BenchReport> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("--from-json {}", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("--from-json {}: not a bench report", path.display()))
+}
+
+/// Runs the matrix the flags describe.
+fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
+    let methods = BenchMethod::parse_list(&args.methods)?;
+    let models = BenchModel::parse_list(&args.models)?;
+    if args.runs == 0 {
+        bail!("--runs must be at least 1");
+    }
+    if args.ssaa == 0 || args.ssaa > 16 {
+        bail!("--ssaa must be between 1 and 16, not {}", args.ssaa);
+    }
+    if args.points == 0 && models.contains(&BenchModel::Synthetic) {
+        bail!("--points must be at least 1 for the synthetic model");
+    }
+    let resolutions = match (args.width, args.height) {
+        (Some(0), _) | (_, Some(0)) => bail!("--width and --height must be at least 1"),
+        (Some(w), Some(h)) => vec![(w, h)],
+        _ => vec![(640, 480), (1920, 1080)],
+    };
+    for model in &models {
+        if let BenchModel::File(p) = model {
+            if !p.is_file() {
+                bail!("--models: {}: no such file", p.display());
+            }
+        }
+    }
+    let data_dir = match &args.data {
+        Some(d) => d.clone(),
+        None if Path::new("data/bunny_colored.ply").is_file() => PathBuf::from("data"),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("data"),
+    };
+    let options = BenchOptions {
+        methods,
+        models,
+        resolutions,
+        points: args.points,
+        runs: args.runs,
+        warmup: args.warmup,
+        ssaa: args.ssaa,
+        quality: args.quality,
+        data_dir,
+    };
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    let bar = ProgressBar::new(bench::frame_count(&options)).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} frames, {elapsed} {msg}")
+            .expect("a valid template"),
+    );
+    let report = bench::run(&ctx, &options, &mut |done, _, what| {
+        bar.set_position(done);
+        bar.set_message(what.to_string());
+    });
+    bar.finish_and_clear();
+    Ok(report?)
+}
+
+/// Writes `text` to `path` atomically.
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomically(path, |mut file| {
+        let io = |source| pointlens::Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        file.write_all(text.as_bytes()).map_err(io)?;
+        file.sync_all().map_err(io)
+    })?;
+    Ok(())
 }
 
 fn info(input: &Path) -> Result<()> {
@@ -347,6 +528,7 @@ fn render(args: RenderArgs) -> Result<()> {
         guard: rendered.guard,
         frame: &rendered.timings,
         upload: &scene.upload_timings,
+        splat_sizes_ms: scene.splat_sizes_ms,
         load_ms,
         encode_ms,
     };
@@ -385,6 +567,7 @@ struct TimingReport<'a> {
     guard: u32,
     frame: &'a FrameTimings,
     upload: &'a FrameTimings,
+    splat_sizes_ms: f64,
     load_ms: f64,
     encode_ms: f64,
 }
@@ -405,6 +588,10 @@ impl TimingReport<'_> {
             "{:<20} {:>10.3}   (not in the frame)\n",
             "upload gpu",
             self.upload.gpu_total_ms()
+        );
+        s += &format!(
+            "{:<20} {:>10.3}   (not in the frame)\n",
+            "splat sizes wall", self.splat_sizes_ms
         );
         s += &format!(
             "{:<20} {:>10.3}   (not in the frame)\n",
@@ -436,6 +623,7 @@ impl TimingReport<'_> {
             "gpu_total_ms": self.frame.gpu_total_ms(),
             "frame_wall_ms": self.frame.wall_ms,
             "upload_gpu_ms": self.upload.gpu_total_ms(),
+            "splat_sizes_ms": self.splat_sizes_ms,
             "load_ms": self.load_ms,
             "encode_ms": self.encode_ms,
         });

@@ -3,20 +3,11 @@
 
 mod common;
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use common::{root, scratch, write_ascii_ply};
+use common::{assert_fails, pointlens, root, scratch, write_ascii_ply};
 use pointlens::image_io::read_image;
 use pointlens::passes::rdb::TilePlan;
-
-fn pointlens(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pointlens"))
-        .args(args)
-        .env("POINTLENS_VALIDATION", "1")
-        .output()
-        .expect("run pointlens")
-}
 
 fn bunny() -> String {
     root().join("data/bunny_colored.ply").display().to_string()
@@ -24,22 +15,6 @@ fn bunny() -> String {
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// A failed run: non-zero exit, exactly one line on stderr containing
-/// `phrase`, and no file at `output`.
-fn assert_fails(args: &[&str], phrase: &str, output: &Path) {
-    let o = pointlens(args);
-    let err = stderr(&o);
-    assert!(!o.status.success(), "{args:?} succeeded");
-    assert_eq!(
-        err.trim_end().lines().count(),
-        1,
-        "{args:?}: not one line:\n{err}"
-    );
-    assert!(err.contains(phrase), "{args:?}: '{phrase}' not in: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(!output.exists(), "{args:?} left {}", output.display());
 }
 
 #[test]

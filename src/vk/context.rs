@@ -69,6 +69,8 @@ pub struct DeviceInfo {
     pub name: String,
     pub driver_name: String,
     pub driver_info: String,
+    /// The driver's own version number (vendor-specific encoding).
+    pub driver_version: u32,
     pub device_type: vk::PhysicalDeviceType,
     pub api_version: u32,
     pub max_image_dimension_2d: u32,
@@ -514,6 +516,7 @@ fn pick_device(
             name,
             driver_name,
             driver_info,
+            driver_version: props.driver_version,
             device_type: props.device_type,
             api_version: props.api_version,
             max_image_dimension_2d: props.limits.max_image_dimension2_d,

@@ -6,6 +6,7 @@
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -139,4 +140,29 @@ pub fn camera(width: u32, height: u32) -> Camera {
         aperture_radius: 0.0,
         focus_distance: 1.0,
     }
+}
+
+/// Runs the `pointlens` binary with validation on (any message fails it).
+pub fn pointlens(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pointlens"))
+        .args(args)
+        .env("POINTLENS_VALIDATION", "1")
+        .output()
+        .expect("run pointlens")
+}
+
+/// A failed run: non-zero exit, exactly one line on stderr containing
+/// `phrase`, no panic, and no file at `output`.
+pub fn assert_fails(args: &[&str], phrase: &str, output: &Path) {
+    let o = pointlens(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "{args:?}: not one line:\n{err}"
+    );
+    assert!(err.contains(phrase), "{args:?}: '{phrase}' not in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!output.exists(), "{args:?} left {}", output.display());
 }

@@ -1,0 +1,676 @@
+//! `pointlens bench`: frame timings of a matrix of methods × models ×
+//! resolutions, each model seen through a fixed camera, with optional
+//! quality against the accumulation reference (Zhao's Table 1, extended).
+//!
+//! A cell is one (model, resolution, method). It gets `warmup` untimed
+//! frames, then `runs` timed ones; each timed frame yields per-pass GPU
+//! times (timestamp queries) and the frame's wall time (command recording
+//! to the result readable on the host). Cloud upload and PNG encoding are
+//! measured apart and never part of a frame.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::camera::{self, Camera, CameraSpec};
+use crate::cloud::PointCloud;
+use crate::error::{Error, Result};
+use crate::gbuffer::depth_range;
+use crate::image_io::{encode_png, LinearImage};
+use crate::metrics::{psnr, ssim};
+use crate::passes::fast::{FastWeights, GatherWindow};
+use crate::passes::rdb::RdbMode;
+use crate::ply::load_ply;
+use crate::render::{Method, RenderOptions, Renderer, SplatSize};
+use crate::vk::{Context, FrameTimings};
+
+/// Lens samples of the quality reference (`--quality`).
+pub const REFERENCE_SAMPLES: u32 = 256;
+
+/// A method of the matrix, as named on the command line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchMethod {
+    /// `pinhole`, `fast`, `fast-uniform`, `rdb9`, `rdb5-pairs`, `accum64`, …
+    pub name: String,
+    pub method: Method,
+    /// Lens samples (accum only; 1 otherwise).
+    pub samples: u32,
+}
+
+impl BenchMethod {
+    /// The methods of the default matrix.
+    pub const DEFAULT: &'static str = "pinhole,fast,rdb5,rdb9,accum64";
+    pub const SYNTAX: &'static str =
+        "pinhole, fast, fast-uniform, rdbN or rdbN-pairs (N in 2..=16), accumS (S ≥ 1)";
+
+    pub fn parse(name: &str) -> Result<BenchMethod> {
+        let bad = || {
+            Error::InvalidArgument(format!(
+                "--methods: unknown method '{name}' (known: {})",
+                Self::SYNTAX
+            ))
+        };
+        let number = |digits: &str| digits.parse::<u32>().map_err(|_| bad());
+        let (method, samples) = match name {
+            "pinhole" => (Method::Pinhole, 1),
+            "fast" => (Method::Fast(FastWeights::Area, GatherWindow::Tiles), 1),
+            "fast-uniform" => (Method::Fast(FastWeights::Uniform, GatherWindow::Tiles), 1),
+            _ if name.starts_with("rdb") => {
+                let rest = &name[3..];
+                let (digits, mode) = match rest.strip_suffix("-pairs") {
+                    Some(d) => (d, RdbMode::Pairs),
+                    None => (rest, RdbMode::Centre),
+                };
+                let n = number(digits)?;
+                if !(2..=16).contains(&n) {
+                    return Err(bad());
+                }
+                (Method::Rdb(n, mode), 1)
+            }
+            _ if name.starts_with("accum") => {
+                let s = number(&name[5..])?;
+                if s == 0 {
+                    return Err(bad());
+                }
+                (Method::Accum, s)
+            }
+            _ => return Err(bad()),
+        };
+        Ok(BenchMethod {
+            name: name.to_string(),
+            method,
+            samples,
+        })
+    }
+
+    /// Parses a comma-separated list.
+    pub fn parse_list(list: &str) -> Result<Vec<BenchMethod>> {
+        split_list(list, "--methods")?
+            .into_iter()
+            .map(BenchMethod::parse)
+            .collect()
+    }
+}
+
+fn split_list<'a>(list: &'a str, flag: &str) -> Result<Vec<&'a str>> {
+    let items: Vec<&str> = list.split(',').map(str::trim).collect();
+    if items.iter().any(|i| i.is_empty()) {
+        return Err(Error::InvalidArgument(format!(
+            "{flag}: empty entry in '{list}'"
+        )));
+    }
+    Ok(items)
+}
+
+/// A model of the matrix: a bundled cloud, the synthetic cloud, or a PLY
+/// file, each with its fixed camera.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BenchModel {
+    /// `data/bunny_colored.ply`, auto-framed from +z (the default camera).
+    Bunny,
+    /// `data/pcl_table_scene_mug_rgb.ply` from its sensor's viewpoint.
+    Mug,
+    /// [`synthetic_cloud`] of `--points` points, auto-framed from +z.
+    Synthetic,
+    /// Any PLY file, auto-framed from +z.
+    File(PathBuf),
+}
+
+impl BenchModel {
+    pub const DEFAULT: &'static str = "bunny,mug,synthetic";
+
+    pub fn parse(name: &str) -> Result<BenchModel> {
+        Ok(match name {
+            "bunny" => BenchModel::Bunny,
+            "mug" => BenchModel::Mug,
+            "synthetic" => BenchModel::Synthetic,
+            _ if name.to_ascii_lowercase().ends_with(".ply") => BenchModel::File(name.into()),
+            _ => {
+                return Err(Error::InvalidArgument(format!(
+                "--models: unknown model '{name}' (known: bunny, mug, synthetic, or a .ply file)"
+            )))
+            }
+        })
+    }
+
+    pub fn parse_list(list: &str) -> Result<Vec<BenchModel>> {
+        split_list(list, "--models")?
+            .into_iter()
+            .map(BenchModel::parse)
+            .collect()
+    }
+
+    pub fn name(&self) -> String {
+        match self {
+            BenchModel::Bunny => "bunny".into(),
+            BenchModel::Mug => "mug".into(),
+            BenchModel::Synthetic => "synthetic".into(),
+            BenchModel::File(p) => p.display().to_string(),
+        }
+    }
+
+    /// Loads (or generates) the cloud; bundled clouds are looked up in
+    /// `data_dir`.
+    pub fn load(&self, data_dir: &Path, points: usize) -> Result<PointCloud> {
+        match self {
+            BenchModel::Bunny => load_ply(&data_dir.join("bunny_colored.ply")),
+            BenchModel::Mug => load_ply(&data_dir.join("pcl_table_scene_mug_rgb.ply")),
+            BenchModel::Synthetic => Ok(synthetic_cloud(points)),
+            BenchModel::File(p) => load_ply(p),
+        }
+    }
+
+    /// The model's fixed camera at `width`×`height`: fields not given here
+    /// follow DESIGN §2's defaults (auto-framing, focus on the model's
+    /// centre, automatic aperture), which depend only on the cloud and the
+    /// size.
+    pub fn camera(&self, cloud: &PointCloud, width: u32, height: u32) -> Result<Camera> {
+        let mut spec = CameraSpec {
+            width: Some(width),
+            height: Some(height),
+            ..CameraSpec::default()
+        };
+        if *self == BenchModel::Mug {
+            // The scan's sensor: at the origin, looking down +z, y down.
+            spec.eye = Some([0.0, 0.0, 0.0]);
+            spec.target = Some([0.0, 0.0, 1.0]);
+            spec.up = Some([0.0, -1.0, 0.0]);
+            spec.fovy_deg = Some(27.95);
+        }
+        let (lo, hi) = cloud.bounds();
+        camera::resolve(&spec, lo, hi, &cloud.positions)
+    }
+}
+
+/// A deterministic synthetic scene of `count` points for scaling tests: a
+/// wavy wall facing +z (70 % of the points) and five spheres in front of it
+/// at different depths, colored by a checker of their position, so that a
+/// lens blurs something at every depth.
+pub fn synthetic_cloud(count: usize) -> PointCloud {
+    // SplitMix64: a fixed stream, the same cloud on every machine.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let spheres = [
+        (Vec3::new(-0.6, -0.3, 0.9), 0.25),
+        (Vec3::new(0.5, 0.35, 0.6), 0.3),
+        (Vec3::new(0.0, -0.05, 0.35), 0.2),
+        (Vec3::new(-0.45, 0.45, 0.15), 0.15),
+        (Vec3::new(0.6, -0.5, 1.2), 0.12),
+    ];
+    let mut positions = Vec::with_capacity(count);
+    let mut colors = Vec::with_capacity(count);
+    for i in 0..count {
+        let p = if i % 10 < 7 {
+            let (x, y) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
+            Vec3::new(x, y, 0.08 * (6.0 * x).sin() * (5.0 * y).cos() - 0.3)
+        } else {
+            // The k-th sphere point goes to sphere k mod 5: all get as many.
+            let k = i / 10 * 3 + i % 10 - 7;
+            let (center, radius) = spheres[k % spheres.len()];
+            // Uniform on the sphere: z uniform in [−1, 1], angle uniform.
+            let z = 2.0 * next() - 1.0;
+            let phi = std::f32::consts::TAU * next();
+            let r = (1.0 - z * z).sqrt();
+            center + radius * Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        };
+        let cell = |v: f32| (v * 8.0).floor() as i32;
+        let even = (cell(p.x) + cell(p.y) + cell(p.z)).rem_euclid(2) == 0;
+        let hue = 0.5 + 0.5 * p.x;
+        colors.push(if even {
+            Vec3::new(0.8 * hue + 0.1, 0.5, 0.9 - 0.8 * hue)
+        } else {
+            Vec3::splat(0.05)
+        });
+        positions.push(p);
+    }
+    PointCloud {
+        positions,
+        colors,
+        normals: None,
+        has_colors: true,
+        attributes: vec!["x".into(), "y".into(), "z".into()],
+    }
+}
+
+/// What to measure.
+#[derive(Debug, Clone)]
+pub struct BenchOptions {
+    pub methods: Vec<BenchMethod>,
+    pub models: Vec<BenchModel>,
+    pub resolutions: Vec<(u32, u32)>,
+    /// Size of the synthetic cloud.
+    pub points: usize,
+    pub runs: u32,
+    pub warmup: u32,
+    /// K of the K×K SSAA G-buffer, for every method.
+    pub ssaa: u32,
+    /// PSNR and SSIM of each cell against accum with 256 samples.
+    pub quality: bool,
+    /// Where the bundled clouds are.
+    pub data_dir: PathBuf,
+}
+
+/// min, median and max of a series, milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Stats {
+    pub min: f64,
+    pub median: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    /// Of a non-empty series.
+    pub fn of(values: &[f64]) -> Stats {
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        };
+        Stats {
+            min: v[0],
+            median,
+            max: v[n - 1],
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct PassStats {
+    pub name: String,
+    /// Scopes of this name per frame (e.g. 16 rasters at K = 4).
+    pub count: u32,
+    pub gpu_ms: Stats,
+}
+
+/// The CoC range of a cell's camera, pixels.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct CocRange {
+    /// Smallest CoC of the points in front of the camera (0 when the focus
+    /// plane lies within their depth range).
+    pub min: f32,
+    /// Largest CoC of the points.
+    pub max: f32,
+    /// The background's CoC, c(∞) = 2R·f_px/S.
+    pub background: f32,
+}
+
+impl CocRange {
+    pub fn of(camera: &Camera, positions: &[Vec3]) -> CocRange {
+        let background = camera.coc_px(f32::INFINITY);
+        match depth_range(camera, positions) {
+            Some((lo, hi)) => {
+                let s = camera.focus_distance;
+                let min = if (lo..=hi).contains(&s) {
+                    0.0
+                } else {
+                    camera.coc_px(lo).min(camera.coc_px(hi))
+                };
+                CocRange {
+                    min,
+                    max: camera.max_coc_px(lo, hi),
+                    background,
+                }
+            }
+            None => CocRange {
+                min: 0.0,
+                max: 0.0,
+                background,
+            },
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct Quality {
+    pub psnr_db: f64,
+    pub ssim: f64,
+}
+
+/// The upload of a model's cloud (once per model, not part of any frame).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct Upload {
+    /// Splat sizes from the k-nearest-neighbour spacing, on the CPU (0 in
+    /// reports written before it was measured apart).
+    #[serde(default)]
+    pub splat_sizes_ms: f64,
+    /// The copy to device memory, GPU time.
+    pub gpu_ms: f64,
+    /// All of it: splat sizes, staging, copy and wait.
+    pub wall_ms: f64,
+}
+
+/// One (model, resolution, method) cell.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Cell {
+    pub model: String,
+    pub points: usize,
+    pub width: u32,
+    pub height: u32,
+    pub method: String,
+    pub ssaa: u32,
+    /// Lens samples (accum; 1 otherwise).
+    pub samples: u32,
+    pub camera: CameraSpec,
+    pub coc_px: CocRange,
+    pub runs: u32,
+    pub warmup: u32,
+    pub frame_wall_ms: Stats,
+    pub gpu_total_ms: Stats,
+    pub passes: Vec<PassStats>,
+    pub upload: Upload,
+    /// Encoding the frame as PNG in memory, after the frame.
+    pub png_encode_ms: Stats,
+    /// Against accum with 256 samples (`--quality`), else null.
+    pub quality: Option<Quality>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct DeviceReport {
+    pub name: String,
+    pub driver: String,
+    pub driver_info: String,
+    pub driver_version: u32,
+    pub api_version: String,
+    pub device_type: String,
+}
+
+/// Everything `bench` measured.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct BenchReport {
+    pub pointlens_version: String,
+    pub device: DeviceReport,
+    pub runs: u32,
+    pub warmup: u32,
+    pub ssaa: u32,
+    pub quality_reference: Option<String>,
+    pub cells: Vec<Cell>,
+}
+
+/// Progress of a bench: called with (frames done, frames in all, what is
+/// rendering now) before each frame.
+pub type Progress<'a> = &'a mut dyn FnMut(u64, u64, &str);
+
+/// The number of frames [`run`] renders (for a progress bar).
+pub fn frame_count(options: &BenchOptions) -> u64 {
+    let per_method = (options.warmup + options.runs) as u64;
+    let per_resolution = per_method * options.methods.len() as u64 + options.quality as u64;
+    per_resolution * (options.resolutions.len() * options.models.len()) as u64
+}
+
+/// Runs the matrix on `ctx`.
+pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Result<BenchReport> {
+    if options.runs == 0 {
+        return Err(Error::InvalidArgument("--runs must be at least 1".into()));
+    }
+    if options.methods.is_empty() || options.models.is_empty() || options.resolutions.is_empty() {
+        return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
+    }
+    let renderer = Renderer::new(ctx)?;
+    let total = frame_count(options);
+    let mut done = 0u64;
+    let mut cells = Vec::new();
+    for model in &options.models {
+        let cloud = model.load(&options.data_dir, options.points)?;
+        let started = Instant::now();
+        let scene = renderer.upload(&cloud, SplatSize::Spacing)?;
+        let upload = Upload {
+            splat_sizes_ms: scene.splat_sizes_ms,
+            gpu_ms: scene.upload_timings.gpu_total_ms(),
+            wall_ms: started.elapsed().as_secs_f64() * 1e3,
+        };
+        for &(width, height) in &options.resolutions {
+            let camera = model.camera(&cloud, width, height)?;
+            let coc = CocRange::of(&camera, &cloud.positions);
+            let frame = |method: Method, samples: u32| RenderOptions {
+                camera,
+                method,
+                ssaa: options.ssaa,
+                background: Vec3::ZERO,
+                samples,
+                rdb_memory_bytes: None,
+            };
+            let what = |method: &str| format!("{} {width}×{height} {method}", model.name());
+            let reference = if options.quality {
+                progress(done, total, &what("reference (accum 256)"));
+                done += 1;
+                let r = renderer.render(&scene, &frame(Method::Accum, REFERENCE_SAMPLES))?;
+                Some(r.image)
+            } else {
+                None
+            };
+            for m in &options.methods {
+                let options_m = frame(m.method, m.samples);
+                for _ in 0..options.warmup {
+                    progress(done, total, &what(&format!("{} (warm-up)", m.name)));
+                    done += 1;
+                    renderer.render(&scene, &options_m)?;
+                }
+                let mut timings = Vec::new();
+                let mut encode = Vec::new();
+                let mut last: Option<LinearImage> = None;
+                for _ in 0..options.runs {
+                    progress(done, total, &what(&m.name));
+                    done += 1;
+                    let r = renderer.render(&scene, &options_m)?;
+                    let t = Instant::now();
+                    encode_png(&r.image)?;
+                    encode.push(t.elapsed().as_secs_f64() * 1e3);
+                    timings.push(r.timings);
+                    last = Some(r.image);
+                }
+                let image = last.expect("runs ≥ 1");
+                let quality = match &reference {
+                    Some(reference) => Some(Quality {
+                        psnr_db: psnr(reference, &image)?,
+                        ssim: ssim(reference, &image)?,
+                    }),
+                    None => None,
+                };
+                cells.push(Cell {
+                    model: model.name(),
+                    points: cloud.len(),
+                    width,
+                    height,
+                    method: m.name.clone(),
+                    ssaa: options.ssaa,
+                    samples: m.samples,
+                    camera: camera.to_spec(),
+                    coc_px: coc,
+                    runs: options.runs,
+                    warmup: options.warmup,
+                    frame_wall_ms: Stats::of(
+                        &timings.iter().map(|t| t.wall_ms).collect::<Vec<_>>(),
+                    ),
+                    gpu_total_ms: Stats::of(
+                        &timings.iter().map(|t| t.gpu_total_ms()).collect::<Vec<_>>(),
+                    ),
+                    passes: pass_stats(&timings),
+                    upload,
+                    png_encode_ms: Stats::of(&encode),
+                    quality,
+                });
+            }
+        }
+    }
+    progress(done, total, "done");
+    let info = &ctx.info;
+    Ok(BenchReport {
+        pointlens_version: env!("CARGO_PKG_VERSION").to_string(),
+        device: DeviceReport {
+            name: info.name.clone(),
+            driver: info.driver_name.clone(),
+            driver_info: info.driver_info.clone(),
+            driver_version: info.driver_version,
+            api_version: format!(
+                "{}.{}.{}",
+                ash::vk::api_version_major(info.api_version),
+                ash::vk::api_version_minor(info.api_version),
+                ash::vk::api_version_patch(info.api_version)
+            ),
+            device_type: format!("{:?}", info.device_type),
+        },
+        runs: options.runs,
+        warmup: options.warmup,
+        ssaa: options.ssaa,
+        quality_reference: options
+            .quality
+            .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
+        cells,
+    })
+}
+
+/// Per-pass statistics over the runs, passes in recording order.
+fn pass_stats(runs: &[FrameTimings]) -> Vec<PassStats> {
+    runs[0]
+        .passes
+        .iter()
+        .map(|p| {
+            let values: Vec<f64> = runs
+                .iter()
+                .map(|r| {
+                    r.passes
+                        .iter()
+                        .find(|q| q.name == p.name)
+                        .map_or(0.0, |q| q.gpu_ms)
+                })
+                .collect();
+            PassStats {
+                name: p.name.clone(),
+                count: p.count,
+                gpu_ms: Stats::of(&values),
+            }
+        })
+        .collect()
+}
+
+impl BenchReport {
+    /// The summary table (Markdown): one row per cell.
+    pub fn to_markdown(&self) -> String {
+        let d = &self.device;
+        let mut s = format!(
+            "Device: {} ({} {}, Vulkan {}); K = {}, {} runs after {} warm-up; milliseconds, median (min–max)\n\n",
+            d.name, d.driver, d.driver_info, d.api_version, self.ssaa, self.runs, self.warmup
+        );
+        let quality = self.quality_reference.is_some();
+        s += "| model | points | resolution | method | CoC px (points; background) | frame wall | GPU total | DOF passes | upload | PNG encode |";
+        s += if quality { " PSNR dB | SSIM |\n" } else { "\n" };
+        s += "|---|---:|---|---|---|---:|---:|---:|---:|---:|";
+        s += if quality { "---:|---:|\n" } else { "\n" };
+        for c in &self.cells {
+            let dof: f64 = c
+                .passes
+                .iter()
+                .filter(|p| !p.name.starts_with("gbuffer") && p.name != "readback")
+                .map(|p| p.gpu_ms.median)
+                .sum::<f64>()
+                + 0.0; // an empty sum is −0.0
+            s += &format!(
+                "| {} | {} | {}×{} | {} | {:.1}–{:.1}; {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                c.model,
+                c.points,
+                c.width,
+                c.height,
+                c.method,
+                c.coc_px.min,
+                c.coc_px.max,
+                c.coc_px.background,
+                fmt_stats(&c.frame_wall_ms),
+                c.gpu_total_ms.median,
+                dof,
+                c.upload.wall_ms,
+                c.png_encode_ms.median,
+            );
+            if let Some(q) = &c.quality {
+                s += &format!(" {} | {:.4} |", fmt_db(q.psnr_db), q.ssim);
+            } else if quality {
+                s += " | |";
+            }
+            s += "\n";
+        }
+        s
+    }
+
+    /// One row per (cell, measure): the frame's wall time, its GPU total,
+    /// every pass, the splat sizes, the upload and the PNG encoding.
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from(
+            "model,points,width,height,method,ssaa,samples,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim\n",
+        );
+        for c in &self.cells {
+            let (p, q) = match &c.quality {
+                Some(q) => (fmt_db(q.psnr_db), format!("{:.6}", q.ssim)),
+                None => (String::new(), String::new()),
+            };
+            let mut row = |measure: &str, count: u32, st: Stats| {
+                s += &format!(
+                    "{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4},{:.4},{},{}\n",
+                    csv_field(&c.model),
+                    c.points,
+                    c.width,
+                    c.height,
+                    csv_field(&c.method),
+                    c.ssaa,
+                    c.samples,
+                    c.coc_px.min,
+                    c.coc_px.max,
+                    c.coc_px.background,
+                    csv_field(measure),
+                    count,
+                    st.min,
+                    st.median,
+                    st.max,
+                    p,
+                    q
+                );
+            };
+            row("frame_wall", 1, c.frame_wall_ms);
+            row("gpu_total", 1, c.gpu_total_ms);
+            for pass in &c.passes {
+                row(&format!("pass:{}", pass.name), pass.count, pass.gpu_ms);
+            }
+            let once = |v: f64| Stats {
+                min: v,
+                median: v,
+                max: v,
+            };
+            row("splat_sizes", 1, once(c.upload.splat_sizes_ms));
+            row("upload_gpu", 1, once(c.upload.gpu_ms));
+            row("upload_wall", 1, once(c.upload.wall_ms));
+            row("png_encode", 1, c.png_encode_ms);
+        }
+        s
+    }
+}
+
+fn fmt_stats(s: &Stats) -> String {
+    format!("{:.1} ({:.1}–{:.1})", s.median, s.min, s.max)
+}
+
+fn fmt_db(db: f64) -> String {
+    if db.is_infinite() {
+        "inf".into()
+    } else {
+        format!("{db:.2}")
+    }
+}
+
+/// A CSV field, quoted when it holds a comma, a quote or a line break.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}

@@ -1,0 +1,292 @@
+//! `pointlens bench` on lavapipe at a tiny size: every field of its JSON,
+//! its CSV, chart and table, and its errors. Timings are never asserted.
+
+mod common;
+
+use common::{assert_fails, pointlens, scratch};
+use glam::Vec3;
+use pointlens::bench::{synthetic_cloud, BenchMethod, BenchModel, Stats};
+use pointlens::image_io::read_image;
+use pointlens::passes::rdb::RdbMode;
+use pointlens::render::Method;
+use serde_json::Value;
+
+fn stats(v: &Value, what: &str) -> [f64; 3] {
+    let s = [&v["min"], &v["median"], &v["max"]].map(|x| {
+        x.as_f64()
+            .unwrap_or_else(|| panic!("{what}: not a number: {v}"))
+    });
+    assert!(
+        s[0] >= 0.0 && s[0] <= s[1] && s[1] <= s[2],
+        "{what}: min ≤ median ≤ max fails: {v}"
+    );
+    s
+}
+
+#[test]
+fn bench_writes_every_field_as_json_csv_chart_and_table() {
+    let dir = scratch("bench");
+    let (json, csv, chart) = (dir.join("b.json"), dir.join("b.csv"), dir.join("b.png"));
+    let methods = ["pinhole", "fast", "rdb2", "rdb2-pairs", "accum4"];
+    let models = ["bunny", "synthetic"];
+    let o = pointlens(&[
+        "bench",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--methods",
+        &methods.join(","),
+        "--models",
+        &models.join(","),
+        "--points",
+        "3000",
+        "--runs",
+        "3",
+        "--warmup",
+        "1",
+        "--ssaa",
+        "1",
+        "--quality",
+        "--device",
+        "llvmpipe",
+        "--json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+        "--chart",
+        chart.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert!(!stderr.contains("Validation"), "{stderr}");
+
+    let report: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let device = &report["device"];
+    for key in [
+        "name",
+        "driver",
+        "driver_info",
+        "api_version",
+        "device_type",
+    ] {
+        assert!(
+            device[key].as_str().is_some_and(|s| !s.is_empty()),
+            "device.{key}: {device}"
+        );
+    }
+    assert!(device["name"].as_str().unwrap().contains("llvmpipe"));
+    assert!(device["driver_version"].as_u64().is_some());
+    assert_eq!(report["runs"], 3);
+    assert_eq!(report["warmup"], 1);
+    assert_eq!(report["ssaa"], 1);
+    assert!(report["quality_reference"]
+        .as_str()
+        .unwrap()
+        .contains("256"));
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), methods.len() * models.len());
+    for (k, cell) in cells.iter().enumerate() {
+        // Row-major: model, then method.
+        let (model, method) = (models[k / methods.len()], methods[k % methods.len()]);
+        let what = format!("{model} {method}");
+        assert_eq!(cell["model"], model, "{what}");
+        assert_eq!(cell["method"], method, "{what}");
+        assert_eq!(cell["width"], 32);
+        assert_eq!(cell["height"], 24);
+        assert_eq!(cell["ssaa"], 1);
+        assert_eq!(cell["runs"], 3);
+        assert_eq!(cell["warmup"], 1);
+        assert_eq!(cell["samples"], if method == "accum4" { 4 } else { 1 });
+        let points = cell["points"].as_u64().unwrap();
+        assert_eq!(points, if model == "synthetic" { 3000 } else { 35947 });
+        // The fixed camera, complete, and the CoC range it gives.
+        let cam = &cell["camera"];
+        for key in ["eye", "target", "up"] {
+            assert_eq!(cam[key].as_array().unwrap().len(), 3, "{what}: {cam}");
+        }
+        for key in ["fovy_deg", "aperture_radius", "focus_distance"] {
+            assert!(cam[key].as_f64().unwrap() > 0.0, "{what}: {cam}");
+        }
+        assert_eq!(cam["width"], 32);
+        let coc = &cell["coc_px"];
+        let (lo, hi, bg) = (
+            coc["min"].as_f64().unwrap(),
+            coc["max"].as_f64().unwrap(),
+            coc["background"].as_f64().unwrap(),
+        );
+        assert!(
+            0.0 <= lo && lo <= hi && hi > 0.0 && bg > 0.0,
+            "{what}: {coc}"
+        );
+        let wall = stats(&cell["frame_wall_ms"], &what);
+        let gpu = stats(&cell["gpu_total_ms"], &what);
+        assert!(wall[1] > 0.0 && gpu[1] > 0.0, "{what}");
+        stats(&cell["png_encode_ms"], &what);
+        assert!(cell["upload"]["gpu_ms"].as_f64().unwrap() >= 0.0);
+        let upload = &cell["upload"];
+        let sizes = upload["splat_sizes_ms"].as_f64().unwrap();
+        assert!(upload["wall_ms"].as_f64().unwrap() >= sizes && sizes > 0.0);
+        let passes = cell["passes"].as_array().unwrap();
+        let names: Vec<&str> = passes.iter().map(|p| p["name"].as_str().unwrap()).collect();
+        let expect = match method {
+            "pinhole" => "gbuffer.raster",
+            "fast" => "fast.gather",
+            "accum4" => "accum.raster",
+            _ => "rdb.resolve",
+        };
+        assert!(names.contains(&expect), "{what}: {names:?}");
+        assert!(names.contains(&"readback"), "{what}: {names:?}");
+        for p in passes {
+            assert!(p["count"].as_u64().unwrap() >= 1);
+            stats(&p["gpu_ms"], &format!("{what} {}", p["name"]));
+        }
+        let raster = passes
+            .iter()
+            .find(|p| p["name"].as_str().unwrap().ends_with(".raster"));
+        // accum4 at K = 1: 4 lens samples, one raster each.
+        let rasters = if method == "accum4" { 4 } else { 1 };
+        assert_eq!(raster.unwrap()["count"], rasters, "{what}");
+        let q = &cell["quality"];
+        let psnr = q["psnr_db"].as_f64().unwrap();
+        let ssim = q["ssim"].as_f64().unwrap();
+        assert!(psnr > 5.0 && (0.0..=1.0).contains(&ssim), "{what}: {q}");
+    }
+
+    // CSV: a header, then per cell frame_wall, gpu_total, each pass,
+    // splat_sizes, upload_gpu, upload_wall and png_encode.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 17);
+    assert_eq!(header[10], "measure");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let expected: usize = cells
+        .iter()
+        .map(|c| 6 + c["passes"].as_array().unwrap().len())
+        .sum();
+    assert_eq!(rows.len(), expected);
+    assert!(rows.iter().all(|r| r.len() == 17), "{text}");
+    let walls = rows.iter().filter(|r| r[10] == "frame_wall").count();
+    assert_eq!(walls, cells.len());
+
+    // The chart is a PNG with a panel for the one resolution.
+    let png = read_image(&chart).unwrap();
+    assert_eq!((png.width, png.height), (1200, 440));
+
+    // The table: a row per cell with its quality.
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("llvmpipe"), "{table}");
+    let rows = table
+        .lines()
+        .filter(|l| l.starts_with("| bunny") || l.starts_with("| synthetic"));
+    assert_eq!(rows.count(), cells.len(), "{table}");
+
+    // The saved report gives the same table and CSV without measuring.
+    let csv2 = dir.join("again.csv");
+    let again = pointlens(&[
+        "bench",
+        "--from-json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv2.to_str().unwrap(),
+    ]);
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&again.stdout), table);
+    assert_eq!(std::fs::read_to_string(&csv2).unwrap(), text);
+}
+
+#[test]
+fn bench_rejects_bad_input_with_one_line_and_writes_nothing() {
+    let dir = scratch("bench-errors");
+    let json = dir.join("b.json");
+    let j = json.to_str().unwrap();
+    let tiny = [
+        "--width", "16", "--height", "16", "--runs", "1", "--json", j,
+    ];
+    for (extra, phrase) in [
+        (&["--methods", "pinhole,magic"][..], "magic"),
+        (&["--methods", "rdb17"][..], "rdb17"),
+        (&["--methods", "pinhole,"][..], "empty"),
+        (&["--models", "teapot"][..], "teapot"),
+        (&["--models", "no/such.ply"][..], "no/such.ply"),
+        (&["--runs", "0"][..], "--runs"),
+        (&["--models", "synthetic", "--points", "0"][..], "--points"),
+        (&["--chart", "chart.jpg"][..], ".png"),
+        (&["--csv", "no/such/dir/b.csv"][..], "no/such/dir"),
+    ] {
+        let mut args = vec!["bench"];
+        args.extend(tiny);
+        args.extend(extra);
+        assert_fails(&args, phrase, &json);
+    }
+    // --from-json: a missing file, a file that is no report, a flag that
+    // would measure.
+    let junk = dir.join("junk.json");
+    std::fs::write(&junk, "{\"cells\": 3}").unwrap();
+    let junk = junk.to_str().unwrap();
+    for (args, phrase) in [
+        (&["--from-json", "no/such.json"][..], "no/such.json"),
+        (&["--from-json", junk][..], "not a bench report"),
+        (&["--from-json", junk, "--runs", "3"][..], "--runs"),
+    ] {
+        let mut all = vec!["bench", "--json", j];
+        all.extend(args);
+        assert_fails(&all, phrase, &json);
+    }
+}
+
+#[test]
+fn method_names_and_statistics() {
+    let m = BenchMethod::parse("rdb5-pairs").unwrap();
+    assert_eq!(m.method, Method::Rdb(5, RdbMode::Pairs));
+    assert_eq!(BenchMethod::parse("accum64").unwrap().samples, 64);
+    assert_eq!(
+        BenchMethod::parse_list(BenchMethod::DEFAULT)
+            .unwrap()
+            .iter()
+            .map(|m| m.name.as_str())
+            .collect::<Vec<_>>(),
+        ["pinhole", "fast", "rdb5", "rdb9", "accum64"]
+    );
+    for bad in ["rdb1", "rdb", "accum0", "accum", "rdbx", "fastest"] {
+        assert!(BenchMethod::parse(bad).is_err(), "{bad}");
+    }
+    assert_eq!(
+        BenchModel::parse_list(BenchModel::DEFAULT).unwrap().len(),
+        3
+    );
+    let s = Stats::of(&[3.0, 1.0, 2.0]);
+    assert_eq!((s.min, s.median, s.max), (1.0, 2.0, 3.0));
+    let s = Stats::of(&[4.0, 1.0, 2.0, 8.0]);
+    assert_eq!((s.min, s.median, s.max), (1.0, 3.0, 8.0));
+    // The synthetic cloud is the same on every call, of the size asked.
+    let (a, b) = (synthetic_cloud(1000), synthetic_cloud(1000));
+    assert_eq!(a.len(), 1000);
+    assert_eq!(a.positions, b.positions);
+    assert_eq!(a.colors, b.colors);
+    let (lo, hi) = a.bounds();
+    assert!(hi.z - lo.z > 0.5, "depth range {lo} {hi}");
+    // 70 % on the wall (z ≤ −0.22), the rest shared by the five spheres:
+    // each holds 60 points, within its radius of its centre.
+    let on_wall = a.positions.iter().filter(|p| p.z <= -0.22).count();
+    assert_eq!(on_wall, 700);
+    for (centre, radius) in [
+        (Vec3::new(-0.6, -0.3, 0.9), 0.25),
+        (Vec3::new(0.5, 0.35, 0.6), 0.3),
+        (Vec3::new(0.0, -0.05, 0.35), 0.2),
+        (Vec3::new(-0.45, 0.45, 0.15), 0.15),
+        (Vec3::new(0.6, -0.5, 1.2), 0.12),
+    ] {
+        let on = a
+            .positions
+            .iter()
+            .filter(|p| (p.distance(centre) - radius).abs() < 1e-4)
+            .count();
+        assert_eq!(on, 60, "sphere at {centre}");
+    }
+}

@@ -110,6 +110,7 @@ pub fn write_chart(report: &BenchReport, path: &Path) -> Result<()> {
                 .disable_x_mesh()
                 .x_labels(0)
                 .y_desc("ms")
+                .y_label_formatter(&|ms| short_ms(*ms))
                 .label_style((FAMILY, 15))
                 .draw()
                 .map_err(chart_error)?;

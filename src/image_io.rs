@@ -220,19 +220,18 @@ pub fn check_output_path(path: &Path) -> Result<()> {
     FileFormat::from_path(path).map(|_| ())
 }
 
-/// Encodes `img` into `file` and syncs it to disk. Errors name `path`.
 /// The PNG bytes [`write_image`] would write for `img` (8-bit sRGB RGB),
 /// encoded in memory: what `bench` times as the encoding cost.
 pub fn encode_png(img: &LinearImage) -> Result<Vec<u8>> {
-    let rgb: Vec<u8> = img
-        .pixels
-        .iter()
-        .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
-        .collect();
     let mut bytes = Vec::new();
     PngEncoder::new(&mut bytes)
-        .write_image(&rgb, img.width, img.height, ExtendedColorType::Rgb8)
-        .map_err(|e| image_msg(Path::new("(memory)"), format!("cannot encode PNG: {e}")))?;
+        .write_image(
+            &srgb8_rgb(img),
+            img.width,
+            img.height,
+            ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| encoding_error(e, Path::new("(memory)"), FileFormat::Png))?;
     Ok(bytes)
 }
 
@@ -249,28 +248,21 @@ pub fn write_rgb8_png(rgb: &[u8], width: u32, height: u32, path: &Path) -> Resul
         let mut out = BufWriter::new(file);
         PngEncoder::new(&mut out)
             .write_image(rgb, width, height, ExtendedColorType::Rgb8)
-            .map_err(|e| image_msg(path, format!("cannot encode PNG: {e}")))?;
-        let file = out.into_inner().map_err(|e| io_err(path, e.into_error()))?;
-        file.sync_all().map_err(|source| io_err(path, source))
+            .map_err(|e| encoding_error(e, path, FileFormat::Png))?;
+        sync_buffered(out, path)
     })
 }
 
+/// Encodes `img` into `file` and syncs it to disk. Errors name `path`.
 fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Result<()> {
     let mut out = BufWriter::new(file);
     let encoded = match format {
-        FileFormat::Png => {
-            let rgb: Vec<u8> = img
-                .pixels
-                .iter()
-                .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
-                .collect();
-            PngEncoder::new(&mut out).write_image(
-                &rgb,
-                img.width,
-                img.height,
-                ExtendedColorType::Rgb8,
-            )
-        }
+        FileFormat::Png => PngEncoder::new(&mut out).write_image(
+            &srgb8_rgb(img),
+            img.width,
+            img.height,
+            ExtendedColorType::Rgb8,
+        ),
         FileFormat::Exr => {
             let bytes: Vec<u8> = img
                 .pixels
@@ -286,12 +278,31 @@ fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Res
             )
         }
     };
-    encoded.map_err(|e| match e {
+    encoded.map_err(|e| encoding_error(e, path, format))?;
+    sync_buffered(out, path)
+}
+
+/// The PNG's pixels: RGB, sRGB-encoded to 8 bits ([`linear_to_srgb8`]),
+/// alpha dropped.
+fn srgb8_rgb(img: &LinearImage) -> Vec<u8> {
+    img.pixels
+        .iter()
+        .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
+        .collect()
+}
+
+/// An encoder's error, naming `path`.
+fn encoding_error(e: ImageError, path: &Path, format: FileFormat) -> Error {
+    match e {
         // The PNG encoder reports its own format errors as I/O errors too;
         // only those from the operating system are file-system failures.
         ImageError::IoError(source) if source.raw_os_error().is_some() => io_err(path, source),
         other => image_msg(path, format!("cannot encode {}: {other}", format.name())),
-    })?;
+    }
+}
+
+/// Flushes `out` and syncs its file to disk.
+fn sync_buffered(out: BufWriter<File>, path: &Path) -> Result<()> {
     let file = out.into_inner().map_err(|e| io_err(path, e.into_error()))?;
     file.sync_all().map_err(|source| io_err(path, source))
 }

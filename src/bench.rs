@@ -658,12 +658,9 @@ fn fmt_stats(s: &Stats) -> String {
     format!("{:.1} ({:.1}–{:.1})", s.median, s.min, s.max)
 }
 
+/// PSNR with two decimals ("inf" for identical images, as Rust formats it).
 fn fmt_db(db: f64) -> String {
-    if db.is_infinite() {
-        "inf".into()
-    } else {
-        format!("{db:.2}")
-    }
+    format!("{db:.2}")
 }
 
 /// A CSV field, quoted when it holds a comma, a quote or a line break.

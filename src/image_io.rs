@@ -9,14 +9,17 @@
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufReader, BufWriter};
+use std::io::{self, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::OnceLock;
 
 use image::codecs::openexr::OpenExrEncoder;
 use image::codecs::png::PngEncoder;
-use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageError, ImageFormat, ImageReader};
+use image::{
+    DynamicImage, ExtendedColorType, ImageEncoder, ImageError, ImageFormat, ImageReader,
+    ImageResult,
+};
 
 use crate::error::{Error, Result};
 
@@ -224,30 +227,30 @@ pub fn check_output_path(path: &Path) -> Result<()> {
 /// encoded in memory: what `bench` times as the encoding cost.
 pub fn encode_png(img: &LinearImage) -> Result<Vec<u8>> {
     let mut bytes = Vec::new();
-    PngEncoder::new(&mut bytes)
-        .write_image(
-            &srgb8_rgb(img),
-            img.width,
-            img.height,
-            ExtendedColorType::Rgb8,
-        )
+    png_rgb8(&mut bytes, &srgb8_rgb(img), img.width, img.height)
         .map_err(|e| encoding_error(e, Path::new("(memory)"), FileFormat::Png))?;
     Ok(bytes)
+}
+
+/// Checks that `path` names a PNG, for outputs that can only be PNG (a
+/// chart), so a long run can fail before it starts.
+pub fn check_png_path(path: &Path) -> Result<()> {
+    match FileFormat::from_path(path) {
+        Ok(FileFormat::Png) => Ok(()),
+        _ => Err(Error::InvalidArgument(format!(
+            "{}: this output is a PNG (use .png)",
+            path.display()
+        ))),
+    }
 }
 
 /// Writes 8-bit RGB pixels (already display-encoded, e.g. a chart) as a
 /// PNG, atomically like [`write_image`].
 pub fn write_rgb8_png(rgb: &[u8], width: u32, height: u32, path: &Path) -> Result<()> {
-    if FileFormat::from_path(path)? != FileFormat::Png {
-        return Err(Error::InvalidArgument(format!(
-            "{}: this output is a PNG (use .png)",
-            path.display()
-        )));
-    }
+    check_png_path(path)?;
     write_atomically(path, |file| {
         let mut out = BufWriter::new(file);
-        PngEncoder::new(&mut out)
-            .write_image(rgb, width, height, ExtendedColorType::Rgb8)
+        png_rgb8(&mut out, rgb, width, height)
             .map_err(|e| encoding_error(e, path, FileFormat::Png))?;
         sync_buffered(out, path)
     })
@@ -257,12 +260,7 @@ pub fn write_rgb8_png(rgb: &[u8], width: u32, height: u32, path: &Path) -> Resul
 fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Result<()> {
     let mut out = BufWriter::new(file);
     let encoded = match format {
-        FileFormat::Png => PngEncoder::new(&mut out).write_image(
-            &srgb8_rgb(img),
-            img.width,
-            img.height,
-            ExtendedColorType::Rgb8,
-        ),
+        FileFormat::Png => png_rgb8(&mut out, &srgb8_rgb(img), img.width, img.height),
         FileFormat::Exr => {
             let bytes: Vec<u8> = img
                 .pixels
@@ -289,6 +287,11 @@ fn srgb8_rgb(img: &LinearImage) -> Vec<u8> {
         .iter()
         .flat_map(|p| [p[0], p[1], p[2]].map(linear_to_srgb8))
         .collect()
+}
+
+/// Encodes 8-bit RGB pixels as a PNG into `out`.
+fn png_rgb8(out: impl Write, rgb: &[u8], width: u32, height: u32) -> ImageResult<()> {
+    PngEncoder::new(out).write_image(rgb, width, height, ExtendedColorType::Rgb8)
 }
 
 /// An encoder's error, naming `path`.

@@ -14,7 +14,9 @@ use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
 use pointlens::camera::{self, CameraSpec};
 use pointlens::chart;
 use pointlens::cloud::srgb_to_linear;
-use pointlens::image_io::{check_output_path, read_image, write_atomically, write_image};
+use pointlens::image_io::{
+    check_output_path, check_png_path, read_image, write_atomically, write_image,
+};
 use pointlens::metrics;
 use pointlens::passes::fast::{FastWeights, GatherWindow};
 use pointlens::passes::rdb::RdbMode;
@@ -296,9 +298,7 @@ fn bench(args: BenchArgs) -> Result<()> {
     }
     if let Some(p) = &args.chart {
         check_parent_dir(p, "--chart")?;
-        if !p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
-            bail!("--chart {}: the chart is a PNG (use .png)", p.display());
-        }
+        check_png_path(p).context("--chart")?;
     }
     let report = match &args.from_json {
         Some(path) => read_bench_report(path)?,

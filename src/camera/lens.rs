@@ -1,0 +1,130 @@
+//! The thin-lens maths of DESIGN §2: the resolved [`Camera`], its eye basis,
+//! focal length in pixels, world → eye transform, pinhole projection,
+//! circle of confusion and THE lens-position ↔ image-offset relation.
+
+use glam::{Vec2, Vec3};
+
+/// The resolved thin-lens camera of DESIGN §2.
+///
+/// Built by [`resolve`] from a [`CameraSpec`], or directly. `up` need not be
+/// unit length nor perpendicular to the view direction; [`Camera::basis`]
+/// orthonormalises it.
+///
+/// [`resolve`]: super::resolve
+/// [`CameraSpec`]: super::CameraSpec
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Centre of the lens, in world space.
+    pub eye: Vec3,
+    /// Point the camera looks at.
+    pub target: Vec3,
+    /// Approximate up direction of the image.
+    pub up: Vec3,
+    /// Vertical field of view θ in degrees, in (0, 180).
+    pub fovy_deg: f32,
+    /// Lens aperture radius R in scene units (0: a pinhole).
+    pub aperture_radius: f32,
+    /// Focus distance S: the eye-space depth of the plane in focus (> 0).
+    pub focus_distance: f32,
+}
+
+impl Camera {
+    /// The orthonormal eye basis `(right, up', forward)`:
+    /// forward = normalize(target − eye); right = normalize(forward × up);
+    /// up' = right × forward.
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        (right, up, forward)
+    }
+
+    /// Focal length in pixels: f_px = (H / 2) / tan(θ / 2).
+    pub fn f_px(&self) -> f32 {
+        (self.height as f32 / 2.0) / (self.fovy_deg.to_radians() / 2.0).tan()
+    }
+
+    /// Eye-space coordinates of the world point `p`:
+    /// (x, y, z) = ((p − eye)·right, (p − eye)·up', (p − eye)·forward).
+    /// z > 0 in front of the eye (DESIGN §2; not glam's −z view space).
+    pub fn eye_from_world(&self, p: Vec3) -> Vec3 {
+        let (right, up, forward) = self.basis();
+        let d = p - self.eye;
+        Vec3::new(d.dot(right), d.dot(up), d.dot(forward))
+    }
+
+    /// Pinhole projection of the world point `p`: its pixel position
+    /// (x_px = W/2 + f_px·x/z, y_px = H/2 − f_px·y/z; origin top-left, pixel
+    /// centres at +0.5) and its eye depth z. `None` when z ≤ 0 (at or behind
+    /// the eye).
+    pub fn project(&self, p: Vec3) -> Option<(Vec2, f32)> {
+        let e = self.eye_from_world(p);
+        if e.z.is_nan() || e.z <= 0.0 {
+            return None;
+        }
+        let f = self.f_px();
+        let px = Vec2::new(
+            self.width as f32 / 2.0 + f * e.x / e.z,
+            self.height as f32 / 2.0 - f * e.y / e.z,
+        );
+        Some((px, e.z))
+    }
+
+    /// Circle-of-confusion diameter in pixels of a point at eye depth `z`:
+    /// c_px(z) = 2R · f_px · |z − S| / (z · S).
+    ///
+    /// `z = +∞` is the background (DESIGN §2): c_px(∞) = 2R · f_px / S.
+    /// Defined for z > 0.
+    pub fn coc_px(&self, z: f32) -> f32 {
+        let (r, s) = (self.aperture_radius, self.focus_distance);
+        if z == f32::INFINITY {
+            return 2.0 * r * self.f_px() / s;
+        }
+        2.0 * r * self.f_px() * (z - s).abs() / (z * s)
+    }
+
+    /// Which way a point at depth `z` moves with the lens position:
+    /// +1 behind the focus plane (z > S), −1 in front of it (z < S).
+    ///
+    /// At z = S this returns +1; the CoC, and with it the offset, is zero
+    /// there, so the choice does not matter; `glsl/lens.glsl` makes the same one.
+    pub fn lens_sign(&self, z: f32) -> f32 {
+        if z >= self.focus_distance {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// THE lens-position ↔ image-offset relation of DESIGN §2, the one
+    /// function the accumulation reference (sheared projection) and the ray
+    /// distribution buffer (bin of a pair) are built on.
+    ///
+    /// A point at eye depth `z` whose pinhole projection is p is seen, through
+    /// the normalised lens position `u` (|u| ≤ 1, in pixel axes: x right,
+    /// y down), at p + `lens_offset_px(z, u)`, where
+    /// `lens_offset_px(z, u) = sign(z) · (c_px(z) / 2) · u`.
+    /// A point behind the focus plane moves with u, one in front of it against
+    /// u, one on it not at all (the focus plane stays fixed).
+    pub fn lens_offset_px(&self, z: f32, u: Vec2) -> Vec2 {
+        self.lens_sign(z) * (self.coc_px(z) / 2.0) * u
+    }
+
+    /// The largest CoC diameter (pixels) over the eye-depth range
+    /// [`z_min`, `z_max`], 0 < z_min ≤ z_max. The CoC decreases towards the
+    /// focus plane from both sides, so the maximum is at one end of the
+    /// range; `z_max = +∞` includes the background.
+    pub fn max_coc_px(&self, z_min: f32, z_max: f32) -> f32 {
+        self.coc_px(z_min).max(self.coc_px(z_max))
+    }
+
+    /// Guard band in pixels around the frame (DESIGN §3):
+    /// ⌈max CoC / 2 + max splat / 2⌉, both arguments in pixels.
+    pub fn guard_band_px(max_coc_px: f32, max_splat_px: f32) -> u32 {
+        (max_coc_px / 2.0 + max_splat_px / 2.0).ceil() as u32
+    }
+}

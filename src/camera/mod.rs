@@ -1,0 +1,38 @@
+//! The thin-lens camera of DESIGN §2: pose, projection, circle of confusion,
+//! lens offset, the camera file and its defaults (auto-framing, automatic
+//! aperture).
+//!
+//! This is the only place the lens formulas live on the CPU; `glsl/lens.glsl`
+//! mirrors them and the tests compare the GPU against these functions.
+//!
+//! Conventions (DESIGN §2): lengths in scene units; eye space has x right,
+//! y up and z > 0 *in front of* the eye (not glam's −z view space); pixel
+//! coordinates have their origin at the top-left corner, x right, y down, and
+//! pixel centres at +0.5. The lens is the fixed-field-of-view thin lens of
+//! pbrt, Mitsuba and Cycles: the projection does not breathe with focus.
+//!
+//! The module is split by job; everything is re-exported here, so the paths
+//! are `pointlens::camera::X` whatever file `X` lives in:
+//!
+//! * `lens`: the resolved [`Camera`] and the thin-lens maths (basis, f_px,
+//!   world → eye, projection, CoC, lens offset, guard band).
+//! * `tables`: the lens sample and bin tables: the concentric map
+//!   ([`concentric_disk`], [`concentric_square`]), the ray distribution
+//!   buffer's lens cells ([`rdb_lens_table`], [`rdb_bin`]) and
+//!   [`lens_samples`].
+//! * `file`: the camera file: [`CameraSpec`], parsing, overrides,
+//!   completeness and value checks, the cloud-free defaults
+//!   ([`DEFAULT_WIDTH`], [`DEFAULT_HEIGHT`], [`DEFAULT_FOVY_DEG`]) and
+//!   [`Camera::to_spec`] / [`Camera::to_json`].
+//! * `framing`: [`resolve`], with auto-framing ([`FRAMING_MARGIN`]) and the
+//!   automatic aperture.
+
+mod file;
+mod framing;
+mod lens;
+mod tables;
+
+pub use file::{CameraSpec, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH};
+pub use framing::{resolve, FRAMING_MARGIN};
+pub use lens::Camera;
+pub use tables::{concentric_disk, concentric_square, lens_samples, rdb_bin, rdb_lens_table};

@@ -178,6 +178,46 @@ fn projection_of_an_oblique_camera() {
     assert_close(z, 7.0 / 3.0, 1e-5);
 }
 
+#[test]
+fn eye_from_world_transform_is_bitwise_eye_from_world() {
+    // A fixed xorshift sequence: 25 cameras × 16 points, coordinates in
+    // [−scale, scale) with scales from 0.01 to 1000.
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move |scale: f32| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * scale
+    };
+    let mut vec3 = |scale: f32| Vec3::new(next(scale), next(scale), next(scale));
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    let mut compared = 0;
+    for c in 0..25 {
+        let scale = [0.01, 1.0, 10.0, 1000.0][c % 4];
+        let cam = Camera {
+            eye: vec3(scale),
+            target: vec3(scale),
+            up: vec3(1.0),
+            ..oblique_camera()
+        };
+        let (right, up, forward) = cam.basis();
+        if !(right.is_finite() && up.is_finite() && forward.is_finite()) {
+            continue;
+        }
+        let transform = cam.eye_from_world_transform();
+        for i in 0..16 {
+            let p = vec3([0.01, 1.0, 100.0, 1000.0][i % 4]);
+            assert_eq!(
+                bits(transform.apply(p)),
+                bits(cam.eye_from_world(p)),
+                "camera {cam:?}, point {p}"
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared >= 300, "only {compared} points compared");
+}
+
 // ---------------------------------------------------------------- the lens
 
 #[test]

@@ -48,13 +48,26 @@ impl Camera {
         (self.height as f32 / 2.0) / (self.fovy_deg.to_radians() / 2.0).tan()
     }
 
+    /// The world → eye transform of [`Camera::eye_from_world`], with the
+    /// basis computed once: for callers that transform many points.
+    pub fn eye_from_world_transform(&self) -> EyeFromWorld {
+        let (right, up, forward) = self.basis();
+        EyeFromWorld {
+            eye: self.eye,
+            right,
+            up,
+            forward,
+        }
+    }
+
     /// Eye-space coordinates of the world point `p`:
     /// (x, y, z) = ((p − eye)·right, (p − eye)·up', (p − eye)·forward).
     /// z > 0 in front of the eye (DESIGN §2; not glam's −z view space).
+    ///
+    /// Recomputes the basis on every call; to transform many points, make
+    /// the [`EyeFromWorld`] once with [`Camera::eye_from_world_transform`].
     pub fn eye_from_world(&self, p: Vec3) -> Vec3 {
-        let (right, up, forward) = self.basis();
-        let d = p - self.eye;
-        Vec3::new(d.dot(right), d.dot(up), d.dot(forward))
+        self.eye_from_world_transform().apply(p)
     }
 
     /// Pinhole projection of the world point `p`: its pixel position
@@ -126,5 +139,22 @@ impl Camera {
     /// ⌈max CoC / 2 + max splat / 2⌉, both arguments in pixels.
     pub fn guard_band_px(max_coc_px: f32, max_splat_px: f32) -> u32 {
         (max_coc_px / 2.0 + max_splat_px / 2.0).ceil() as u32
+    }
+}
+
+/// The camera's world → eye transform, made once for many points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EyeFromWorld {
+    eye: Vec3,
+    right: Vec3,
+    up: Vec3,
+    forward: Vec3,
+}
+
+impl EyeFromWorld {
+    /// Eye-space coordinates of `p` (see Camera::eye_from_world).
+    pub fn apply(&self, p: Vec3) -> Vec3 {
+        let d = p - self.eye;
+        Vec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
     }
 }

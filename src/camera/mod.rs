@@ -15,7 +15,8 @@
 //! are `pointlens::camera::X` whatever file `X` lives in:
 //!
 //! * `lens`: the resolved [`Camera`] and the thin-lens maths (basis, f_px,
-//!   world → eye, projection, CoC, lens offset, guard band).
+//!   the world → eye transform [`EyeFromWorld`], projection, CoC, lens
+//!   offset, guard band).
 //! * `tables`: the lens sample and bin tables: the concentric map
 //!   ([`concentric_disk`], [`concentric_square`]), the ray distribution
 //!   buffer's lens cells ([`rdb_lens_table`], [`rdb_bin`]) and
@@ -34,5 +35,5 @@ mod tables;
 
 pub use file::{CameraSpec, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH};
 pub use framing::{resolve, FRAMING_MARGIN};
-pub use lens::Camera;
+pub use lens::{Camera, EyeFromWorld};
 pub use tables::{concentric_disk, concentric_square, lens_samples, rdb_bin, rdb_lens_table};

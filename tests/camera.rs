@@ -1188,32 +1188,72 @@ fn rdb_bins_round_trip_through_the_concentric_map() {
 }
 
 #[test]
-fn a_near_and_a_far_point_through_the_same_lens_position_land_in_the_same_bin() {
-    use pointlens::camera::{rdb_bin, rdb_lens_table};
-    // S = 2, R = 0.1, f_px = 50 (H = 100, 90°). A near point (z = 1) and a
-    // far one (z = 4) whose pinhole images are both p = (50, 50); the pixel
-    // q they reach through lens position u_b, mapped back by the pair rule
-    // u = sign · 2 (q − p) / c, gives bin b again for both.
-    let cam = Camera {
-        width: 100,
-        height: 100,
-        fovy_deg: 90.0,
-        aperture_radius: 0.1,
-        focus_distance: 2.0,
-        ..axis_camera()
-    };
-    let n = 9;
-    for (b, u) in rdb_lens_table(n).iter().enumerate() {
-        for z in [1.0f32, 4.0] {
-            let offset = cam.lens_offset_px(z, *u);
-            let c = cam.coc_px(z);
-            let back = cam.lens_sign(z) * 2.0 * offset / c;
-            assert_eq!(rdb_bin(back, n), b as u32, "z = {z}, bin {b}");
+fn rdb_lens_cells_are_half_open() {
+    use pointlens::camera::{concentric_disk, concentric_square, rdb_bin};
+    // DESIGN §5: lens cell i of an N×N buffer is [−1 + 2i/N, −1 + 2(i+1)/N)
+    // in square space, so a coordinate on an interior boundary −1 + 2k/N
+    // belongs to the upper cell k, −1 to cell 0, and +1 (the closed outer
+    // edge) is clamped into cell N − 1.
+    //
+    // For N = 2 and 16 every boundary is an f32. For N = 5 and 9 no interior
+    // one is, so "on the boundary" is the smallest f32 at or above it
+    // ((v + 1)·N ≥ 2k, exact in f64 for these v), which is in cell k.
+    for n in [2u32, 5, 9, 16] {
+        let boundary = |k: u32| {
+            let at_or_above = |v: f32| (v as f64 + 1.0) * n as f64 >= 2.0 * k as f64;
+            let mut v = -1.0 + 2.0 * k as f32 / n as f32;
+            if (v as f64 + 1.0) * n as f64 == 2.0 * k as f64 {
+                return v; // exact (the only boundary near 0 is 0 itself)
+            }
+            while !at_or_above(v) {
+                v = v.next_up();
+            }
+            while at_or_above(v.next_down()) {
+                v = v.next_down();
+            }
+            v
+        };
+        let centre = |j: u32| -1.0 + (2.0 * j as f32 + 1.0) / n as f32;
+        // The lens position u is the concentric map of the square point a;
+        // only points that come back bit for bit through concentric_square
+        // test the cell rule rather than the map's round-off. On the x axis
+        // (y = 0) the map is the identity, so those always qualify.
+        let bits = |v: Vec2| v.to_array().map(f32::to_bits);
+        let mut qualified = 0;
+        let mut check = |a: Vec2, i: u32, j: u32| {
+            let u = concentric_disk(a);
+            if bits(concentric_square(u)) != bits(a) {
+                return false;
+            }
+            assert_eq!(
+                rdb_bin(u, n),
+                j * n + i,
+                "N = {n}: square point ({}, {}) belongs to cell ({i}, {j})",
+                a.x,
+                a.y
+            );
+            qualified += 1;
+            true
+        };
+        let middle = n / 2; // the cell of 0: the centre one, or the upper at a boundary
+        for k in 0..=n {
+            let x = boundary(k);
+            let i = k.min(n - 1);
+            assert!(check(Vec2::new(x, 0.0), i, middle), "N = {n}, k = {k}");
+            if k > 0 {
+                // Just below the boundary: still the lower cell.
+                assert!(check(Vec2::new(x - 1e-4, 0.0), k - 1, middle));
+            }
+            // Boundary in x with y at a cell centre, and the same in y.
+            for j in 0..n {
+                check(Vec2::new(x, centre(j)), i, j);
+                check(Vec2::new(centre(j), x), j, i);
+            }
         }
-        // Through a bin off the centre, the two points move in opposite directions.
-        if u.length() > 0.0 {
-            let (near, far) = (cam.lens_offset_px(1.0, *u), cam.lens_offset_px(4.0, *u));
-            assert!(near.dot(far) < 0.0);
-        }
+        // The 2N + 1 axis points, and at least N of the others.
+        assert!(
+            qualified > 3 * n,
+            "N = {n}: only {qualified} points round-trip exactly"
+        );
     }
 }

@@ -49,6 +49,10 @@ fn compile(compiler: &shaderc::Compiler, path: &Path, out: &Path) -> Result<(), 
     );
     options.set_target_spirv(shaderc::SpirvVersion::V1_6);
     options.set_optimization_level(shaderc::OptimizationLevel::Performance);
+    // Keeps OpName/OpMemberName (shaderc strips them otherwise), so that the
+    // push-constant check (src/vk/pipeline.rs) compares member names, not
+    // only offsets and sizes. The driver ignores debug instructions.
+    options.set_generate_debug_info();
     options.set_warnings_as_errors();
     options.set_include_callback(|name, _ty, from, _depth| {
         let dir = Path::new(from).parent().unwrap_or(Path::new("glsl"));

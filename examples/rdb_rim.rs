@@ -10,8 +10,9 @@
 
 use glam::Vec3;
 use pointlens::camera::Camera;
-use pointlens::passes::rdb::RdbMode;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::options::Method;
+use pointlens::options::RdbMode;
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
 
@@ -54,19 +55,17 @@ fn main() -> anyhow::Result<()> {
             focus_distance: 2.0,
         };
         for (name, method) in [
-            ("accum 256", Method::Accum),
-            ("rdb 9×9 centre", Method::Rdb(9, RdbMode::Centre)),
-            ("rdb 9×9 pairs", Method::Rdb(9, RdbMode::Pairs)),
-            ("rdb 5×5 centre", Method::Rdb(5, RdbMode::Centre)),
-            ("rdb 5×5 pairs", Method::Rdb(5, RdbMode::Pairs)),
+            ("accum 256", Method::accum(256)),
+            ("rdb 9×9 centre", Method::rdb(9, RdbMode::Centre)),
+            ("rdb 9×9 pairs", Method::rdb(9, RdbMode::Pairs)),
+            ("rdb 5×5 centre", Method::rdb(5, RdbMode::Centre)),
+            ("rdb 5×5 pairs", Method::rdb(5, RdbMode::Pairs)),
         ] {
             let options = RenderOptions {
                 camera,
                 method,
                 ssaa: 4,
                 background: Vec3::ZERO,
-                samples: 256,
-                rdb_memory_bytes: None,
             };
             let image = renderer.render(&scene, &options)?.image;
             // The silhouette runs between columns 32 and 33.

@@ -1,5 +1,5 @@
-// The thin lens of DESIGN §2, mirrored from src/camera.rs (the CPU code is
-// the reference the tests compare against).
+// The thin lens of DESIGN §2, mirrored from src/camera/lens.rs (the CPU code
+// is the reference; tests/shaders.rs checks that both sides agree).
 
 // Circle-of-confusion diameter in pixels at eye depth z (z = +inf: background).
 float coc_px(float z, float f_px, float aperture_radius, float focus_distance) {

@@ -9,6 +9,7 @@
 //   pairs mode: for every Q inside P's CoC, only the bin holding
 //     u = sign · 2 (q − p) / c receives P; c < 2 fills every bin of P itself.
 #include "lens.glsl"
+#include "concentric.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -30,23 +31,6 @@ layout(push_constant, std430) uniform Push {
     float aperture_radius;
     float focus_distance;
 } pc;
-
-// Inverse of the concentric map: a point of the unit disk to the square.
-vec2 concentric_square(vec2 u) {
-    float r = length(u);
-    if (r == 0.0) {
-        return vec2(0.0);
-    }
-    const float four_over_pi = 1.2732395447351628;
-    if (abs(u.x) >= abs(u.y)) {
-        float s = u.x >= 0.0 ? 1.0 : -1.0;
-        float theta = atan(s * u.y, s * u.x);
-        return vec2(s * r, s * r * theta * four_over_pi);
-    }
-    float s = u.y >= 0.0 ? 1.0 : -1.0;
-    float theta = atan(s * u.y, s * u.x);
-    return vec2(s * r * (1.5707963267948966 - theta) * four_over_pi, s * r);
-}
 
 // Offers source `source` at depth `depth_bits` to bin `bin` of output pixel
 // q; pixels outside the tile are left to the tile that holds them.

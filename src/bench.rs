@@ -21,10 +21,10 @@ use crate::error::{Error, Result};
 use crate::gbuffer::depth_range;
 use crate::image_io::{encode_png, LinearImage};
 use crate::metrics::{psnr, ssim};
-use crate::passes::fast::{FastWeights, GatherWindow};
-use crate::passes::rdb::RdbMode;
+use crate::options::{AccumOptions, Method};
 use crate::ply::load_ply;
-use crate::render::{Method, RenderOptions, Renderer, SplatSize};
+use crate::render::{RenderOptions, Renderer, SplatSize};
+pub use crate::report::{DeviceReport, Upload};
 use crate::vk::{Context, FrameTimings};
 
 /// Lens samples of the quality reference (`--quality`).
@@ -43,46 +43,18 @@ pub struct BenchMethod {
 impl BenchMethod {
     /// The methods of the default matrix.
     pub const DEFAULT: &'static str = "pinhole,fast,rdb5,rdb9,accum64";
-    pub const SYNTAX: &'static str =
-        "pinhole, fast, fast-uniform, rdbN or rdbN-pairs (N in 2..=16), accumS (S ≥ 1)";
 
+    /// Parses one name of `--methods` ([`Method::parse_short`]).
     pub fn parse(name: &str) -> Result<BenchMethod> {
-        let bad = || {
-            Error::InvalidArgument(format!(
-                "--methods: unknown method '{name}' (known: {})",
-                Self::SYNTAX
-            ))
-        };
-        let number = |digits: &str| digits.parse::<u32>().map_err(|_| bad());
-        let (method, samples) = match name {
-            "pinhole" => (Method::Pinhole, 1),
-            "fast" => (Method::Fast(FastWeights::Area, GatherWindow::Tiles), 1),
-            "fast-uniform" => (Method::Fast(FastWeights::Uniform, GatherWindow::Tiles), 1),
-            _ if name.starts_with("rdb") => {
-                let rest = &name[3..];
-                let (digits, mode) = match rest.strip_suffix("-pairs") {
-                    Some(d) => (d, RdbMode::Pairs),
-                    None => (rest, RdbMode::Centre),
-                };
-                let n = number(digits)?;
-                if !(2..=16).contains(&n) {
-                    return Err(bad());
-                }
-                (Method::Rdb(n, mode), 1)
-            }
-            _ if name.starts_with("accum") => {
-                let s = number(&name[5..])?;
-                if s == 0 {
-                    return Err(bad());
-                }
-                (Method::Accum, s)
-            }
-            _ => return Err(bad()),
-        };
+        let method = Method::parse_short(name)
+            .map_err(|e| Error::InvalidArgument(format!("--methods: {e}")))?;
         Ok(BenchMethod {
             name: name.to_string(),
             method,
-            samples,
+            samples: match method {
+                Method::Accum(o) => o.samples,
+                _ => 1,
+            },
         })
     }
 
@@ -338,19 +310,6 @@ pub struct Quality {
     pub ssim: f64,
 }
 
-/// The upload of a model's cloud (once per model, not part of any frame).
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
-pub struct Upload {
-    /// Splat sizes from the k-nearest-neighbour spacing, on the CPU (0 in
-    /// reports written before it was measured apart).
-    #[serde(default)]
-    pub splat_sizes_ms: f64,
-    /// The copy to device memory, GPU time.
-    pub gpu_ms: f64,
-    /// All of it: splat sizes, staging, copy and wait.
-    pub wall_ms: f64,
-}
-
 /// One (model, resolution, method) cell.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Cell {
@@ -374,16 +333,6 @@ pub struct Cell {
     pub png_encode_ms: Stats,
     /// Against accum with 256 samples (`--quality`), else null.
     pub quality: Option<Quality>,
-}
-
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct DeviceReport {
-    pub name: String,
-    pub driver: String,
-    pub driver_info: String,
-    pub driver_version: u32,
-    pub api_version: String,
-    pub device_type: String,
 }
 
 /// Everything `bench` measured.
@@ -433,25 +382,26 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         for &(width, height) in &options.resolutions {
             let camera = model.camera(&cloud, width, height)?;
             let coc = CocRange::of(&camera, &cloud.positions);
-            let frame = |method: Method, samples: u32| RenderOptions {
+            let frame = |method: Method| RenderOptions {
                 camera,
                 method,
                 ssaa: options.ssaa,
                 background: Vec3::ZERO,
-                samples,
-                rdb_memory_bytes: None,
             };
             let what = |method: &str| format!("{} {width}×{height} {method}", model.name());
             let reference = if options.quality {
                 progress(done, total, &what("reference (accum 256)"));
                 done += 1;
-                let r = renderer.render(&scene, &frame(Method::Accum, REFERENCE_SAMPLES))?;
+                let reference = Method::Accum(AccumOptions {
+                    samples: REFERENCE_SAMPLES,
+                });
+                let r = renderer.render(&scene, &frame(reference))?;
                 Some(r.image)
             } else {
                 None
             };
             for m in &options.methods {
-                let options_m = frame(m.method, m.samples);
+                let options_m = frame(m.method);
                 for _ in 0..options.warmup {
                     progress(done, total, &what(&format!("{} (warm-up)", m.name)));
                     done += 1;
@@ -505,22 +455,9 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         }
     }
     progress(done, total, "done");
-    let info = &ctx.info;
     Ok(BenchReport {
         pointlens_version: env!("CARGO_PKG_VERSION").to_string(),
-        device: DeviceReport {
-            name: info.name.clone(),
-            driver: info.driver_name.clone(),
-            driver_info: info.driver_info.clone(),
-            driver_version: info.driver_version,
-            api_version: format!(
-                "{}.{}.{}",
-                ash::vk::api_version_major(info.api_version),
-                ash::vk::api_version_minor(info.api_version),
-                ash::vk::api_version_patch(info.api_version)
-            ),
-            device_type: format!("{:?}", info.device_type),
-        },
+        device: DeviceReport::of(&ctx.info),
         runs: options.runs,
         warmup: options.warmup,
         ssaa: options.ssaa,

@@ -1,9 +1,16 @@
 //! pointlens: an offline point-cloud renderer with physically based depth of
 //! field on Vulkan. See `docs/ARCHITECTURE.md` for the pipeline.
 //!
-//! The frame is one chain: [`ply`] → [`cloud::PointCloud`] → [`render::Renderer::upload`]
-//! → [`gbuffer`] (K×K splat raster samples, resolved) → DOF method → readback
-//! → [`image_io`].
+//! The frame is one chain ([`render::Renderer`]): [`ply`] →
+//! [`cloud::PointCloud`] → upload → [`gbuffer`] (K×K splat raster samples,
+//! resolved) → a depth-of-field method of [`passes`] (chosen by
+//! [`options::Method`]) → readback → [`image_io`].
+
+// `unsafe` lives only in `vk` (which allows it, block by block, each with
+// its invariant); everything else is safe Rust.
+#![deny(unsafe_code)]
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(clippy::undocumented_unsafe_blocks)]
 
 pub mod bench;
 pub mod camera;
@@ -13,10 +20,13 @@ pub mod error;
 pub mod gbuffer;
 pub mod image_io;
 pub mod metrics;
+pub mod options;
 pub mod passes;
 pub mod ply;
 pub mod reference;
 pub mod render;
+pub mod report;
+#[allow(unsafe_code)]
 pub mod vk;
 
 pub use cloud::PointCloud;

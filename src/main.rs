@@ -18,11 +18,14 @@ use pointlens::image_io::{
     check_output_path, check_png_path, read_image, write_atomically, write_image,
 };
 use pointlens::metrics;
-use pointlens::passes::fast::{FastWeights, GatherWindow};
-use pointlens::passes::rdb::RdbMode;
+use pointlens::options::{
+    check_rdb_bins, check_samples, check_ssaa, AccumOptions, FastOptions, FastWeights,
+    GatherWindow, MethodKind, RdbMode, RdbOptions,
+};
 use pointlens::ply::load_ply;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
-use pointlens::vk::{Context, ContextOptions, FrameTimings};
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
+use pointlens::report::{FrameReport, Upload};
+use pointlens::vk::{Context, ContextOptions};
 
 #[derive(Parser)]
 #[command(
@@ -82,8 +85,8 @@ struct BenchArgs {
     /// Untimed runs before them.
     #[arg(long, default_value_t = 2)]
     warmup: u32,
-    /// K: the G-buffer takes K×K samples per pixel.
-    #[arg(long, default_value_t = 4)]
+    /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
+    #[arg(long, default_value_t = 4, value_parser = checked(check_ssaa))]
     ssaa: u32,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples.
     #[arg(long)]
@@ -130,33 +133,33 @@ struct RenderArgs {
     #[arg(long)]
     height: Option<u32>,
     /// pinhole | fast | rdb | accum (layered is being built).
-    #[arg(long, default_value = "pinhole")]
-    method: String,
+    #[arg(long, default_value = "pinhole", value_parser = method_kind)]
+    method: MethodKind,
     /// Weights of the fast method: area (by inverse CoC area) or uniform
     /// (the paper's plain mean).
-    #[arg(long, default_value = "area", value_parser = ["area", "uniform"])]
-    fast_weights: String,
+    #[arg(long, value_enum, default_value_t)]
+    fast_weights: FastWeights,
     /// Gather window of the fast method: tiles (bounded by the tiles' CoCs)
     /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
-    #[arg(long, default_value = "tiles", value_parser = ["tiles", "fixed"])]
-    fast_window: String,
+    #[arg(long, value_enum, default_value_t)]
+    fast_window: GatherWindow,
     /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.
-    #[arg(long, default_value_t = 9)]
+    #[arg(long, default_value_t = pointlens::options::DEFAULT_RDB_BINS, value_parser = checked(check_rdb_bins))]
     rdb_bins: u32,
     /// Which rays a bin receives: centre (the ray through the bin's lens
     /// cell centre) or pairs (the paper's pair-to-bin assignment).
-    #[arg(long, default_value = "centre", value_parser = ["centre", "pairs"])]
-    rdb_mode: String,
+    #[arg(long, value_enum, default_value_t)]
+    rdb_mode: RdbMode,
     /// Memory for the bins of the ray distribution buffer, MiB (default a
     /// quarter of the device-local heap); above it the frame is processed
     /// in tiles, with the same result.
     #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
     rdb_memory_mb: Option<u64>,
     /// Lens samples of the accumulation reference (--method accum).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
     samples: u32,
-    /// K: the G-buffer takes K×K samples per pixel (1 = hard sprites).
-    #[arg(long, default_value_t = 4)]
+    /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard sprites).
+    #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
     /// Vertical field of view, degrees.
     #[arg(long, allow_negative_numbers = true)]
@@ -207,6 +210,25 @@ struct RenderArgs {
     /// Write the timings as JSON.
     #[arg(long, value_name = "FILE")]
     timings_json: Option<PathBuf>,
+}
+
+/// A clap value parser for a number with the library's range check, so
+/// that the flag and the library give the same message.
+fn checked(
+    check: fn(u32) -> pointlens::Result<u32>,
+) -> impl Fn(&str) -> Result<u32, String> + Clone + Send + Sync + 'static {
+    move |s| {
+        let n = s
+            .trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}' is not a whole number"))?;
+        check(n).map_err(|e| e.to_string())
+    }
+}
+
+/// `--method`: the library's parser, whose error names the methods.
+fn method_kind(s: &str) -> Result<MethodKind, String> {
+    MethodKind::parse(s).map_err(|e| e.to_string())
 }
 
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
@@ -329,9 +351,6 @@ fn read_bench_report(path: &Path) -> Result<bench::BenchReport> {
 fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
     let methods = BenchMethod::parse_list(&args.methods)?;
     let models = BenchModel::parse_list(&args.models)?;
-    if args.ssaa == 0 || args.ssaa > 16 {
-        bail!("--ssaa must be between 1 and 16, not {}", args.ssaa);
-    }
     if args.points == 0 && models.contains(&BenchModel::Synthetic) {
         bail!("--points must be at least 1 for the synthetic model");
     }
@@ -376,7 +395,21 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
         bar.set_message(what.to_string());
     });
     bar.finish_and_clear();
-    Ok(report?)
+    let report = report?;
+    fail_on_validation_messages(&ctx)?;
+    Ok(report)
+}
+
+/// With validation on, any message (printed as it came) fails the command.
+fn fail_on_validation_messages(ctx: &Context) -> Result<()> {
+    let messages = ctx.validation_messages();
+    if !messages.is_empty() {
+        bail!(
+            "validation reported {} message(s) (printed above)",
+            messages.len()
+        );
+    }
+    Ok(())
 }
 
 /// Writes `text` to `path` atomically.
@@ -418,26 +451,20 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
-    let method = match args.method.parse()? {
-        Method::Fast(..) => Method::Fast(
-            match args.fast_weights.as_str() {
-                "uniform" => FastWeights::Uniform,
-                _ => FastWeights::Area,
-            },
-            match args.fast_window.as_str() {
-                "fixed" => GatherWindow::Fixed,
-                _ => GatherWindow::Tiles,
-            },
-        ),
-        Method::Rdb(..) => Method::Rdb(
-            args.rdb_bins,
-            match args.rdb_mode.as_str() {
-                "pairs" => RdbMode::Pairs,
-                _ => RdbMode::Centre,
-            },
-        ),
-        m => m,
-    };
+    let method = args.method.with(
+        FastOptions {
+            weights: args.fast_weights,
+            window: args.fast_window,
+        },
+        RdbOptions {
+            bins: args.rdb_bins,
+            mode: args.rdb_mode,
+            memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
+        },
+        AccumOptions {
+            samples: args.samples,
+        },
+    );
     check_output_path(&args.output)?;
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
         bail!("--splat-size must be a positive number, not {w}");
@@ -491,7 +518,9 @@ fn render(args: RenderArgs) -> Result<()> {
         args.device.clone(),
     ))?;
     let renderer = Renderer::new(&ctx)?;
+    let t_upload = Instant::now();
     let scene = renderer.upload(&cloud, splat)?;
+    let upload_wall_ms = t_upload.elapsed().as_secs_f64() * 1e3;
     if let Some([x, y]) = args.focus_pixel {
         cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, x, y)?;
     }
@@ -503,8 +532,6 @@ fn render(args: RenderArgs) -> Result<()> {
         method,
         ssaa: args.ssaa,
         background,
-        samples: args.samples,
-        rdb_memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
     };
     let rendered = renderer.render(&scene, &options)?;
 
@@ -512,108 +539,31 @@ fn render(args: RenderArgs) -> Result<()> {
     write_image(&rendered.image, &args.output)?;
     let encode_ms = t_encode.elapsed().as_secs_f64() * 1e3;
 
-    let report = TimingReport {
-        device: ctx.info.describe(),
-        method: &args.method,
-        width: cam.width,
-        height: cam.height,
-        ssaa: args.ssaa,
-        points: cloud.len(),
-        guard: rendered.guard,
-        frame: &rendered.timings,
-        upload: &scene.upload_timings,
-        splat_sizes_ms: scene.splat_sizes_ms,
+    let report = FrameReport {
         load_ms,
         encode_ms,
+        ..FrameReport::new(
+            &ctx.info,
+            method.short_name(),
+            (cam.width, cam.height),
+            args.ssaa,
+            cloud.len(),
+            rendered.guard,
+            &rendered.timings,
+            Upload {
+                splat_sizes_ms: scene.splat_sizes_ms,
+                gpu_ms: scene.upload_timings.gpu_total_ms(),
+                wall_ms: upload_wall_ms,
+            },
+        )
     };
     if args.timings {
         eprint!("{}", report.text());
     }
     if let Some(path) = &args.timings_json {
-        write_text(path, &report.json())?;
+        write_text(path, &report.to_json())?;
     }
     drop(scene);
     drop(renderer);
-    let messages = ctx.validation_messages();
-    if !messages.is_empty() {
-        bail!(
-            "validation reported {} message(s) (printed above)",
-            messages.len()
-        );
-    }
-    Ok(())
-}
-
-struct TimingReport<'a> {
-    device: String,
-    method: &'a str,
-    width: u32,
-    height: u32,
-    ssaa: u32,
-    points: usize,
-    guard: u32,
-    frame: &'a FrameTimings,
-    upload: &'a FrameTimings,
-    splat_sizes_ms: f64,
-    load_ms: f64,
-    encode_ms: f64,
-}
-
-impl TimingReport<'_> {
-    fn text(&self) -> String {
-        let mut s = format!(
-            "device: {}\nframe: {}x{} method {} ssaa {} points {} guard {} px\n",
-            self.device, self.width, self.height, self.method, self.ssaa, self.points, self.guard
-        );
-        s += &format!("{:<20} {:>10} {:>6}\n", "pass", "gpu ms", "count");
-        for p in &self.frame.passes {
-            s += &format!("{:<20} {:>10.3} {:>6}\n", p.name, p.gpu_ms, p.count);
-        }
-        s += &format!("{:<20} {:>10.3}\n", "gpu total", self.frame.gpu_total_ms());
-        s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame.wall_ms);
-        s += &format!(
-            "{:<20} {:>10.3}   (not in the frame)\n",
-            "upload gpu",
-            self.upload.gpu_total_ms()
-        );
-        s += &format!(
-            "{:<20} {:>10.3}   (not in the frame)\n",
-            "splat sizes wall", self.splat_sizes_ms
-        );
-        s += &format!(
-            "{:<20} {:>10.3}   (not in the frame)\n",
-            "load wall", self.load_ms
-        );
-        s += &format!(
-            "{:<20} {:>10.3}   (not in the frame)\n",
-            "encode wall", self.encode_ms
-        );
-        s
-    }
-
-    fn json(&self) -> String {
-        let passes: Vec<serde_json::Value> = self
-            .frame
-            .passes
-            .iter()
-            .map(|p| serde_json::json!({"name": p.name, "gpu_ms": p.gpu_ms, "count": p.count}))
-            .collect();
-        let v = serde_json::json!({
-            "device": self.device,
-            "method": self.method,
-            "width": self.width,
-            "height": self.height,
-            "ssaa": self.ssaa,
-            "points": self.points,
-            "guard_px": self.guard,
-            "passes": passes,
-            "gpu_total_ms": self.frame.gpu_total_ms(),
-            "frame_wall_ms": self.frame.wall_ms,
-            "upload_gpu_ms": self.upload.gpu_total_ms(),
-            "splat_sizes_ms": self.splat_sizes_ms,
-            "load_ms": self.load_ms,
-            "encode_ms": self.encode_ms,
-        });
-        serde_json::to_string_pretty(&v).unwrap_or_default() + "\n"
-    }
+    fail_on_validation_messages(&ctx)
 }

@@ -5,8 +5,7 @@ use glam::Vec2;
 
 use crate::camera::{rdb_bin, rdb_lens_table, Camera};
 use crate::image_io::LinearImage;
-use crate::passes::fast::FastWeights;
-use crate::passes::rdb::RdbMode;
+use crate::options::{FastWeights, RdbMode};
 use crate::render::HostGBuffer;
 
 /// The number of pixel centres (integer offsets) within distance c/2 of a

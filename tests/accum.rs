@@ -7,8 +7,9 @@ use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
+use pointlens::options::Method;
 use pointlens::ply::load_ply;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::PointCloud;
 
 fn accum(
@@ -22,11 +23,9 @@ fn accum(
     let scene = renderer.upload(cloud, splat).unwrap();
     let options = RenderOptions {
         camera: cam,
-        method: Method::Accum,
+        method: Method::accum(samples),
         ssaa,
         background: Vec3::ZERO,
-        samples,
-        rdb_memory_bytes: None,
     };
     renderer.render(&scene, &options).unwrap().image
 }

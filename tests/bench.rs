@@ -7,8 +7,8 @@ use common::{assert_fails, pointlens, scratch};
 use glam::Vec3;
 use pointlens::bench::{synthetic_cloud, BenchMethod, BenchModel, Stats};
 use pointlens::image_io::read_image;
-use pointlens::passes::rdb::RdbMode;
-use pointlens::render::Method;
+use pointlens::options::Method;
+use pointlens::options::RdbMode;
 use serde_json::Value;
 
 fn stats(v: &Value, what: &str) -> [f64; 3] {
@@ -243,7 +243,7 @@ fn bench_rejects_bad_input_with_one_line_and_writes_nothing() {
 #[test]
 fn method_names_and_statistics() {
     let m = BenchMethod::parse("rdb5-pairs").unwrap();
-    assert_eq!(m.method, Method::Rdb(5, RdbMode::Pairs));
+    assert_eq!(m.method, Method::rdb(5, RdbMode::Pairs));
     assert_eq!(BenchMethod::parse("accum64").unwrap().samples, 64);
     assert_eq!(
         BenchMethod::parse_list(BenchMethod::DEFAULT)

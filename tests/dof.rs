@@ -4,16 +4,16 @@ mod common;
 
 use common::{camera, cloud, with_gpu};
 use glam::Vec3;
-use pointlens::passes::fast::{FastWeights, GatherWindow};
-use pointlens::passes::rdb::RdbMode;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::options::Method;
+use pointlens::options::{FastWeights, GatherWindow, RdbMode};
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
 
 const METHODS: [Method; 5] = [
-    Method::Fast(FastWeights::Area, GatherWindow::Tiles),
-    Method::Fast(FastWeights::Uniform, GatherWindow::Tiles),
-    Method::Rdb(9, RdbMode::Centre),
-    Method::Rdb(9, RdbMode::Pairs),
-    Method::Accum,
+    Method::fast(FastWeights::Area, GatherWindow::Tiles),
+    Method::fast(FastWeights::Uniform, GatherWindow::Tiles),
+    Method::rdb(9, RdbMode::Centre),
+    Method::rdb(9, RdbMode::Pairs),
+    Method::accum(16),
 ];
 
 #[test]
@@ -51,8 +51,6 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
                     method,
                     ssaa: 2,
                     background: Vec3::ZERO,
-                    samples: 16,
-                    rdb_memory_bytes: None,
                 };
                 let img = renderer.render(&scene, &options).unwrap().image;
                 for (i, px) in img.pixels.iter().enumerate() {

@@ -6,10 +6,11 @@ use common::{camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
-use pointlens::passes::fast::{FastWeights, GatherWindow};
+use pointlens::options::Method;
+use pointlens::options::{FastWeights, GatherWindow};
 use pointlens::ply::load_ply;
 use pointlens::reference;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::PointCloud;
 
 fn options(cam: Camera, method: Method) -> RenderOptions {
@@ -18,8 +19,6 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         method,
         ssaa: 2,
         background: Vec3::ZERO,
-        samples: 64,
-        rdb_memory_bytes: None,
     }
 }
 
@@ -37,7 +36,7 @@ fn render(
         .image
 }
 
-const FAST: Method = Method::Fast(FastWeights::Area, GatherWindow::Tiles);
+const FAST: Method = Method::fast(FastWeights::Area, GatherWindow::Tiles);
 
 #[test]
 fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
@@ -64,7 +63,7 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                 let (gpu, gbuffer) = renderer
                     .render_with_gbuffer(
                         &scene,
-                        &options(cam, Method::Fast(weights, GatherWindow::Tiles)),
+                        &options(cam, Method::fast(weights, GatherWindow::Tiles)),
                     )
                     .unwrap();
                 let cpu = reference::fast(&gbuffer, &cam, weights);
@@ -73,7 +72,7 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                 let fixed = renderer
                     .render(
                         &scene,
-                        &options(cam, Method::Fast(weights, GatherWindow::Fixed)),
+                        &options(cam, Method::fast(weights, GatherWindow::Fixed)),
                     )
                     .unwrap();
                 assert_eq!(

@@ -6,8 +6,9 @@ use common::{assert_matches_reference, camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
+use pointlens::options::Method;
 use pointlens::ply::load_ply;
-use pointlens::render::{Method, RenderOptions, Renderer, SplatSize};
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
 
@@ -24,8 +25,6 @@ fn render(
         method: Method::Pinhole,
         ssaa,
         background: Vec3::ZERO,
-        samples: 1,
-        rdb_memory_bytes: None,
     };
     renderer.render(&scene, &options).expect("render").image
 }
@@ -260,17 +259,8 @@ fn the_canary_sees_validation_errors() {
     })
     .expect("lavapipe with validation");
     let log = ctx.message_log();
-    // Size 0 is invalid (VUID-VkBufferCreateInfo-size-00912).
-    let info = ash::vk::BufferCreateInfo::default()
-        .size(0)
-        .usage(ash::vk::BufferUsageFlags::STORAGE_BUFFER);
-    // SAFETY: deliberately invalid create info; lavapipe tolerates it and
-    // any buffer it returns is destroyed at once.
-    unsafe {
-        if let Ok(b) = ctx.device.create_buffer(&info, None) {
-            ctx.device.destroy_buffer(b, None);
-        }
-    }
+    // A buffer of size 0 (VUID-VkBufferCreateInfo-size-00912).
+    ctx.provoke_validation_message();
     drop(ctx);
     assert!(
         !log.messages().is_empty(),
@@ -294,8 +284,6 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
             method: Method::Pinhole,
             ssaa: 12,
             background: Vec3::ZERO,
-            samples: 1,
-            rdb_memory_bytes: None,
         };
         let timings = renderer.render(&scene, &options).unwrap().timings;
         let count = |name: &str| {

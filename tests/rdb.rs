@@ -8,28 +8,25 @@ use pointlens::camera::rdb_lens_table;
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
-use pointlens::passes::fast::{FastWeights, GatherWindow};
-use pointlens::passes::rdb::{bytes_per_pixel, RdbMode, TilePlan};
+use pointlens::options::Method;
+use pointlens::options::{FastWeights, GatherWindow};
+use pointlens::options::{RdbMode, RdbOptions};
+use pointlens::passes::rdb::{bytes_per_pixel, TilePlan};
 use pointlens::ply::load_ply;
 use pointlens::reference;
-use pointlens::render::{HostGBuffer, Method, RenderOptions, Renderer, Scene, SplatSize};
+use pointlens::render::{HostGBuffer, RenderOptions, Renderer, Scene, SplatSize};
 
-fn options(cam: Camera, method: Method, samples: u32) -> RenderOptions {
+fn options(cam: Camera, method: Method) -> RenderOptions {
     RenderOptions {
         camera: cam,
         method,
         ssaa: 2,
         background: Vec3::ZERO,
-        samples,
-        rdb_memory_bytes: None,
     }
 }
 
 fn render(renderer: &Renderer, scene: &Scene, cam: Camera, method: Method) -> LinearImage {
-    renderer
-        .render(scene, &options(cam, method, 256))
-        .unwrap()
-        .image
+    renderer.render(scene, &options(cam, method)).unwrap().image
 }
 
 #[test]
@@ -55,11 +52,11 @@ fn gpu_rdb_equals_the_cpu_reference_on_a_crop_of_a_real_scan_and_is_deterministi
             (5, RdbMode::Pairs),
             (9, RdbMode::Pairs),
         ] {
-            let method = Method::Rdb(bins, mode);
+            let method = Method::rdb(bins, mode);
             let (gpu, gbuffer) = renderer
-                .render_with_gbuffer(&scene, &options(cam, method, 1))
+                .render_with_gbuffer(&scene, &options(cam, method))
                 .unwrap();
-            let again = renderer.render(&scene, &options(cam, method, 1)).unwrap();
+            let again = renderer.render(&scene, &options(cam, method)).unwrap();
             assert_eq!(
                 gpu.image, again.image,
                 "{bins}×{bins} {mode:?}: two runs differ"
@@ -127,12 +124,12 @@ fn with_partial_occlusion_rdb_is_closer_to_accum_than_fast() {
         // The bar at z = 1 blurs to c = 2R·f_px·|1 − 2|/2 = 0.1 · 65.9 ≈ 6.6 px.
         cam.aperture_radius = 0.1;
         let reference = renderer
-            .render(&scene, &options(cam, Method::Accum, 256))
+            .render(&scene, &options(cam, Method::accum(256)))
             .unwrap()
             .image;
         let rdb = psnr(
             &reference,
-            &render(&renderer, &scene, cam, Method::Rdb(9, RdbMode::Centre)),
+            &render(&renderer, &scene, cam, Method::rdb(9, RdbMode::Centre)),
         )
         .unwrap();
         let fast = psnr(
@@ -141,7 +138,7 @@ fn with_partial_occlusion_rdb_is_closer_to_accum_than_fast() {
                 &renderer,
                 &scene,
                 cam,
-                Method::Fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::fast(FastWeights::Area, GatherWindow::Tiles),
             ),
         )
         .unwrap();
@@ -227,10 +224,14 @@ fn tiled_equals_untiled_bitwise() {
             // Tiles of a few pixels, far smaller than their apron.
             (4, RdbMode::Centre, 128 * 30),
         ] {
-            let method = Method::Rdb(bins, mode);
-            let whole = renderer.render(&scene, &options(cam, method, 1)).unwrap();
-            let mut tiled_options = options(cam, method, 1);
-            tiled_options.rdb_memory_bytes = Some(budget);
+            let method = Method::rdb(bins, mode);
+            let whole = renderer.render(&scene, &options(cam, method)).unwrap();
+            let mut tiled_options = options(cam, method);
+            tiled_options.method = Method::Rdb(RdbOptions {
+                bins,
+                mode,
+                memory_bytes: Some(budget),
+            });
             let tiled = renderer.render(&scene, &tiled_options).unwrap();
             let tiles = |r: &pointlens::render::Rendered| {
                 r.timings
@@ -354,14 +355,14 @@ fn without_occlusion_rdb_9x9_is_within_35_db_of_accum() {
         // lens samples move them a little, does not (33.4 dB).
         let options = |method| RenderOptions {
             ssaa: 4,
-            ..options(cam, method, 256)
+            ..options(cam, method)
         };
         let reference = renderer
-            .render(&scene, &options(Method::Accum))
+            .render(&scene, &options(Method::accum(256)))
             .unwrap()
             .image;
         let (rdb, gbuffer) = renderer
-            .render_with_gbuffer(&scene, &options(Method::Rdb(9, RdbMode::Centre)))
+            .render_with_gbuffer(&scene, &options(Method::rdb(9, RdbMode::Centre)))
             .unwrap();
         // The frame is covered, and its CoCs reach up to N = 9 px.
         let g = gbuffer.guard as usize;

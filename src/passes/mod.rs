@@ -1,8 +1,148 @@
-//! GPU passes: one Rust file per pass beside its GLSL file of the same name
-//! in `glsl/`. Each pass owns its pipeline and records with explicit inputs
-//! and outputs; `crate::gbuffer` and `crate::render` chain them into a frame.
+//! GPU passes and the depth-of-field methods built from them. One Rust file
+//! per pass or method beside its GLSL files of the same name in `glsl/`.
+//! Each records from explicit inputs to outputs: a method reads the
+//! resolved G-buffer ([`DofInput`]) and the view's facts ([`FrameView`]),
+//! never the G-buffer module itself.
+//!
+//! Adding a method: see "Adding a method" in docs/ARCHITECTURE.md — a module
+//! here implementing [`DofMethod`], a variant of [`crate::options::Method`],
+//! and its line in [`Methods`].
 
+use std::sync::Arc;
+
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::options::Method;
+use crate::vk::{Context, Frame, Image};
+
+pub mod accum;
 pub mod fast;
 pub mod gbuffer_resolve;
+pub mod pinhole;
 pub mod rdb;
 pub mod splat_raster;
+
+use splat_raster::{pinhole_samples, Sample};
+
+/// What every pass of one frame may know about its view.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameView {
+    pub camera: Camera,
+    /// Pixels added on every side of the frame (DESIGN §3).
+    pub guard: u32,
+    /// The largest CoC (pixels) the method meets in this view, which the
+    /// guard band was sized for.
+    pub max_coc_px: f32,
+}
+
+impl FrameView {
+    /// Width of the G-buffer: the output plus the guard band.
+    pub fn full_width(&self) -> u32 {
+        self.camera.width + 2 * self.guard
+    }
+
+    /// Height of the G-buffer: the output plus the guard band.
+    pub fn full_height(&self) -> u32 {
+        self.camera.height + 2 * self.guard
+    }
+}
+
+/// What a method reads: the resolved G-buffer (guard band included), both
+/// images in `GENERAL` layout and last written by compute.
+#[derive(Clone, Copy)]
+pub struct DofInput<'r> {
+    /// Linear color (rgba16f), alpha = coverage.
+    pub color: &'r Image,
+    /// Eye position of the nearest sample (rgba32f; z = +∞ for background),
+    /// w = coverage.
+    pub eye: &'r Image,
+    pub view: FrameView,
+}
+
+/// A depth-of-field method: what it needs of the G-buffer and the guard
+/// band, and the images and passes of one frame.
+pub trait DofMethod {
+    /// Name of the G-buffer's passes in the timings (`gbuffer.raster`, …).
+    fn gbuffer_label(&self) -> &'static str {
+        "gbuffer"
+    }
+
+    /// The raster samples (sub-pixel jitter, lens position) the G-buffer is
+    /// made of: the K×K SSAA grid through the lens centre by default.
+    fn gbuffer_samples(&self, ssaa: u32) -> Vec<Sample> {
+        pinhole_samples(ssaa)
+    }
+
+    /// The largest CoC (pixels) the guard band must hold, given the eye
+    /// depth range of the points in front of the camera (None: no point).
+    /// By default every G-buffer pixel's, the background's included
+    /// ([`max_gbuffer_coc`]).
+    fn guard_coc_px(&self, camera: &Camera, depths: Option<(f32, f32)>) -> f32 {
+        max_gbuffer_coc(camera, depths)
+    }
+
+    /// Allocates the images of one frame of `view`. Called before recording
+    /// starts, so that a frame's wall time excludes allocation.
+    fn prepare<'m>(
+        &'m self,
+        ctx: &Arc<Context>,
+        view: &FrameView,
+    ) -> Result<Box<dyn DofFrame + 'm>>;
+}
+
+/// One frame of a method: its images, ready to record.
+pub trait DofFrame {
+    /// Records the method's passes after the G-buffer and returns the image
+    /// holding the result: G-buffer sized, the output inside the guard band,
+    /// in `GENERAL` layout, last written by compute.
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image;
+}
+
+/// The largest CoC a G-buffer pixel can have: a point's in `depths`, or the
+/// background's (the surface at infinity), for methods that blur the
+/// background too.
+pub fn max_gbuffer_coc(camera: &Camera, depths: Option<(f32, f32)>) -> f32 {
+    let background = camera.coc_px(f32::INFINITY);
+    depths.map_or(background, |(lo, hi)| {
+        camera.max_coc_px(lo, hi).max(background)
+    })
+}
+
+/// A method's pipelines (made once per renderer) with one frame's options:
+/// what [`Methods::get`] hands out for methods that have pipelines.
+pub struct Configured<'p, P, O> {
+    pub pipelines: &'p P,
+    pub options: O,
+}
+
+/// The registry of methods: their pipelines, made once per renderer, and
+/// the one dispatch from a [`Method`] to its implementation.
+pub struct Methods {
+    fast: fast::Fast,
+    rdb: rdb::Rdb,
+}
+
+impl Methods {
+    pub fn new(ctx: &Arc<Context>) -> Result<Methods> {
+        Ok(Methods {
+            fast: fast::Fast::new(ctx)?,
+            rdb: rdb::Rdb::new(ctx)?,
+        })
+    }
+
+    /// The implementation of `method` with its options.
+    pub fn get(&self, method: &Method) -> Box<dyn DofMethod + '_> {
+        match *method {
+            Method::Pinhole => Box::new(pinhole::Pinhole),
+            Method::Fast(options) => Box::new(Configured {
+                pipelines: &self.fast,
+                options,
+            }),
+            Method::Rdb(options) => Box::new(Configured {
+                pipelines: &self.rdb,
+                options,
+            }),
+            Method::Accum(options) => Box::new(accum::Accum(options)),
+        }
+    }
+}

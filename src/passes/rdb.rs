@@ -8,57 +8,46 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use crate::camera::{rdb_lens_table, Camera};
+use super::{Configured, DofFrame, DofInput, DofMethod, FrameView};
+use crate::camera::rdb_lens_table;
 use crate::error::{Error, Result};
-use crate::gbuffer::GBuffer;
-use crate::vk::{
-    as_bytes, groups, image_barriers, slice_as_bytes, Access, Bind, Buffer, ComputePipeline,
-    Context, Frame, Image,
-};
-
-/// Which rays a bin receives (`--rdb-mode`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum RdbMode {
-    /// Each bin sampled by the ray through its lens cell's centre.
-    #[default]
-    Centre,
-    /// The paper's literal pair-to-bin assignment.
-    Pairs,
-}
+use crate::options::{check_rdb_bins, RdbMode, RdbOptions};
+use crate::push_constants;
+use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
 
 static SCATTER: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdb_scatter.comp.spv"));
 static RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdb_resolve.comp.spv"));
 
-#[repr(C)]
-#[derive(Clone, Copy)]
-struct ScatterPush {
-    extent: [i32; 2],
-    origin: [i32; 2],
-    scan_origin: [i32; 2],
-    tile_origin: [i32; 2],
-    tile_size: [i32; 2],
-    bins: i32,
-    pairs: u32,
-    pass_index: u32,
-    f_px: f32,
-    aperture_radius: f32,
-    focus_distance: f32,
+push_constants! {
+    struct ScatterPush {
+        extent: [i32; 2],
+        origin: [i32; 2],
+        scan_origin: [i32; 2],
+        tile_origin: [i32; 2],
+        tile_size: [i32; 2],
+        bins: i32,
+        pairs: u32,
+        pass_index: u32,
+        f_px: f32,
+        aperture_radius: f32,
+        focus_distance: f32,
+    }
 }
 
-#[repr(C)]
-#[derive(Clone, Copy)]
-struct ResolvePush {
-    extent: [i32; 2],
-    origin: [i32; 2],
-    tile_origin: [i32; 2],
-    tile_size: [i32; 2],
-    bins: i32,
+push_constants! {
+    struct ResolvePush {
+        extent: [i32; 2],
+        origin: [i32; 2],
+        tile_origin: [i32; 2],
+        tile_size: [i32; 2],
+        bins: i32,
+    }
 }
 
 /// The two pipelines of the method.
 pub struct Rdb {
-    scatter: ComputePipeline,
-    resolve: ComputePipeline,
+    scatter: ComputePipeline<ScatterPush>,
+    resolve: ComputePipeline<ResolvePush>,
 }
 
 /// Bytes of the bins of one output pixel: N² bins of two R32_UINT words.
@@ -129,31 +118,27 @@ impl TilePlan {
 
 /// The buffers of one frame: the bins of one tile (two R32_UINT array
 /// images, a layer per bin), the lens table and the result.
-pub struct RdbImages {
+struct RdbImages {
     depth: Image,
     source: Image,
     lens: Buffer,
     bins: u32,
     /// The tiles the frame is processed in.
-    pub plan: TilePlan,
+    plan: TilePlan,
     /// The result: G-buffer sized, written inside the guard band only.
-    pub result: Image,
+    result: Image,
 }
 
 impl RdbImages {
-    /// Allocates an N×N-bin buffer for the output size of `gbuffer`, or for
+    /// Allocates an N×N-bin buffer for the output size of `view`, or for
     /// one tile of it when the whole would exceed `budget_bytes`.
-    pub fn new(
+    fn new(
         ctx: &Arc<Context>,
-        gbuffer: &GBuffer,
+        view: &FrameView,
         bins: u32,
         budget_bytes: u64,
     ) -> Result<RdbImages> {
-        if !(2..=16).contains(&bins) {
-            return Err(Error::InvalidArgument(format!(
-                "--rdb-bins must be between 2 and 16, not {bins}"
-            )));
-        }
+        check_rdb_bins(bins)?;
         let layers = bins * bins;
         if layers > ctx.info.max_image_array_layers {
             return Err(Error::InvalidArgument(format!(
@@ -161,7 +146,7 @@ impl RdbImages {
                 ctx.info.max_image_array_layers
             )));
         }
-        let (w, h) = (gbuffer.view.camera.width, gbuffer.view.camera.height);
+        let (w, h) = (view.camera.width, view.camera.height);
         let plan = TilePlan::new(
             w,
             h,
@@ -172,7 +157,7 @@ impl RdbImages {
         let [tw, th] = plan.tile_size;
         let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_DST;
         let table = rdb_lens_table(bins);
-        let bytes = slice_as_bytes(&table);
+        let bytes: &[u8] = bytemuck::cast_slice(&table);
         let mut lens = Buffer::new(
             ctx,
             "rdb lens table",
@@ -183,25 +168,11 @@ impl RdbImages {
         lens.mapped_mut()
             .ok_or_else(|| Error::Allocation("rdb lens table is not host-visible".into()))?
             .copy_from_slice(bytes);
+        let bin_image =
+            |name| Image::new_2d(ctx, name, vk::Format::R32_UINT, tw, th, layers, usage);
         Ok(RdbImages {
-            depth: Image::new_2d(
-                ctx,
-                "rdb depth",
-                vk::Format::R32_UINT,
-                tw,
-                th,
-                layers,
-                usage,
-            )?,
-            source: Image::new_2d(
-                ctx,
-                "rdb source",
-                vk::Format::R32_UINT,
-                tw,
-                th,
-                layers,
-                usage,
-            )?,
+            depth: bin_image("rdb depth")?,
+            source: bin_image("rdb source")?,
             lens,
             bins,
             plan,
@@ -209,8 +180,8 @@ impl RdbImages {
                 ctx,
                 "rdb result",
                 vk::Format::R16G16B16A16_SFLOAT,
-                gbuffer.color.width,
-                gbuffer.color.height,
+                view.full_width(),
+                view.full_height(),
                 1,
                 vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
             )?,
@@ -218,53 +189,65 @@ impl RdbImages {
     }
 }
 
-const CLEARED: Access = Access {
-    stage: vk::PipelineStageFlags2::CLEAR,
-    access: vk::AccessFlags2::TRANSFER_WRITE,
-    layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-};
-
 impl Rdb {
     pub fn new(ctx: &Arc<Context>) -> Result<Rdb> {
-        let img = vk::DescriptorType::STORAGE_IMAGE;
-        let buf = vk::DescriptorType::STORAGE_BUFFER;
+        let img = Binding::StorageImage;
         Ok(Rdb {
             scatter: ComputePipeline::new(
                 ctx,
                 "rdb_scatter",
                 SCATTER,
-                &[img, img, img, buf],
-                std::mem::size_of::<ScatterPush>() as u32,
+                &[img, img, img, Binding::StorageBuffer],
             )?,
-            resolve: ComputePipeline::new(
-                ctx,
-                "rdb_resolve",
-                RESOLVE,
-                &[img, img, img],
-                std::mem::size_of::<ResolvePush>() as u32,
-            )?,
+            resolve: ComputePipeline::new(ctx, "rdb_resolve", RESOLVE, &[img; 3])?,
         })
     }
+}
 
+/// The memory budget of the bins: the option, or a quarter of the largest
+/// device-local heap.
+fn budget(options: &RdbOptions, ctx: &Context) -> u64 {
+    options
+        .memory_bytes
+        .unwrap_or(ctx.info.device_local_heap_bytes / 4)
+}
+
+/// Every pixel scatters, the background too: the default guard band.
+impl DofMethod for Configured<'_, Rdb, RdbOptions> {
+    fn prepare<'m>(
+        &'m self,
+        ctx: &Arc<Context>,
+        view: &FrameView,
+    ) -> Result<Box<dyn DofFrame + 'm>> {
+        let images = RdbImages::new(ctx, view, self.options.bins, budget(&self.options, ctx))?;
+        Ok(Box::new(RdbFrame {
+            method: self,
+            images,
+        }))
+    }
+}
+
+struct RdbFrame<'m> {
+    method: &'m Configured<'m, Rdb, RdbOptions>,
+    images: RdbImages,
+}
+
+impl DofFrame for RdbFrame<'_> {
     /// Records, tile by tile, the clear, the two scatter passes and the
-    /// resolve after the G-buffer (last written by compute). A tile's
-    /// scatter visits the G-buffer pixels within an apron of half the
-    /// frame's largest CoC around it: every ray that can reach the tile.
-    /// Each bin's winner is a minimum over the same candidates tiled or not,
-    /// so the tiled result is bitwise the untiled one.
-    pub fn record(
-        &self,
-        frame: &mut Frame,
-        gbuffer: &GBuffer,
-        images: &RdbImages,
-        camera: &Camera,
-        mode: RdbMode,
-    ) {
-        let (gw, gh) = (gbuffer.color.width as i32, gbuffer.color.height as i32);
-        let g = gbuffer.view.guard as i32;
+    /// resolve. A tile's scatter visits the G-buffer pixels within an apron
+    /// of half the frame's largest CoC around it: every ray that can reach
+    /// the tile. Each bin's winner is a minimum over the same candidates
+    /// tiled or not, so the tiled result is bitwise the untiled one.
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        let p = self.method.pipelines;
+        let mode = self.method.options.mode;
+        let images = &self.images;
+        let camera = &input.view.camera;
+        let (gw, gh) = (input.color.width as i32, input.color.height as i32);
+        let g = input.view.guard as i32;
         // |lens offset| ≤ c/2, plus the rounding to a pixel and a pixel for
         // the GPU's CoC rounding above the CPU's bound.
-        let apron = (0.5 * gbuffer.view.max_coc_px).ceil() as i32 + 2;
+        let apron = (0.5 * input.view.max_coc_px).ceil() as i32 + 2;
         for (index, tile) in images.plan.tiles.iter().enumerate() {
             let first = index == 0;
             let tile_origin = [tile.origin[0] as i32, tile.origin[1] as i32];
@@ -278,37 +261,19 @@ impl Rdb {
                 (tile_origin[0] + tile_size[0] + g + apron).min(gw),
                 (tile_origin[1] + tile_size[1] + g + apron).min(gh),
             ];
-            frame.pass("rdb.clear", |ctx, cmd| {
+            frame.pass("rdb.clear", |rec| {
                 // The previous tile's scatter read and wrote `depth`; its
                 // resolve read `source`.
                 let (depth_before, source_before) = match first {
                     true => (Access::NONE, Access::NONE),
                     false => (Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ),
                 };
-                image_barriers(
-                    ctx,
-                    cmd,
-                    &[
-                        (&images.depth, depth_before, CLEARED),
-                        (&images.source, source_before, CLEARED),
-                    ],
-                );
-                let clear = vk::ClearColorValue {
-                    uint32: [u32::MAX; 4],
-                };
-                // SAFETY: both images are in TRANSFER_DST_OPTIMAL (barrier
-                // above) and the ranges cover them.
-                unsafe {
-                    for image in [&images.depth, &images.source] {
-                        ctx.device.cmd_clear_color_image(
-                            cmd,
-                            image.raw,
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            &clear,
-                            &[image.full_range()],
-                        );
-                    }
-                }
+                rec.barriers(&[
+                    (&images.depth, depth_before, Access::CLEAR),
+                    (&images.source, source_before, Access::CLEAR),
+                ]);
+                rec.clear_u32(&images.depth, u32::MAX);
+                rec.clear_u32(&images.source, u32::MAX);
                 // The lens table, written by the host before the submission,
                 // is visible to it by the submission's own host-write
                 // guarantee.
@@ -319,53 +284,48 @@ impl Rdb {
                 } else {
                     "rdb.source"
                 };
-                frame.pass(name, |ctx, cmd| {
+                frame.pass(name, |rec| {
                     if pass_index == 0 {
                         let mut list = vec![
-                            (&images.depth, CLEARED, Access::COMPUTE_READ_WRITE),
-                            (&images.source, CLEARED, Access::COMPUTE_READ_WRITE),
+                            (&images.depth, Access::CLEAR, Access::COMPUTE_READ_WRITE),
+                            (&images.source, Access::CLEAR, Access::COMPUTE_READ_WRITE),
                         ];
                         if first {
                             list.push((
-                                &gbuffer.eye,
+                                input.eye,
                                 Access::COMPUTE_READ_WRITE,
                                 Access::COMPUTE_READ,
                             ));
                         }
-                        image_barriers(ctx, cmd, &list);
+                        rec.barriers(&list);
                     } else {
-                        image_barriers(
-                            ctx,
-                            cmd,
-                            &[(
-                                &images.depth,
-                                Access::COMPUTE_READ_WRITE,
-                                Access::COMPUTE_READ_WRITE,
-                            )],
-                        );
+                        rec.barriers(&[(
+                            &images.depth,
+                            Access::COMPUTE_READ_WRITE,
+                            Access::COMPUTE_READ_WRITE,
+                        )]);
                     }
-                    let push = ScatterPush {
-                        extent: [gw, gh],
-                        origin: [g, g],
-                        scan_origin: lo,
-                        tile_origin,
-                        tile_size,
-                        bins: images.bins as i32,
-                        pairs: (mode == RdbMode::Pairs) as u32,
-                        pass_index,
-                        f_px: camera.f_px(),
-                        aperture_radius: camera.aperture_radius,
-                        focus_distance: camera.focus_distance,
-                    };
-                    self.scatter.dispatch(
-                        cmd,
+                    rec.dispatch(
+                        &p.scatter,
                         &[
-                            Bind::StorageImage(&gbuffer.eye),
+                            Bind::StorageImage(input.eye),
                             Bind::StorageImage(&images.depth),
                             Bind::StorageImage(&images.source),
                             Bind::StorageBuffer(&images.lens),
                         ],
-                        as_bytes(&push),
+                        &ScatterPush {
+                            extent: [gw, gh],
+                            origin: [g, g],
+                            scan_origin: lo,
+                            tile_origin,
+                            tile_size,
+                            bins: images.bins as i32,
+                            pairs: (mode == RdbMode::Pairs) as u32,
+                            pass_index,
+                            f_px: camera.f_px(),
+                            aperture_radius: camera.aperture_radius,
+                            focus_distance: camera.focus_distance,
+                        },
                         [
                             groups((hi[0] - lo[0]) as u32, 8),
                             groups((hi[1] - lo[1]) as u32, 8),
@@ -374,39 +334,51 @@ impl Rdb {
                     );
                 });
             }
-            frame.pass("rdb.resolve", |ctx, cmd| {
+            frame.pass("rdb.resolve", |rec| {
                 let mut list = vec![(
                     &images.source,
                     Access::COMPUTE_READ_WRITE,
                     Access::COMPUTE_READ,
                 )];
                 if first {
-                    list.push((&gbuffer.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ));
+                    list.push((input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ));
                     list.push((&images.result, Access::NONE, Access::COMPUTE_WRITE));
                 } else {
                     // Tiles write disjoint texels, but the image is one
                     // subresource to the hazard tracking: order the writes.
                     list.push((&images.result, Access::COMPUTE_WRITE, Access::COMPUTE_WRITE));
                 }
-                image_barriers(ctx, cmd, &list);
-                let push = ResolvePush {
-                    extent: [gw, gh],
-                    origin: [g, g],
-                    tile_origin,
-                    tile_size,
-                    bins: images.bins as i32,
-                };
-                self.resolve.dispatch(
-                    cmd,
+                rec.barriers(&list);
+                rec.dispatch(
+                    &p.resolve,
                     &[
-                        Bind::StorageImage(&gbuffer.color),
+                        Bind::StorageImage(input.color),
                         Bind::StorageImage(&images.source),
                         Bind::StorageImage(&images.result),
                     ],
-                    as_bytes(&push),
+                    &ResolvePush {
+                        extent: [gw, gh],
+                        origin: [g, g],
+                        tile_origin,
+                        tile_size,
+                        bins: images.bins as i32,
+                    },
                     [groups(tile.size[0], 8), groups(tile.size[1], 8), 1],
                 );
             });
         }
+        &images.result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::check_push_layout;
+
+    #[test]
+    fn push_constants_match_the_glsl_blocks() {
+        check_push_layout::<ScatterPush>("rdb_scatter", SCATTER).unwrap();
+        check_push_layout::<ResolvePush>("rdb_resolve", RESOLVE).unwrap();
     }
 }

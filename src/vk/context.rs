@@ -104,15 +104,14 @@ struct Messenger {
 /// context is destroyed last.
 pub struct Context {
     _entry: ash::Entry,
-    pub instance: ash::Instance,
+    pub(super) instance: ash::Instance,
     messenger: Option<Messenger>,
     messages: Arc<Mutex<Vec<ValidationMessage>>>,
-    pub physical_device: vk::PhysicalDevice,
-    pub device: ash::Device,
+    pub(super) device: ash::Device,
     debug_utils: ash::ext::debug_utils::Device,
-    pub push_descriptor: ash::khr::push_descriptor::Device,
-    pub queue: vk::Queue,
-    pub queue_family: u32,
+    pub(super) push_descriptor: ash::khr::push_descriptor::Device,
+    pub(super) queue: vk::Queue,
+    pub(super) queue_family: u32,
     allocator: ManuallyDrop<Mutex<Allocator>>,
     pub info: DeviceInfo,
     validation: bool,
@@ -303,7 +302,6 @@ impl Context {
             instance,
             messenger,
             messages,
-            physical_device,
             device,
             debug_utils,
             push_descriptor,
@@ -315,6 +313,24 @@ impl Context {
         };
         ctx.set_name(ctx.queue, "main queue");
         Ok(Arc::new(ctx))
+    }
+
+    /// Makes one invalid Vulkan call (a buffer of size 0) so that a test
+    /// can check that the validation canary sees messages. Never call it
+    /// otherwise.
+    #[doc(hidden)]
+    pub fn provoke_validation_message(&self) {
+        let info = vk::BufferCreateInfo::default()
+            .size(0)
+            .usage(vk::BufferUsageFlags::STORAGE_BUFFER);
+        // SAFETY: deliberately invalid create info (size 0,
+        // VUID-VkBufferCreateInfo-size-00912) that drivers tolerate; a
+        // buffer it returns is unused and destroyed at once.
+        unsafe {
+            if let Ok(b) = self.device.create_buffer(&info, None) {
+                self.device.destroy_buffer(b, None);
+            }
+        }
     }
 
     /// Whether the validation layer is on.
@@ -353,7 +369,7 @@ impl Context {
     }
 
     /// Gives a Vulkan object a debug name (shown by validation messages and tools).
-    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
+    pub(super) fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
         let Ok(name) = CString::new(name) else {
             return;
         };

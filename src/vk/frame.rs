@@ -1,16 +1,18 @@
 //! One command buffer recorded, submitted and waited for, with every pass
 //! inside it given a debug label and a GPU timestamp scope (`Frame::pass`).
 
+use std::marker::PhantomData;
 use std::sync::Arc;
 use std::time::Instant;
 
 use ash::vk;
 
-use super::Context;
+use super::pipeline::{Bind, ComputePipeline, PointPipeline, PushConstants};
+use super::{Access, Buffer, Context, Image};
 use crate::error::{Error, Result, VkContext};
 
 /// Time spent by one named pass (summed when the name occurs several times).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PassTiming {
     pub name: String,
     /// GPU time from timestamp queries, milliseconds.
@@ -62,10 +64,12 @@ const POOL_SCOPES: u32 = 256;
 
 /// A command buffer being recorded. Create with [`Frame::begin`], record
 /// passes with [`Frame::pass`], finish with [`Frame::submit_and_wait`].
-pub struct Frame {
+/// Every resource a pass records is borrowed for `'r`: it outlives the
+/// frame, so it is alive until the submission has completed.
+pub struct Frame<'r> {
     ctx: Arc<Context>,
     pool: vk::CommandPool,
-    pub cmd: vk::CommandBuffer,
+    cmd: vk::CommandBuffer,
     fence: vk::Fence,
     /// Timestamp pools; scope i owns queries 2(i mod P) and 2(i mod P)+1 of
     /// pool i div P (P = POOL_SCOPES).
@@ -74,27 +78,31 @@ pub struct Frame {
     deferred_error: Option<Error>,
     scopes: Vec<(String, u32)>,
     started: Instant,
+    resources: PhantomData<&'r ()>,
 }
 
-impl Frame {
+impl<'r> Frame<'r> {
     /// Allocates a command buffer and begins recording.
-    pub fn begin(ctx: &Arc<Context>, name: &str) -> Result<Frame> {
+    pub fn begin(ctx: &Arc<Context>, name: &str) -> Result<Frame<'r>> {
         let started = Instant::now();
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(ctx.queue_family)
             .flags(vk::CommandPoolCreateFlags::TRANSIENT);
-        // SAFETY: valid device; each object is owned by the Frame from here
-        // (Drop destroys the null handles harmlessly if a later step fails).
+        // SAFETY: valid device and create info; the pool is owned by the
+        // Frame from the next statement on, whose Drop destroys it (and the
+        // null handles harmlessly if a later step fails).
+        let pool = unsafe { ctx.device.create_command_pool(&pool_info, None) }
+            .vk("vkCreateCommandPool")?;
         let mut frame = Frame {
             ctx: ctx.clone(),
-            pool: unsafe { ctx.device.create_command_pool(&pool_info, None) }
-                .vk("vkCreateCommandPool")?,
+            pool,
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
             pools: Vec::new(),
             deferred_error: None,
             scopes: Vec::new(),
             started,
+            resources: PhantomData,
         };
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(frame.pool)
@@ -130,11 +138,7 @@ impl Frame {
 
     /// Records one pass: a debug label named `name` around it, and a GPU
     /// timestamp scope that `submit_and_wait` reports under that name.
-    pub fn pass<R>(
-        &mut self,
-        name: &str,
-        record: impl FnOnce(&Context, vk::CommandBuffer) -> R,
-    ) -> R {
+    pub fn pass<R>(&mut self, name: &str, record: impl FnOnce(&mut Recorder<'_, 'r>) -> R) -> R {
         let index = self.scopes.len() as u32;
         self.ctx.begin_label(self.cmd, name);
         // A pool that cannot be created fails the frame at submit.
@@ -148,7 +152,11 @@ impl Frame {
         if timed {
             self.timestamp(2 * index);
         }
-        let result = record(&self.ctx, self.cmd);
+        let result = record(&mut Recorder {
+            ctx: &self.ctx,
+            cmd: self.cmd,
+            resources: PhantomData,
+        });
         if timed {
             self.timestamp(2 * index + 1);
             self.scopes.push((name.to_string(), index));
@@ -260,7 +268,7 @@ impl Frame {
     }
 }
 
-impl Drop for Frame {
+impl Drop for Frame<'_> {
     fn drop(&mut self) {
         // SAFETY: either the submission completed (submit_and_wait waited on
         // the fence) or nothing was submitted; destroying the pool frees the
@@ -272,5 +280,267 @@ impl Drop for Frame {
             self.ctx.device.destroy_fence(self.fence, None);
             self.ctx.device.destroy_command_pool(self.pool, None);
         }
+    }
+}
+
+/// The commands a pass may record: barriers, dispatches, clears, copies
+/// and point draws, each taking the resources it touches by reference.
+/// Every resource a frame's passes name is borrowed for `'r`, the frame's
+/// lifetime, so none can be dropped before the frame is submitted and
+/// waited for (or dropped unsubmitted).
+pub struct Recorder<'f, 'r> {
+    ctx: &'f Context,
+    cmd: vk::CommandBuffer,
+    resources: PhantomData<&'r ()>,
+}
+
+impl<'r> Recorder<'_, 'r> {
+    /// The context the frame records for.
+    pub fn ctx(&self) -> &Context {
+        self.ctx
+    }
+
+    /// Image barriers from each `src` to its `dst` (layout transitions
+    /// included), in one call.
+    pub fn barriers(&mut self, list: &[(&'r Image, Access, Access)]) {
+        let barriers: Vec<_> = list
+            .iter()
+            .map(|(image, src, dst)| {
+                vk::ImageMemoryBarrier2::default()
+                    .src_stage_mask(src.stage)
+                    .src_access_mask(src.access)
+                    .dst_stage_mask(dst.stage)
+                    .dst_access_mask(dst.access)
+                    .old_layout(src.layout)
+                    .new_layout(dst.layout)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image.raw)
+                    .subresource_range(image.full_range())
+            })
+            .collect();
+        let dep = vk::DependencyInfo::default().image_memory_barriers(&barriers);
+        // SAFETY: `cmd` is recording outside a render pass (passes record
+        // whole render passes inside `draw_points`); the images are alive
+        // for the frame (`'r`).
+        unsafe { self.ctx.device.cmd_pipeline_barrier2(self.cmd, &dep) };
+    }
+
+    /// A global memory barrier (for buffers): `src`'s stages and accesses
+    /// before `dst`'s (layouts are ignored).
+    pub fn memory_barrier(&mut self, src: Access, dst: Access) {
+        let barriers = [vk::MemoryBarrier2::default()
+            .src_stage_mask(src.stage)
+            .src_access_mask(src.access)
+            .dst_stage_mask(dst.stage)
+            .dst_access_mask(dst.access)];
+        let dep = vk::DependencyInfo::default().memory_barriers(&barriers);
+        // SAFETY: `cmd` is recording outside a render pass.
+        unsafe { self.ctx.device.cmd_pipeline_barrier2(self.cmd, &dep) };
+    }
+
+    /// Binds `pipeline`, pushes `binds` as its descriptors and `push` as its
+    /// constants, and dispatches `groups` workgroups. Images must be in
+    /// `GENERAL` layout.
+    pub fn dispatch<P: PushConstants>(
+        &mut self,
+        pipeline: &'r ComputePipeline<P>,
+        binds: &[Bind<'r>],
+        push: &P,
+        groups: [u32; 3],
+    ) {
+        pipeline.record_dispatch(self.cmd, binds, push, groups);
+    }
+
+    /// Fills every layer of an unsigned-integer color image with `value`;
+    /// the image must be in `TRANSFER_DST_OPTIMAL` ([`Access::CLEAR`]).
+    pub fn clear_u32(&mut self, image: &'r Image, value: u32) {
+        let clear = vk::ClearColorValue { uint32: [value; 4] };
+        // SAFETY: recording outside a render pass; the caller's barrier put
+        // the image in TRANSFER_DST_OPTIMAL and the range covers it.
+        unsafe {
+            self.ctx.device.cmd_clear_color_image(
+                self.cmd,
+                image.raw,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &clear,
+                &[image.full_range()],
+            )
+        };
+    }
+
+    /// Copies the first `min(src.size, dst.size)` bytes of `src` to `dst`.
+    pub fn copy_buffer(&mut self, src: &'r Buffer, dst: &'r Buffer) {
+        let region = vk::BufferCopy {
+            src_offset: 0,
+            dst_offset: 0,
+            size: src.size.min(dst.size),
+        };
+        // SAFETY: recording outside a render pass; the region lies inside
+        // both buffers.
+        unsafe {
+            self.ctx
+                .device
+                .cmd_copy_buffer(self.cmd, src.raw, dst.raw, &[region])
+        };
+    }
+
+    /// Copies the `extent` region at `offset` of layer 0 of a color image in
+    /// `TRANSFER_SRC_OPTIMAL` ([`Access::COPY_SRC`]) into `buffer`, tightly
+    /// packed. Panics when the region leaves the image or the buffer is too
+    /// small for it.
+    pub fn copy_image_to_buffer(
+        &mut self,
+        image: &'r Image,
+        offset: [u32; 2],
+        extent: [u32; 2],
+        buffer: &'r Buffer,
+    ) {
+        assert!(
+            offset[0] + extent[0] <= image.width && offset[1] + extent[1] <= image.height,
+            "copy region outside the image"
+        );
+        let bytes = extent[0] as u64 * extent[1] as u64 * texel_bytes(image.format);
+        assert!(bytes <= buffer.size, "readback buffer too small");
+        let region = vk::BufferImageCopy {
+            buffer_offset: 0,
+            buffer_row_length: 0,
+            buffer_image_height: 0,
+            image_subresource: vk::ImageSubresourceLayers {
+                aspect_mask: vk::ImageAspectFlags::COLOR,
+                mip_level: 0,
+                base_array_layer: 0,
+                layer_count: 1,
+            },
+            image_offset: vk::Offset3D {
+                x: offset[0] as i32,
+                y: offset[1] as i32,
+                z: 0,
+            },
+            image_extent: vk::Extent3D {
+                width: extent[0],
+                height: extent[1],
+                depth: 1,
+            },
+        };
+        // SAFETY: recording outside a render pass; the region lies inside
+        // the image and the buffer holds it (asserted above).
+        unsafe {
+            self.ctx.device.cmd_copy_image_to_buffer(
+                self.cmd,
+                image.raw,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                buffer.raw,
+                &[region],
+            )
+        };
+    }
+
+    /// One render pass over the whole of `colors` and `depth` (all the same
+    /// size, in attachment layouts: [`Access::COLOR_WRITE`],
+    /// [`Access::DEPTH_WRITE`]): clears each color target to its value and
+    /// the depth to 1, draws the first `count` vertices of `vertices` as
+    /// point sprites with `pipeline` and `push`, stores the colors and
+    /// discards the depth.
+    pub fn draw_points<P: PushConstants>(
+        &mut self,
+        pipeline: &'r PointPipeline<P>,
+        colors: &[(&'r Image, [f32; 4])],
+        depth: &'r Image,
+        vertices: &'r Buffer,
+        count: u32,
+        push: &P,
+    ) {
+        assert_eq!(
+            colors.iter().map(|c| c.0.format).collect::<Vec<_>>(),
+            pipeline.color_formats,
+            "color targets do not match the pipeline"
+        );
+        assert_eq!(depth.format, pipeline.depth_format, "depth target format");
+        let (w, h) = (depth.width, depth.height);
+        assert!(
+            colors.iter().all(|c| (c.0.width, c.0.height) == (w, h)),
+            "targets of different sizes"
+        );
+        let area = vk::Rect2D {
+            offset: vk::Offset2D { x: 0, y: 0 },
+            extent: vk::Extent2D {
+                width: w,
+                height: h,
+            },
+        };
+        let color_attachments: Vec<_> = colors
+            .iter()
+            .map(|(image, clear)| {
+                vk::RenderingAttachmentInfo::default()
+                    .image_view(image.view)
+                    .image_layout(vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)
+                    .load_op(vk::AttachmentLoadOp::CLEAR)
+                    .store_op(vk::AttachmentStoreOp::STORE)
+                    .clear_value(vk::ClearValue {
+                        color: vk::ClearColorValue { float32: *clear },
+                    })
+            })
+            .collect();
+        let depth_attachment = vk::RenderingAttachmentInfo::default()
+            .image_view(depth.view)
+            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::DONT_CARE)
+            .clear_value(vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 1.0,
+                    stencil: 0,
+                },
+            });
+        let rendering = vk::RenderingInfo::default()
+            .render_area(area)
+            .layer_count(1)
+            .color_attachments(&color_attachments)
+            .depth_attachment(&depth_attachment);
+        let viewport = vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: w as f32,
+            height: h as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        };
+        let (raw_pipeline, layout) = pipeline.raw();
+        let device = &self.ctx.device;
+        // SAFETY: recording outside a render pass, this begins and ends one;
+        // the targets match the pipeline's formats and size (asserted) and
+        // are in the layouts named above (the caller's barriers); `vertices`
+        // holds at least `count` vertices made visible to vertex input by
+        // the caller (the upload's barrier); all live for the frame (`'r`).
+        unsafe {
+            device.cmd_begin_rendering(self.cmd, &rendering);
+            device.cmd_set_viewport(self.cmd, 0, &[viewport]);
+            device.cmd_set_scissor(self.cmd, 0, &[area]);
+            device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::GRAPHICS, raw_pipeline);
+            device.cmd_bind_vertex_buffers(self.cmd, 0, &[vertices.raw], &[0]);
+            device.cmd_push_constants(
+                self.cmd,
+                layout,
+                vk::ShaderStageFlags::VERTEX,
+                0,
+                bytemuck::bytes_of(push),
+            );
+            device.cmd_draw(self.cmd, count, 1, 0, 0);
+            device.cmd_end_rendering(self.cmd);
+        }
+    }
+}
+
+/// Bytes per texel of the color formats pointlens reads back.
+fn texel_bytes(format: vk::Format) -> u64 {
+    match format {
+        vk::Format::R32G32B32A32_SFLOAT => 16,
+        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,
+        vk::Format::R8G8B8A8_UNORM
+        | vk::Format::R8G8B8A8_SRGB
+        | vk::Format::R32_SFLOAT
+        | vk::Format::R32_UINT => 4,
+        other => panic!("no texel size known for {other:?}"),
     }
 }

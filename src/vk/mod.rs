@@ -1,14 +1,23 @@
 //! The Vulkan layer: context, resources, pipelines, barriers and frames.
-//! All `unsafe` Vulkan calls outside the passes live here.
+//! Every `unsafe` block of pointlens lives under this module (the crate
+//! denies `unsafe_code` elsewhere, see `src/lib.rs`); each states the
+//! invariant it relies on. Raw Vulkan handles stay inside it: passes record
+//! through [`Recorder`] with references to [`Image`]s, [`Buffer`]s and
+//! pipelines.
 
 mod context;
 mod frame;
 mod pipeline;
+mod reflect;
 mod resources;
 mod sync;
 
 pub use context::{Context, ContextOptions, DeviceInfo, MessageLog, ValidationMessage};
-pub use frame::{Frame, FrameTimings, PassTiming};
-pub use pipeline::{as_bytes, groups, shader_module, slice_as_bytes, Bind, ComputePipeline};
+pub use frame::{Frame, FrameTimings, PassTiming, Recorder};
+pub use pipeline::{
+    check_push_layout, groups, Bind, Binding, ComputePipeline, PointPipeline, PointPipelineDesc,
+    PushConstants, VertexAttribute,
+};
+pub use reflect::{push_constant_block, BlockMember};
 pub use resources::{Buffer, Image};
-pub use sync::{image_barrier, image_barriers, memory_barrier, Access};
+pub use sync::Access;

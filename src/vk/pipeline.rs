@@ -1,23 +1,182 @@
-//! Shader modules, and compute pipelines whose resources are bound with push
-//! descriptors, so that every dispatch states its inputs and outputs.
+//! Shader modules, typed push constants, and the two kinds of pipeline the
+//! passes use: compute pipelines whose resources are bound with push
+//! descriptors (so every dispatch states its inputs and outputs) and the
+//! point-sprite graphics pipeline of the splat raster.
 
+use std::marker::PhantomData;
 use std::sync::Arc;
 
 use ash::vk;
 
+use super::reflect::{push_constant_block, BlockMember};
 use super::{Buffer, Context, Image};
 use crate::error::{Error, Result, VkContext};
 
+/// A push-constant block: a `#[repr(C)]` plain-old-data struct whose fields
+/// mirror a GLSL `push_constant` block member by member. Declare one with
+/// [`push_constants!`](crate::push_constants); a pipeline checks the
+/// struct against its shader's block when it is created.
+pub trait PushConstants: bytemuck::Pod {
+    /// (name, byte offset, byte size) of every field, in declaration order.
+    const FIELDS: &'static [(&'static str, usize, usize)];
+}
+
+/// Declares a push-constant struct: `#[repr(C)]`, `Pod` (so it has no
+/// padding and goes to the GPU through `bytemuck`), and its field table
+/// for the layout check against the GLSL block.
+#[macro_export]
+macro_rules! push_constants {
+    ($(#[$meta:meta])* $vis:vis struct $name:ident {
+        $($(#[$fmeta:meta])* $fvis:vis $field:ident : $ty:ty),* $(,)?
+    }) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+        $vis struct $name {
+            $($(#[$fmeta])* $fvis $field: $ty),*
+        }
+        impl $crate::vk::PushConstants for $name {
+            const FIELDS: &'static [(&'static str, usize, usize)] = &[
+                $((stringify!($field), ::std::mem::offset_of!($name, $field), ::std::mem::size_of::<$ty>())),*
+            ];
+        }
+    };
+}
+
+/// Checks that `P` and the push-constant block of the SPIR-V module
+/// `spirv` agree member by member (name, offset, size): an error names
+/// the shader and both layouts.
+pub fn check_push_layout<P: PushConstants>(shader: &str, spirv: &[u8]) -> Result<()> {
+    let glsl = push_constant_block(spirv)
+        .map_err(|e| Error::VulkanSetup(format!("shader {shader}: {e}")))?;
+    let rust: Vec<BlockMember> = P::FIELDS
+        .iter()
+        .map(|&(name, offset, size)| BlockMember {
+            name: name.to_string(),
+            offset: offset as u32,
+            size: size as u32,
+        })
+        .collect();
+    let end = rust.last().map_or(0, |m| m.offset + m.size) as usize;
+    if glsl != rust || end != std::mem::size_of::<P>() {
+        let show = |members: &[BlockMember]| {
+            members
+                .iter()
+                .map(|m| format!("{}@{}+{}", m.name, m.offset, m.size))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        return Err(Error::VulkanSetup(format!(
+            "shader {shader}: push constants differ: GLSL [{}], Rust {} [{}] ({} bytes)",
+            show(&glsl),
+            std::any::type_name::<P>(),
+            show(&rust),
+            std::mem::size_of::<P>()
+        )));
+    }
+    Ok(())
+}
+
 /// Creates a shader module from SPIR-V bytes (as `build.rs` writes them).
-pub fn shader_module(ctx: &Context, name: &str, spirv: &[u8]) -> Result<vk::ShaderModule> {
+fn shader_module<'c>(ctx: &'c Context, name: &str, spirv: &[u8]) -> Result<ShaderModule<'c>> {
     let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
         .map_err(|e| Error::VulkanSetup(format!("shader {name}: invalid SPIR-V: {e}")))?;
     let info = vk::ShaderModuleCreateInfo::default().code(&words);
-    // SAFETY: `words` is SPIR-V produced by shaderc at build time.
-    let module =
-        unsafe { ctx.device.create_shader_module(&info, None) }.vk("vkCreateShaderModule")?;
-    ctx.set_name(module, name);
-    Ok(module)
+    // SAFETY: `words` is SPIR-V produced by shaderc at build time; the
+    // module is destroyed by `ShaderModule::drop`.
+    let raw = unsafe { ctx.device.create_shader_module(&info, None) }.vk("vkCreateShaderModule")?;
+    ctx.set_name(raw, name);
+    Ok(ShaderModule { ctx, raw })
+}
+
+/// A shader module, destroyed when dropped (after pipeline creation).
+struct ShaderModule<'a> {
+    ctx: &'a Context,
+    raw: vk::ShaderModule,
+}
+
+impl Drop for ShaderModule<'_> {
+    fn drop(&mut self) {
+        // SAFETY: a module may be destroyed once the pipelines created from
+        // it exist; nothing else holds it.
+        unsafe { self.ctx.device.destroy_shader_module(self.raw, None) };
+    }
+}
+
+/// A pipeline layout (and its push-descriptor set layout, for compute),
+/// destroyed with the pipeline that owns it.
+struct Layout {
+    ctx: Arc<Context>,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+}
+
+impl Layout {
+    fn new(
+        ctx: &Arc<Context>,
+        name: &str,
+        bindings: &[vk::DescriptorType],
+        stages: vk::ShaderStageFlags,
+        push_size: u32,
+    ) -> Result<Layout> {
+        let mut l = Layout {
+            ctx: ctx.clone(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+        };
+        let mut set_layouts = Vec::new();
+        if !bindings.is_empty() {
+            let layout_bindings: Vec<_> = bindings
+                .iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(i as u32)
+                        .descriptor_type(*t)
+                        .descriptor_count(1)
+                        .stage_flags(stages)
+                })
+                .collect();
+            let set_info = vk::DescriptorSetLayoutCreateInfo::default()
+                .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
+                .bindings(&layout_bindings);
+            // SAFETY: plain object creation; `l` owns every handle from here
+            // on and its Drop destroys them (null handles are ignored).
+            l.set_layout = unsafe { ctx.device.create_descriptor_set_layout(&set_info, None) }
+                .vk("vkCreateDescriptorSetLayout")?;
+            ctx.set_name(l.set_layout, name);
+            set_layouts.push(l.set_layout);
+        }
+        let ranges = [vk::PushConstantRange {
+            stage_flags: stages,
+            offset: 0,
+            size: push_size,
+        }];
+        let layout_info = vk::PipelineLayoutCreateInfo::default()
+            .set_layouts(&set_layouts)
+            .push_constant_ranges(&ranges);
+        // SAFETY: as above.
+        l.layout = unsafe { ctx.device.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")?;
+        ctx.set_name(l.layout, name);
+        Ok(l)
+    }
+}
+
+impl Drop for Layout {
+    fn drop(&mut self) {
+        // SAFETY: no pending submission uses the pipeline (every frame waits
+        // for its fence); pipeline before layouts; null handles are ignored.
+        unsafe {
+            self.ctx.device.destroy_pipeline(self.pipeline, None);
+            self.ctx.device.destroy_pipeline_layout(self.layout, None);
+            self.ctx
+                .device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
 }
 
 /// One resource bound to a compute pass, in binding order.
@@ -37,110 +196,82 @@ impl Bind<'_> {
     }
 }
 
-/// A compute pipeline with a push-descriptor set layout and push constants.
-pub struct ComputePipeline {
-    ctx: Arc<Context>,
-    name: String,
-    set_layout: vk::DescriptorSetLayout,
-    layout: vk::PipelineLayout,
-    pipeline: vk::Pipeline,
-    bindings: Vec<vk::DescriptorType>,
-    push_size: u32,
+/// What a compute binding holds, for [`ComputePipeline::new`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Binding {
+    StorageImage,
+    StorageBuffer,
 }
 
-impl ComputePipeline {
-    /// `bindings` lists the descriptor type of binding 0, 1, …; `push_size`
-    /// is the size of the push-constant block in bytes (0 for none).
+/// A compute pipeline with a push-descriptor set layout and push constants
+/// of type `P`.
+pub struct ComputePipeline<P: PushConstants> {
+    name: String,
+    layout: Layout,
+    bindings: Vec<vk::DescriptorType>,
+    push: PhantomData<fn(P)>,
+}
+
+impl<P: PushConstants> ComputePipeline<P> {
+    /// `bindings` lists what binding 0, 1, … holds. Fails when `P` and the
+    /// shader's push-constant block disagree.
     pub fn new(
         ctx: &Arc<Context>,
         name: &str,
         spirv: &[u8],
-        bindings: &[vk::DescriptorType],
-        push_size: u32,
-    ) -> Result<ComputePipeline> {
-        let mut p = ComputePipeline {
-            ctx: ctx.clone(),
-            name: name.to_string(),
-            set_layout: vk::DescriptorSetLayout::null(),
-            layout: vk::PipelineLayout::null(),
-            pipeline: vk::Pipeline::null(),
-            bindings: bindings.to_vec(),
-            push_size,
-        };
-        let layout_bindings: Vec<_> = bindings
+        bindings: &[Binding],
+    ) -> Result<ComputePipeline<P>> {
+        check_push_layout::<P>(name, spirv)?;
+        let types: Vec<vk::DescriptorType> = bindings
             .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
-                    .descriptor_type(*t)
-                    .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            .map(|b| match b {
+                Binding::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+                Binding::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
             })
             .collect();
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
-            .flags(vk::DescriptorSetLayoutCreateFlags::PUSH_DESCRIPTOR_KHR)
-            .bindings(&layout_bindings);
-        // SAFETY: plain object creation; `p` owns every handle from here on
-        // and its Drop destroys them (null handles are ignored).
-        p.set_layout = unsafe { ctx.device.create_descriptor_set_layout(&set_info, None) }
-            .vk("vkCreateDescriptorSetLayout")?;
-        let ranges = [vk::PushConstantRange {
-            stage_flags: vk::ShaderStageFlags::COMPUTE,
-            offset: 0,
-            size: push_size,
-        }];
-        let set_layouts = [p.set_layout];
-        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
-        if push_size > 0 {
-            layout_info = layout_info.push_constant_ranges(&ranges);
-        }
-        // SAFETY: as above.
-        p.layout = unsafe { ctx.device.create_pipeline_layout(&layout_info, None) }
-            .vk("vkCreatePipelineLayout")?;
+        let mut layout = Layout::new(
+            ctx,
+            name,
+            &types,
+            vk::ShaderStageFlags::COMPUTE,
+            std::mem::size_of::<P>() as u32,
+        )?;
         let module = shader_module(ctx, name, spirv)?;
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
-            .module(module)
+            .module(module.raw)
             .name(c"main");
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
-            .layout(p.layout);
-        // SAFETY: module and layout are valid; the module is destroyed right
-        // after pipeline creation, which Vulkan allows.
+            .layout(layout.layout);
+        // SAFETY: module and layout are valid for the call; the pipeline is
+        // owned by `layout` and destroyed by its Drop.
         let created = unsafe {
-            let r = ctx
-                .device
-                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None);
-            ctx.device.destroy_shader_module(module, None);
-            r
+            ctx.device
+                .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
         };
-        p.pipeline = created.map_err(|(_, e)| e).vk("vkCreateComputePipelines")?[0];
-        ctx.set_name(p.pipeline, name);
-        ctx.set_name(p.layout, name);
-        ctx.set_name(p.set_layout, name);
-        Ok(p)
+        layout.pipeline = created.map_err(|(_, e)| e).vk("vkCreateComputePipelines")?[0];
+        ctx.set_name(layout.pipeline, name);
+        Ok(ComputePipeline {
+            name: name.to_string(),
+            layout,
+            bindings: types,
+            push: PhantomData,
+        })
     }
 
-    /// Binds the pipeline, pushes `binds` and `push` constants, dispatches
-    /// `groups` workgroups.
-    pub fn dispatch(
+    /// Records bind, descriptors, push constants and dispatch into `cmd`.
+    pub(super) fn record_dispatch(
         &self,
         cmd: vk::CommandBuffer,
         binds: &[Bind<'_>],
-        push: &[u8],
+        push: &P,
         groups: [u32; 3],
     ) {
         assert_eq!(
             binds.len(),
             self.bindings.len(),
             "{}: wrong number of bindings",
-            self.name
-        );
-        assert_eq!(
-            push.len() as u32,
-            self.push_size,
-            "{}: push size",
             self.name
         );
         let image_infos: Vec<[vk::DescriptorImageInfo; 1]> = binds
@@ -184,36 +315,167 @@ impl ComputePipeline {
                 }
             })
             .collect();
-        let device = &self.ctx.device;
-        // SAFETY: `cmd` is recording outside a render pass; the writes match
-        // the set layout (checked above) and the push range matches `push`.
+        let ctx = &self.layout.ctx;
+        // SAFETY: `cmd` is recording outside a render pass (the recorder's
+        // contract); the writes match the set layout (checked above), the
+        // push range is `size_of::<P>()` bytes, and the bound resources are
+        // borrowed for the frame's lifetime (see `Recorder`).
         unsafe {
-            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
-            self.ctx.push_descriptor.cmd_push_descriptor_set(
+            ctx.device
+                .cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.layout.pipeline);
+            ctx.push_descriptor.cmd_push_descriptor_set(
                 cmd,
                 vk::PipelineBindPoint::COMPUTE,
-                self.layout,
+                self.layout.layout,
                 0,
                 &writes,
             );
-            if !push.is_empty() {
-                device.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-            }
-            device.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
+            ctx.device.cmd_push_constants(
+                cmd,
+                self.layout.layout,
+                vk::ShaderStageFlags::COMPUTE,
+                0,
+                bytemuck::bytes_of(push),
+            );
+            ctx.device
+                .cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
         }
     }
 }
 
-impl Drop for ComputePipeline {
-    fn drop(&mut self) {
-        // SAFETY: no submission using the pipeline is pending (frames wait).
-        unsafe {
-            self.ctx.device.destroy_pipeline(self.pipeline, None);
-            self.ctx.device.destroy_pipeline_layout(self.layout, None);
-            self.ctx
-                .device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
+/// One vertex attribute of a [`PointPipeline`]: location i is entry i.
+#[derive(Debug, Clone, Copy)]
+pub struct VertexAttribute {
+    pub format: vk::Format,
+    pub offset: u32,
+}
+
+/// What a [`PointPipeline`] draws: shaders, vertex layout, targets.
+pub struct PointPipelineDesc<'a> {
+    pub name: &'a str,
+    pub vertex_spirv: &'a [u8],
+    pub fragment_spirv: &'a [u8],
+    /// Bytes per vertex.
+    pub stride: u32,
+    pub attributes: &'a [VertexAttribute],
+    pub color_formats: &'a [vk::Format],
+    pub depth_format: vk::Format,
+}
+
+/// A graphics pipeline that draws a vertex buffer as hardware point sprites
+/// (POINT_LIST, `gl_PointSize` from the vertex shader) with a strict LESS
+/// depth test and no blending, for dynamic rendering; push constants of
+/// type `P` go to the vertex stage.
+pub struct PointPipeline<P: PushConstants> {
+    layout: Layout,
+    pub(super) color_formats: Vec<vk::Format>,
+    pub(super) depth_format: vk::Format,
+    push: PhantomData<fn(P)>,
+}
+
+impl<P: PushConstants> PointPipeline<P> {
+    pub fn new(ctx: &Arc<Context>, desc: &PointPipelineDesc<'_>) -> Result<PointPipeline<P>> {
+        check_push_layout::<P>(desc.name, desc.vertex_spirv)?;
+        let mut layout = Layout::new(
+            ctx,
+            desc.name,
+            &[],
+            vk::ShaderStageFlags::VERTEX,
+            std::mem::size_of::<P>() as u32,
+        )?;
+        let vert = shader_module(ctx, &format!("{}.vert", desc.name), desc.vertex_spirv)?;
+        let frag = shader_module(ctx, &format!("{}.frag", desc.name), desc.fragment_spirv)?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(vert.raw)
+                .name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag.raw)
+                .name(c"main"),
+        ];
+        let bindings = [vk::VertexInputBindingDescription {
+            binding: 0,
+            stride: desc.stride,
+            input_rate: vk::VertexInputRate::VERTEX,
+        }];
+        let attributes: Vec<_> = desc
+            .attributes
+            .iter()
+            .enumerate()
+            .map(|(i, a)| vk::VertexInputAttributeDescription {
+                location: i as u32,
+                binding: 0,
+                format: a.format,
+                offset: a.offset,
+            })
+            .collect();
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&bindings)
+            .vertex_attribute_descriptions(&attributes);
+        let input_assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::POINT_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(vk::CompareOp::LESS);
+        let blend_attachments: Vec<_> = desc
+            .color_formats
+            .iter()
+            .map(|_| {
+                vk::PipelineColorBlendAttachmentState::default()
+                    .color_write_mask(vk::ColorComponentFlags::RGBA)
+            })
+            .collect();
+        let blend =
+            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(desc.color_formats)
+            .depth_attachment_format(desc.depth_format);
+        let info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&input_assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(layout.layout)
+            .push_next(&mut rendering);
+        // SAFETY: every state struct is a local alive for the call; the
+        // pipeline is owned by `layout` and destroyed by its Drop.
+        let created = unsafe {
+            ctx.device
+                .create_graphics_pipelines(vk::PipelineCache::null(), &[info], None)
+        };
+        layout.pipeline = created
+            .map_err(|(_, e)| e)
+            .vk("vkCreateGraphicsPipelines")?[0];
+        ctx.set_name(layout.pipeline, desc.name);
+        Ok(PointPipeline {
+            layout,
+            color_formats: desc.color_formats.to_vec(),
+            depth_format: desc.depth_format,
+            push: PhantomData,
+        })
+    }
+
+    pub(super) fn raw(&self) -> (vk::Pipeline, vk::PipelineLayout) {
+        (self.layout.pipeline, self.layout.layout)
     }
 }
 
@@ -222,16 +484,71 @@ pub fn groups(n: u32, local: u32) -> u32 {
     n.div_ceil(local)
 }
 
-/// Views a plain-old-data value as bytes, for push constants and uploads.
-pub fn as_bytes<T: Copy>(v: &T) -> &[u8] {
-    // SAFETY: `T: Copy` push-constant structs in pointlens are `#[repr(C)]`
-    // with only f32/u32/i32 fields and explicit padding, so every byte is
-    // initialised; the slice borrows `v`.
-    unsafe { std::slice::from_raw_parts(v as *const T as *const u8, std::mem::size_of::<T>()) }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// Views a slice of plain-old-data values as bytes.
-pub fn slice_as_bytes<T: Copy>(v: &[T]) -> &[u8] {
-    // SAFETY: as for `as_bytes`, element by element.
-    unsafe { std::slice::from_raw_parts(v.as_ptr() as *const u8, std::mem::size_of_val(v)) }
+    static FAST_COC: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_coc.comp.spv"));
+
+    crate::push_constants! {
+        struct Right {
+            extent: [i32; 2],
+            f_px: f32,
+            aperture_radius: f32,
+            focus_distance: f32,
+            area_weights: u32,
+        }
+    }
+
+    crate::push_constants! {
+        /// Two fields swapped.
+        struct Swapped {
+            extent: [i32; 2],
+            aperture_radius: f32,
+            f_px: f32,
+            focus_distance: f32,
+            area_weights: u32,
+        }
+    }
+
+    crate::push_constants! {
+        /// One field too few.
+        struct Short {
+            extent: [i32; 2],
+            f_px: f32,
+            aperture_radius: f32,
+            focus_distance: f32,
+        }
+    }
+
+    crate::push_constants! {
+        /// A field of another size (an i64 where GLSL has a uint).
+        struct Wide {
+            extent: [i32; 2],
+            f_px: f32,
+            aperture_radius: f32,
+            focus_distance: f32,
+            pad: f32,
+            area_weights: u64,
+        }
+    }
+
+    #[test]
+    fn the_push_layout_check_fails_when_either_side_changes() {
+        check_push_layout::<Right>("fast_coc", FAST_COC).unwrap();
+        for (what, result) in [
+            (
+                "swapped",
+                check_push_layout::<Swapped>("fast_coc", FAST_COC),
+            ),
+            ("short", check_push_layout::<Short>("fast_coc", FAST_COC)),
+            ("wide", check_push_layout::<Wide>("fast_coc", FAST_COC)),
+        ] {
+            let err = result.expect_err(what).to_string();
+            assert!(
+                err.contains("fast_coc") && err.contains("area_weights@20+4"),
+                "{what}: {err}"
+            );
+        }
+    }
 }

@@ -13,7 +13,7 @@ use crate::error::{Error, Result, VkContext};
 /// A buffer with its memory.
 pub struct Buffer {
     ctx: Arc<Context>,
-    pub raw: vk::Buffer,
+    pub(super) raw: vk::Buffer,
     pub size: u64,
     allocation: Option<Allocation>,
 }
@@ -100,8 +100,8 @@ impl Drop for Buffer {
 /// A 2D image (optionally an array) with one view over all its layers.
 pub struct Image {
     ctx: Arc<Context>,
-    pub raw: vk::Image,
-    pub view: vk::ImageView,
+    pub(super) raw: vk::Image,
+    pub(super) view: vk::ImageView,
     pub format: vk::Format,
     pub width: u32,
     pub height: u32,
@@ -192,7 +192,7 @@ impl Image {
     }
 
     /// The aspect of this image's format.
-    pub fn aspect(&self) -> vk::ImageAspectFlags {
+    pub(super) fn aspect(&self) -> vk::ImageAspectFlags {
         match self.format {
             vk::Format::D32_SFLOAT | vk::Format::D16_UNORM | vk::Format::X8_D24_UNORM_PACK32 => {
                 vk::ImageAspectFlags::DEPTH
@@ -202,7 +202,7 @@ impl Image {
     }
 
     /// The subresource range covering every layer.
-    pub fn full_range(&self) -> vk::ImageSubresourceRange {
+    pub(super) fn full_range(&self) -> vk::ImageSubresourceRange {
         vk::ImageSubresourceRange {
             aspect_mask: self.aspect(),
             base_mip_level: 0,

@@ -1,10 +1,12 @@
-//! Pipeline barriers (synchronization2), stated per image with both scopes.
+//! Synchronization2 scopes: one side of a dependency as (stages, accesses,
+//! layout), named for what the pass does. Barriers are recorded through
+//! [`Recorder::barriers`](super::Recorder::barriers) and
+//! [`Recorder::memory_barrier`](super::Recorder::memory_barrier).
 
 use ash::vk;
 
-use super::{Context, Image};
-
-/// One side of a dependency: pipeline stages and the accesses they make.
+/// One side of a dependency: pipeline stages, the accesses they make, and
+/// the image layout they need (ignored by memory barriers).
 #[derive(Debug, Clone, Copy)]
 pub struct Access {
     pub stage: vk::PipelineStageFlags2,
@@ -53,60 +55,34 @@ impl Access {
         ),
         layout: vk::ImageLayout::GENERAL,
     };
+    /// An image filled by [`Recorder::clear_u32`](super::Recorder::clear_u32).
+    pub const CLEAR: Access = Access {
+        stage: vk::PipelineStageFlags2::CLEAR,
+        access: vk::AccessFlags2::TRANSFER_WRITE,
+        layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+    };
+    /// An image read by a copy.
     pub const COPY_SRC: Access = Access {
         stage: vk::PipelineStageFlags2::COPY,
         access: vk::AccessFlags2::TRANSFER_READ,
         layout: vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
     };
-}
-
-/// Records an image barrier from `src` to `dst` (layout transition included).
-pub fn image_barrier(
-    ctx: &Context,
-    cmd: vk::CommandBuffer,
-    image: &Image,
-    src: Access,
-    dst: Access,
-) {
-    image_barriers(ctx, cmd, &[(image, src, dst)]);
-}
-
-/// Records several image barriers in one call.
-pub fn image_barriers(ctx: &Context, cmd: vk::CommandBuffer, list: &[(&Image, Access, Access)]) {
-    let barriers: Vec<_> = list
-        .iter()
-        .map(|(image, src, dst)| {
-            vk::ImageMemoryBarrier2::default()
-                .src_stage_mask(src.stage)
-                .src_access_mask(src.access)
-                .dst_stage_mask(dst.stage)
-                .dst_access_mask(dst.access)
-                .old_layout(src.layout)
-                .new_layout(dst.layout)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image.raw)
-                .subresource_range(image.full_range())
-        })
-        .collect();
-    let dep = vk::DependencyInfo::default().image_memory_barriers(&barriers);
-    // SAFETY: `cmd` is recording outside a render pass; images are valid.
-    unsafe { ctx.device.cmd_pipeline_barrier2(cmd, &dep) };
-}
-
-/// Records a global memory barrier (for buffers).
-pub fn memory_barrier(
-    ctx: &Context,
-    cmd: vk::CommandBuffer,
-    src: (vk::PipelineStageFlags2, vk::AccessFlags2),
-    dst: (vk::PipelineStageFlags2, vk::AccessFlags2),
-) {
-    let barriers = [vk::MemoryBarrier2::default()
-        .src_stage_mask(src.0)
-        .src_access_mask(src.1)
-        .dst_stage_mask(dst.0)
-        .dst_access_mask(dst.1)];
-    let dep = vk::DependencyInfo::default().memory_barriers(&barriers);
-    // SAFETY: `cmd` is recording outside a render pass.
-    unsafe { ctx.device.cmd_pipeline_barrier2(cmd, &dep) };
+    /// A buffer written by a copy.
+    pub const COPY_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::COPY,
+        access: vk::AccessFlags2::TRANSFER_WRITE,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
+    /// A vertex buffer read by a draw.
+    pub const VERTEX_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::VERTEX_ATTRIBUTE_INPUT,
+        access: vk::AccessFlags2::VERTEX_ATTRIBUTE_READ,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
+    /// Host reads of mapped memory after the frame.
+    pub const HOST_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::HOST,
+        access: vk::AccessFlags2::HOST_READ,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
 }

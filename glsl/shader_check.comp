@@ -1,0 +1,35 @@
+#version 460
+// Evaluates the GLSL includes that mirror CPU formulas (lens.glsl: the thin
+// lens of DESIGN §2; concentric.glsl: the concentric map of DESIGN §5) on a
+// list of inputs, so that tests/shaders.rs can compare them with
+// src/camera. Not used by the renderer.
+#include "lens.glsl"
+#include "concentric.glsl"
+
+layout(local_size_x = 64) in;
+
+// Per case: (z, u.x, u.y, unused), (square point a.x, a.y, disk point u.x, u.y).
+layout(binding = 0, std430) readonly buffer Inputs { vec4 inputs[]; };
+// Per case: (coc_px(z), lens_offset_px(z, u)), (concentric_disk(a), concentric_square(u)).
+layout(binding = 1, std430) writeonly buffer Outputs { vec4 outputs[]; };
+
+layout(push_constant, std430) uniform Push {
+    uint count;
+    float f_px;
+    float aperture_radius;
+    float focus_distance;
+} pc;
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= pc.count) {
+        return;
+    }
+    vec4 lens_in = inputs[2 * i];
+    vec4 map_in = inputs[2 * i + 1];
+    float z = lens_in.x;
+    float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    vec2 offset = lens_offset_px(z, lens_in.yz, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    outputs[2 * i] = vec4(c, offset, 0.0);
+    outputs[2 * i + 1] = vec4(concentric_disk(map_in.xy), concentric_square(map_in.zw));
+}

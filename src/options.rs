@@ -1,0 +1,321 @@
+//! What a frame is asked to compute: the depth-of-field method and its
+//! options, with the one parser of their names and the one range check of
+//! each number. Plain data: the GPU passes (`crate::passes`), the CPU
+//! references (`crate::reference`), `render` and `bench` all read these
+//! types, and none of them depends on another for it.
+
+use std::fmt;
+
+use clap::ValueEnum;
+
+use crate::error::{Error, Result};
+
+/// How each pixel's contribution to the fast gather is weighted
+/// (`--fast-weights`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum FastWeights {
+    /// By the inverse of the number of pixel centres inside its CoC disk
+    /// (DESIGN §4's default: a point spreads its light over its disk).
+    #[default]
+    Area,
+    /// Every contributor alike: the paper's plain mean.
+    Uniform,
+}
+
+/// How far the fast gather looks (`--fast-window`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum GatherWindow {
+    /// Each tile's dilated maximum CoC (DESIGN §4).
+    #[default]
+    Tiles,
+    /// The frame's largest CoC everywhere: the fixed worst-case window, kept
+    /// only as the benchmark baseline.
+    Fixed,
+}
+
+/// Which rays an RDB bin receives (`--rdb-mode`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum RdbMode {
+    /// Each bin sampled by the ray through its lens cell's centre.
+    #[default]
+    Centre,
+    /// The paper's literal pair-to-bin assignment.
+    Pairs,
+}
+
+/// Options of the fast gather (DESIGN §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FastOptions {
+    pub weights: FastWeights,
+    pub window: GatherWindow,
+}
+
+/// Options of the ray distribution buffer (DESIGN §5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RdbOptions {
+    /// N: N×N lens bins per pixel, in [`RDB_BINS`].
+    pub bins: u32,
+    pub mode: RdbMode,
+    /// Memory for the bins, bytes; above it the frame is processed in
+    /// tiles. None: a quarter of the largest device-local heap.
+    pub memory_bytes: Option<u64>,
+}
+
+impl Default for RdbOptions {
+    fn default() -> Self {
+        RdbOptions {
+            bins: DEFAULT_RDB_BINS,
+            mode: RdbMode::Centre,
+            memory_bytes: None,
+        }
+    }
+}
+
+/// Options of the accumulation reference (DESIGN §7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AccumOptions {
+    /// Lens samples, at least 1.
+    pub samples: u32,
+}
+
+impl Default for AccumOptions {
+    fn default() -> Self {
+        AccumOptions {
+            samples: DEFAULT_SAMPLES,
+        }
+    }
+}
+
+/// The depth-of-field methods of DESIGN §8, each with its options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// No depth of field: the resolved G-buffer color.
+    Pinhole,
+    /// Zhao's fast approximation: a z-tested gather bounded by tile CoCs.
+    Fast(FastOptions),
+    /// The ray distribution buffer: N×N lens bins per pixel.
+    Rdb(RdbOptions),
+    /// The accumulation-buffer reference: the splats rendered through
+    /// `samples` lens positions with the sheared projection, averaged.
+    Accum(AccumOptions),
+}
+
+/// A method's name alone (`--method`), without its options.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MethodKind {
+    Pinhole,
+    Fast,
+    Rdb,
+    Accum,
+}
+
+impl MethodKind {
+    /// Every method this build implements, in the order help texts list them.
+    pub const ALL: [MethodKind; 4] = [
+        MethodKind::Pinhole,
+        MethodKind::Fast,
+        MethodKind::Rdb,
+        MethodKind::Accum,
+    ];
+
+    /// The method names DESIGN §8 lists that this build does not implement yet.
+    pub const PLANNED: [&'static str; 1] = ["layered"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodKind::Pinhole => "pinhole",
+            MethodKind::Fast => "fast",
+            MethodKind::Rdb => "rdb",
+            MethodKind::Accum => "accum",
+        }
+    }
+
+    /// Parses a method name; the error names the methods that exist.
+    pub fn parse(name: &str) -> Result<MethodKind> {
+        if let Some(kind) = Self::ALL.into_iter().find(|k| k.name() == name) {
+            return Ok(kind);
+        }
+        let available = Self::ALL.map(MethodKind::name).join(", ");
+        Err(Error::InvalidArgument(if Self::PLANNED.contains(&name) {
+            format!("method '{name}' is not implemented yet; available methods: {available}")
+        } else {
+            format!("unknown method '{name}'; available methods: {available}")
+        }))
+    }
+
+    /// The method with these options (those of other methods are ignored).
+    pub fn with(self, fast: FastOptions, rdb: RdbOptions, accum: AccumOptions) -> Method {
+        match self {
+            MethodKind::Pinhole => Method::Pinhole,
+            MethodKind::Fast => Method::Fast(fast),
+            MethodKind::Rdb => Method::Rdb(rdb),
+            MethodKind::Accum => Method::Accum(accum),
+        }
+    }
+}
+
+impl Method {
+    /// The fast gather with these options.
+    pub const fn fast(weights: FastWeights, window: GatherWindow) -> Method {
+        Method::Fast(FastOptions { weights, window })
+    }
+
+    /// The RDB with N×N bins in `mode`, the default memory budget.
+    pub const fn rdb(bins: u32, mode: RdbMode) -> Method {
+        Method::Rdb(RdbOptions {
+            bins,
+            mode,
+            memory_bytes: None,
+        })
+    }
+
+    /// The accumulation reference with `samples` lens samples.
+    pub const fn accum(samples: u32) -> Method {
+        Method::Accum(AccumOptions { samples })
+    }
+
+    /// Syntax of [`Method::parse_short`], for error messages and help.
+    pub const SHORT_SYNTAX: &'static str =
+        "pinhole, fast, fast-uniform, fast-fixed, rdbN or rdbN-pairs (N in 2..=16), accumS (S ≥ 1)";
+
+    pub fn kind(&self) -> MethodKind {
+        match self {
+            Method::Pinhole => MethodKind::Pinhole,
+            Method::Fast(_) => MethodKind::Fast,
+            Method::Rdb(_) => MethodKind::Rdb,
+            Method::Accum(_) => MethodKind::Accum,
+        }
+    }
+
+    /// Parses a method with its options in one word, as `bench --methods`
+    /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`, `rdbN`,
+    /// `rdbN-pairs`, `accumS`. N and S are required and go through the same
+    /// range checks as `--rdb-bins` and `--samples`. [`Method::short_name`]
+    /// is the inverse.
+    pub fn parse_short(name: &str) -> Result<Method> {
+        let bad = |why: String| {
+            Error::InvalidArgument(format!(
+                "unknown method '{name}'{why} (known: {})",
+                Self::SHORT_SYNTAX
+            ))
+        };
+        let (head, option) = match name.split_once('-') {
+            Some((h, o)) => (h, Some(o)),
+            None => (name, None),
+        };
+        let digits_at = head
+            .find(|c: char| c.is_ascii_digit())
+            .unwrap_or(head.len());
+        let (word, digits) = head.split_at(digits_at);
+        let kind = MethodKind::parse(word).map_err(|_| bad(String::new()))?;
+        // The number after rdb / accum: required, range-checked.
+        let number = |check: fn(u32) -> Result<u32>| -> Result<u32> {
+            let n = digits.parse::<u32>().map_err(|_| bad(String::new()))?;
+            check(n).map_err(|e| bad(format!(": {e}")))
+        };
+        match kind {
+            MethodKind::Pinhole => {
+                if !digits.is_empty() || option.is_some() {
+                    return Err(bad(String::new()));
+                }
+                Ok(Method::Pinhole)
+            }
+            MethodKind::Fast => {
+                if !digits.is_empty() {
+                    return Err(bad(String::new()));
+                }
+                let mut fast = FastOptions::default();
+                for o in option.into_iter().flat_map(|o| o.split('-')) {
+                    if let Ok(w) = FastWeights::from_str(o, false) {
+                        fast.weights = w;
+                    } else if let Ok(w) = GatherWindow::from_str(o, false) {
+                        fast.window = w;
+                    } else {
+                        return Err(bad(String::new()));
+                    }
+                }
+                Ok(Method::Fast(fast))
+            }
+            MethodKind::Rdb => {
+                let mut rdb = RdbOptions {
+                    bins: number(check_rdb_bins)?,
+                    ..RdbOptions::default()
+                };
+                if let Some(o) = option {
+                    rdb.mode = RdbMode::from_str(o, false).map_err(|_| bad(String::new()))?;
+                }
+                Ok(Method::Rdb(rdb))
+            }
+            MethodKind::Accum => {
+                if option.is_some() {
+                    return Err(bad(String::new()));
+                }
+                let samples = number(check_samples)?;
+                Ok(Method::Accum(AccumOptions { samples }))
+            }
+        }
+    }
+}
+
+impl Method {
+    /// The method in one word, as [`Method::parse_short`] reads it
+    /// (options other than those the word can say are left out).
+    pub fn short_name(&self) -> String {
+        match self {
+            Method::Pinhole => "pinhole".into(),
+            Method::Fast(o) => match (o.weights, o.window) {
+                (FastWeights::Area, GatherWindow::Tiles) => "fast".into(),
+                (FastWeights::Uniform, GatherWindow::Tiles) => "fast-uniform".into(),
+                (FastWeights::Area, GatherWindow::Fixed) => "fast-fixed".into(),
+                (FastWeights::Uniform, GatherWindow::Fixed) => "fast-uniform-fixed".into(),
+            },
+            Method::Rdb(o) => match o.mode {
+                RdbMode::Centre => format!("rdb{}", o.bins),
+                RdbMode::Pairs => format!("rdb{}-pairs", o.bins),
+            },
+            Method::Accum(o) => format!("accum{}", o.samples),
+        }
+    }
+}
+
+impl fmt::Display for MethodKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Default N of the RDB's N×N bins.
+pub const DEFAULT_RDB_BINS: u32 = 9;
+/// Default lens samples of `accum`.
+pub const DEFAULT_SAMPLES: u32 = 256;
+/// Default K of the K×K SSAA G-buffer.
+pub const DEFAULT_SSAA: u32 = 4;
+
+/// K of `--ssaa` (K×K samples per pixel): 1 to 16.
+pub fn check_ssaa(k: u32) -> Result<u32> {
+    in_range("--ssaa", k, 1, 16)
+}
+
+/// N of `--rdb-bins` (N×N lens bins, DESIGN §5): 2 to 16.
+pub fn check_rdb_bins(n: u32) -> Result<u32> {
+    in_range("--rdb-bins", n, 2, 16)
+}
+
+/// S of `--samples` (lens samples of `accum`): at least 1.
+pub fn check_samples(s: u32) -> Result<u32> {
+    if s == 0 {
+        return Err(Error::InvalidArgument(
+            "--samples must be at least 1".to_string(),
+        ));
+    }
+    Ok(s)
+}
+
+fn in_range(flag: &str, v: u32, lo: u32, hi: u32) -> Result<u32> {
+    if !(lo..=hi).contains(&v) {
+        return Err(Error::InvalidArgument(format!(
+            "{flag} must be between {lo} and {hi}, not {v}"
+        )));
+    }
+    Ok(v)
+}

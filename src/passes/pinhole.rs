@@ -1,0 +1,27 @@
+//! No depth of field: the resolved G-buffer color is the image.
+
+use std::sync::Arc;
+
+use super::{DofFrame, DofInput, DofMethod, FrameView};
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::vk::{Context, Frame, Image};
+
+/// The pinhole method: no pass of its own.
+pub struct Pinhole;
+
+impl DofMethod for Pinhole {
+    fn guard_coc_px(&self, _: &Camera, _: Option<(f32, f32)>) -> f32 {
+        0.0
+    }
+
+    fn prepare<'m>(&'m self, _: &Arc<Context>, _: &FrameView) -> Result<Box<dyn DofFrame + 'm>> {
+        Ok(Box::new(Pinhole))
+    }
+}
+
+impl DofFrame for Pinhole {
+    fn record<'r>(&'r self, _: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        input.color
+    }
+}

@@ -1,0 +1,141 @@
+//! The timing report of one rendered frame (`render --timings`,
+//! `--timings-json`): serde types shared with `bench`'s report.
+
+use serde::{Deserialize, Serialize};
+
+use crate::vk::{DeviceInfo, FrameTimings, PassTiming};
+
+/// The device a measurement was taken on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeviceReport {
+    pub name: String,
+    pub driver: String,
+    pub driver_info: String,
+    pub driver_version: u32,
+    pub api_version: String,
+    pub device_type: String,
+}
+
+impl DeviceReport {
+    pub fn of(info: &DeviceInfo) -> DeviceReport {
+        let v = info.api_version;
+        DeviceReport {
+            name: info.name.clone(),
+            driver: info.driver_name.clone(),
+            driver_info: info.driver_info.clone(),
+            driver_version: info.driver_version,
+            api_version: format!(
+                "{}.{}.{}",
+                ash::vk::api_version_major(v),
+                ash::vk::api_version_minor(v),
+                ash::vk::api_version_patch(v)
+            ),
+            device_type: format!("{:?}", info.device_type),
+        }
+    }
+}
+
+/// The upload of a cloud (once per scene, not part of any frame).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Upload {
+    /// Splat sizes from the k-nearest-neighbour spacing, on the CPU (0 in
+    /// reports written before it was measured apart).
+    #[serde(default)]
+    pub splat_sizes_ms: f64,
+    /// The copy to device memory, GPU time.
+    pub gpu_ms: f64,
+    /// All of it: splat sizes, staging, copy and wait.
+    pub wall_ms: f64,
+}
+
+/// One rendered frame: what was rendered, each pass's GPU time, the frame's
+/// wall time, and the work around the frame measured apart.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameReport {
+    pub device: DeviceReport,
+    /// The method as `bench` names it (`rdb9`, `fast-uniform`, `accum256`, …).
+    pub method: String,
+    pub width: u32,
+    pub height: u32,
+    pub ssaa: u32,
+    pub points: usize,
+    pub guard_px: u32,
+    /// Per pass name, in recording order: GPU time summed over its scopes.
+    pub passes: Vec<PassTiming>,
+    pub gpu_total_ms: f64,
+    pub frame_wall_ms: f64,
+    pub upload: Upload,
+    /// Reading the cloud file.
+    pub load_ms: f64,
+    /// Encoding and writing the output image.
+    pub encode_ms: f64,
+}
+
+impl FrameReport {
+    /// The frame's timings with the facts around them.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        device: &DeviceInfo,
+        method: String,
+        (width, height): (u32, u32),
+        ssaa: u32,
+        points: usize,
+        guard_px: u32,
+        frame: &FrameTimings,
+        upload: Upload,
+    ) -> FrameReport {
+        FrameReport {
+            device: DeviceReport::of(device),
+            method,
+            width,
+            height,
+            ssaa,
+            points,
+            guard_px,
+            passes: frame.passes.clone(),
+            gpu_total_ms: frame.gpu_total_ms(),
+            frame_wall_ms: frame.wall_ms,
+            upload,
+            load_ms: 0.0,
+            encode_ms: 0.0,
+        }
+    }
+
+    /// The report as `--timings` prints it: a table of passes, then the
+    /// totals and the work outside the frame.
+    pub fn text(&self) -> String {
+        let d = &self.device;
+        let mut s = format!(
+            "device: {} ({} {})\nframe: {}x{} method {} ssaa {} points {} guard {} px\n",
+            d.name,
+            d.driver,
+            d.driver_info,
+            self.width,
+            self.height,
+            self.method,
+            self.ssaa,
+            self.points,
+            self.guard_px
+        );
+        s += &format!("{:<20} {:>10} {:>6}\n", "pass", "gpu ms", "count");
+        for p in &self.passes {
+            s += &format!("{:<20} {:>10.3} {:>6}\n", p.name, p.gpu_ms, p.count);
+        }
+        s += &format!("{:<20} {:>10.3}\n", "gpu total", self.gpu_total_ms);
+        s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
+        for (name, ms) in [
+            ("upload gpu", self.upload.gpu_ms),
+            ("splat sizes wall", self.upload.splat_sizes_ms),
+            ("load wall", self.load_ms),
+            ("encode wall", self.encode_ms),
+        ] {
+            s += &format!("{name:<20} {ms:>10.3}   (not in the frame)\n");
+        }
+        s
+    }
+
+    /// The report as pretty-printed JSON (`--timings-json`).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a frame report always serialises") + "\n"
+    }
+}

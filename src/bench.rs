@@ -455,6 +455,8 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         }
     }
     progress(done, total, "done");
+    drop(renderer);
+    ctx.check_validation()?;
     Ok(BenchReport {
         pointlens_version: env!("CARGO_PKG_VERSION").to_string(),
         device: DeviceReport::of(&ctx.info),

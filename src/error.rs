@@ -34,6 +34,9 @@ pub enum Error {
     #[error("{0}")]
     VulkanSetup(String),
     /// GPU memory allocation failed.
+    #[error("validation reported {0} message(s) (printed above)")]
+    Validation(usize),
+
     #[error("GPU allocation failed: {0}")]
     Allocation(String),
     /// An argument with a value the program cannot use.

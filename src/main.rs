@@ -395,21 +395,7 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
         bar.set_message(what.to_string());
     });
     bar.finish_and_clear();
-    let report = report?;
-    fail_on_validation_messages(&ctx)?;
-    Ok(report)
-}
-
-/// With validation on, any message (printed as it came) fails the command.
-fn fail_on_validation_messages(ctx: &Context) -> Result<()> {
-    let messages = ctx.validation_messages();
-    if !messages.is_empty() {
-        bail!(
-            "validation reported {} message(s) (printed above)",
-            messages.len()
-        );
-    }
-    Ok(())
+    Ok(report?)
 }
 
 /// Writes `text` to `path` atomically.
@@ -565,5 +551,5 @@ fn render(args: RenderArgs) -> Result<()> {
     }
     drop(scene);
     drop(renderer);
-    fail_on_validation_messages(&ctx)
+    Ok(ctx.check_validation()?)
 }

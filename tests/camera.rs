@@ -383,8 +383,7 @@ fn camera_file_parses_every_field_and_ignores_unknown_ones() {
 
 #[test]
 fn camera_file_from_disk_and_its_errors() {
-    let dir = std::env::temp_dir().join(format!("pointlens-camera-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch("camera-file");
     let path = dir.join("cam.json");
     std::fs::write(&path, r#"{"width": 32, "focus_distance": 2}"#).unwrap();
     let spec = CameraSpec::from_json_file(&path).unwrap();
@@ -420,7 +419,6 @@ fn camera_file_from_disk_and_its_errors() {
     let err = CameraSpec::from_json_file(&missing).unwrap_err();
     assert!(matches!(err, Error::Io { .. }), "{err:?}");
     assert!(err.to_string().contains("missing.json"), "{err}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

@@ -302,3 +302,44 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
             .all(|p| p.gpu_ms >= 0.0 && p.gpu_ms.is_finite()));
     });
 }
+
+#[test]
+fn a_scene_remembers_only_its_last_camera() {
+    // The scene caches the CPU's look at its points (depth range, largest
+    // splat) for the last camera. Switching cameras must not reuse it: the
+    // guard band and depth range of B differ from A's, and A again must be
+    // A's frame, bit for bit.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+        let (lo, hi) = bunny.bounds();
+        let spec = |eye: Option<[f32; 3]>| CameraSpec {
+            width: Some(40),
+            height: Some(30),
+            eye,
+            ..CameraSpec::default()
+        };
+        let a = camera::resolve(&spec(None), lo, hi, &bunny.positions).unwrap();
+        let b = camera::resolve(&spec(Some([0.3, 0.2, 0.1])), lo, hi, &bunny.positions).unwrap();
+        let frame = |scene: &pointlens::render::Scene, cam: Camera| {
+            let options = RenderOptions {
+                camera: cam,
+                method: Method::rdb(5, pointlens::options::RdbMode::Centre),
+                ssaa: 1,
+                background: Vec3::ZERO,
+            };
+            renderer.render(scene, &options).unwrap()
+        };
+        let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
+        let first_a = frame(&scene, a);
+        let then_b = frame(&scene, b);
+        let again_a = frame(&scene, a);
+        let fresh = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
+        let fresh_b = frame(&fresh, b);
+        assert_ne!(first_a.guard, then_b.guard, "the two views should differ");
+        assert_eq!(then_b.guard, fresh_b.guard);
+        assert_eq!(then_b.image, fresh_b.image, "B after A is not B");
+        assert_eq!(again_a.guard, first_a.guard);
+        assert_eq!(again_a.image, first_a.image, "A after B is not A");
+    });
+}

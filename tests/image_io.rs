@@ -10,15 +10,8 @@ use pointlens::image_io::{
 };
 use pointlens::Error;
 
-/// A fresh, empty scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("image_io")
-        .join(name);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("scratch directory");
-    dir
-}
+mod common;
+use common::scratch;
 
 /// The names in `dir`, sorted.
 fn entries(dir: &Path) -> Vec<String> {

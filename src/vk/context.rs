@@ -333,6 +333,16 @@ impl Context {
         }
     }
 
+    /// Fails when the validation layer reported anything so far (each
+    /// message was printed to stderr as it came): with validation on, any
+    /// message fails `render`, `bench` and the tests alike.
+    pub fn check_validation(&self) -> Result<()> {
+        match self.validation_messages().len() {
+            0 => Ok(()),
+            n => Err(Error::Validation(n)),
+        }
+    }
+
     /// Whether the validation layer is on.
     pub fn validation_enabled(&self) -> bool {
         self.validation

@@ -2,7 +2,7 @@
 //! the exact bytes of written PNGs, and the atomic, all-or-nothing writes.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use pointlens::image_io::{
     f16_to_f32, linear_to_srgb, linear_to_srgb8, read_image, srgb8_to_linear_lut, srgb_to_linear,

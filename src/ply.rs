@@ -2,12 +2,16 @@
 //! coordinates, 8/16-bit integer or float colors, optional normals. Faces,
 //! other elements and unknown properties are ignored.
 
+use std::io::Cursor;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
+use std::sync::OnceLock;
 
 use glam::Vec3;
-use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{DefaultElement, ElementDef, Property, PropertyType};
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{
+    DefaultElement, ElementDef, Encoding, Header, Property, PropertyType, ScalarType,
+};
 
 use crate::cloud::{srgb_to_linear, PointCloud, DEFAULT_COLOR};
 use crate::error::{Error, Result};
@@ -22,32 +26,98 @@ const COLOR_NAMES: [[&str; 3]; 3] = [
 /// Loads a point cloud from a PLY file. Colors are taken as sRGB-encoded
 /// values scaled to [0, 1] (by the integer type's maximum) and converted to
 /// linear light; normals are normalised.
+///
+/// The vertex block is read directly ([`read_vertices`], split over every
+/// core); anything it does not take as well-formed — a malformed number, a
+/// truncated file, a list property in the way, a non-finite coordinate —
+/// goes through the general reader ([`load_ply_general`]), which gives the
+/// same cloud for every file the fast one reads and the error messages for
+/// the rest.
 pub fn load_ply(path: &Path) -> Result<PointCloud> {
-    let fail = |msg: String| Error::Ply {
+    let bytes = read_file(path)?;
+    match load_direct(&bytes, path)? {
+        Some(cloud) => Ok(cloud),
+        None => load_parsed(&bytes, path),
+    }
+}
+
+/// The direct reader alone: None when it declines the file (which
+/// [`load_ply`] then hands to the general reader). For tests.
+pub fn load_ply_direct(path: &Path) -> Result<Option<PointCloud>> {
+    load_direct(&read_file(path)?, path)
+}
+
+fn load_direct(bytes: &[u8], path: &Path) -> Result<Option<PointCloud>> {
+    let (header, payload_at) = read_header(bytes, path)?;
+    let vertex = vertex_element(&header, path)?;
+    let layout = Layout::of(vertex).map_err(|msg| ply_error(path, msg))?;
+    Ok(read_vertices(
+        &bytes[payload_at..],
+        &header,
+        vertex,
+        &layout,
+    ))
+}
+
+/// [`load_ply`] through the general reader alone (ply-rs, a map per
+/// vertex): the reference the direct reader is tested against.
+pub fn load_ply_general(path: &Path) -> Result<PointCloud> {
+    load_parsed(&read_file(path)?, path)
+}
+
+fn ply_error(path: &Path, msg: String) -> Error {
+    Error::Ply {
         path: path.to_path_buf(),
         msg,
-    };
+    }
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>> {
     let bytes = std::fs::read(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
     if !bytes.starts_with(b"ply\n") && !bytes.starts_with(b"ply\r\n") {
-        return Err(fail("not a PLY file (it does not start with 'ply')".into()));
+        return Err(ply_error(
+            path,
+            "not a PLY file (it does not start with 'ply')".into(),
+        ));
     }
+    Ok(bytes)
+}
 
-    // Check the header before the payload so that its errors are specific.
+/// The header and the offset of the payload after it.
+fn read_header(bytes: &[u8], path: &Path) -> Result<(Header, usize)> {
     let parser = Parser::<DefaultElement>::new();
-    let header = guarded(|| parser.read_ply_header(&mut &bytes[..]))
-        .map_err(|e| fail(format!("malformed header: {e}")))?;
+    let mut reader = Reader::new(Cursor::new(bytes));
+    let header = guarded(|| parser.read_header(&mut reader))
+        .map_err(|e| ply_error(path, format!("malformed header: {e}")))?;
+    // The header is read line by line from the cursor: it stops right after
+    // the `end_header` line, where the payload starts.
+    Ok((header, reader.get_ref().position() as usize))
+}
+
+fn vertex_element<'h>(header: &'h Header, path: &Path) -> Result<&'h ElementDef> {
     let vertex = header
         .elements
         .get("vertex")
-        .ok_or_else(|| fail("no 'vertex' element in the header".into()))?;
-    let layout = Layout::of(vertex).map_err(fail)?;
+        .ok_or_else(|| ply_error(path, "no 'vertex' element in the header".into()))?;
+    Layout::of(vertex).map_err(|msg| ply_error(path, msg))?;
     if vertex.count == 0 {
-        return Err(fail("the cloud is empty (0 vertices)".into()));
+        return Err(ply_error(path, "the cloud is empty (0 vertices)".into()));
     }
+    Ok(vertex)
+}
 
+/// The general reader: ply-rs parses the whole payload into a map per
+/// element, then the vertices are converted one by one.
+fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+    let fail = |msg: String| ply_error(path, msg);
+    // The header is checked before the payload so that its errors are specific.
+    let (header, _) = read_header(bytes, path)?;
+    let vertex = vertex_element(&header, path)?;
+    let layout = Layout::of(vertex).map_err(fail)?;
+    let parser = Parser::<DefaultElement>::new();
     let ply = guarded(|| parser.read_ply(&mut &bytes[..])).map_err(|e| {
         if e.contains("end of file")
             || e.contains("UnexpectedEof")
@@ -78,7 +148,11 @@ pub fn load_ply(path: &Path) -> Result<PointCloud> {
         attributes: vertex.properties.keys().cloned().collect(),
     };
     for (i, row) in rows.iter().enumerate() {
-        let get = |name: &str| row.get(name).and_then(scalar).unwrap_or(0.0);
+        let get = |name: &str| {
+            row.get(name)
+                .and_then(Scalar::of)
+                .map_or(0.0, Scalar::value)
+        };
         let p = Vec3::new(get("x") as f32, get("y") as f32, get("z") as f32);
         if !p.is_finite() {
             return Err(fail(format!(
@@ -88,8 +162,10 @@ pub fn load_ply(path: &Path) -> Result<PointCloud> {
         cloud.positions.push(p);
         let color = match &layout.colors {
             Some(names) => Vec3::from_array(names.each_ref().map(|n| {
-                let v = row.get(*n).map(normalised_color).unwrap_or(0.0);
-                srgb_to_linear(v.clamp(0.0, 1.0))
+                // A list reads as 0, as a missing channel does.
+                row.get(*n)
+                    .and_then(Scalar::of)
+                    .map_or(srgb_to_linear(0.0), Scalar::linear_color)
             })),
             None => DEFAULT_COLOR,
         };
@@ -156,32 +232,569 @@ fn guarded<T, E: std::fmt::Display>(
     }
 }
 
-/// A scalar property as f64 (None for a list).
-fn scalar(p: &Property) -> Option<f64> {
-    Some(match *p {
-        Property::Char(v) => v as f64,
-        Property::UChar(v) => v as f64,
-        Property::Short(v) => v as f64,
-        Property::UShort(v) => v as f64,
-        Property::Int(v) => v as f64,
-        Property::UInt(v) => v as f64,
-        Property::Float(v) => v as f64,
-        Property::Double(v) => v,
-        _ => return None,
+/// One scalar value of a property, as stored: what both readers convert.
+#[derive(Debug, Clone, Copy)]
+enum Scalar {
+    Char(i8),
+    UChar(u8),
+    Short(i16),
+    UShort(u16),
+    Int(i32),
+    UInt(u32),
+    Float(f32),
+    Double(f64),
+}
+
+impl Scalar {
+    /// A scalar property of the general reader (None for a list).
+    fn of(p: &Property) -> Option<Scalar> {
+        Some(match *p {
+            Property::Char(v) => Scalar::Char(v),
+            Property::UChar(v) => Scalar::UChar(v),
+            Property::Short(v) => Scalar::Short(v),
+            Property::UShort(v) => Scalar::UShort(v),
+            Property::Int(v) => Scalar::Int(v),
+            Property::UInt(v) => Scalar::UInt(v),
+            Property::Float(v) => Scalar::Float(v),
+            Property::Double(v) => Scalar::Double(v),
+            _ => return None,
+        })
+    }
+
+    /// The value as f64.
+    fn value(self) -> f64 {
+        match self {
+            Scalar::Char(v) => v as f64,
+            Scalar::UChar(v) => v as f64,
+            Scalar::Short(v) => v as f64,
+            Scalar::UShort(v) => v as f64,
+            Scalar::Int(v) => v as f64,
+            Scalar::UInt(v) => v as f64,
+            Scalar::Float(v) => v as f64,
+            Scalar::Double(v) => v,
+        }
+    }
+
+    /// A color channel scaled to [0, 1]: integers by their type's maximum,
+    /// floats as they are.
+    fn normalised_color(self) -> f32 {
+        let max = match self {
+            Scalar::Char(_) => i8::MAX as f64,
+            Scalar::UChar(_) => u8::MAX as f64,
+            Scalar::Short(_) => i16::MAX as f64,
+            Scalar::UShort(_) => u16::MAX as f64,
+            Scalar::Int(_) => i32::MAX as f64,
+            Scalar::UInt(_) => u32::MAX as f64,
+            Scalar::Float(_) | Scalar::Double(_) => 1.0,
+        };
+        (self.value() / max) as f32
+    }
+
+    /// The linear-light color of the channel (sRGB-encoded, clamped).
+    fn linear_color(self) -> f32 {
+        srgb_to_linear(self.normalised_color().clamp(0.0, 1.0))
+    }
+}
+
+/// Where one scalar vertex property lies in a binary record, or which token
+/// of an ASCII line it is, and its type.
+#[derive(Debug, Clone)]
+struct Field {
+    /// Byte offset in the binary record, or token index in the ASCII line.
+    at: usize,
+    ty: ScalarType,
+}
+
+/// The vertex properties the cloud is made of.
+struct Fields {
+    position: [Field; 3],
+    color: Option<[Field; 3]>,
+    normal: Option<[Field; 3]>,
+    /// Bytes per binary record (0 for ASCII).
+    stride: usize,
+}
+
+fn scalar_bytes(ty: &ScalarType) -> usize {
+    match ty {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+impl Fields {
+    /// The fields of `vertex`; None when a property is a list (records are
+    /// then not of one size, and ASCII lines not of one token count).
+    fn of(vertex: &ElementDef, layout: &Layout, binary: bool) -> Option<Fields> {
+        let mut at = 0;
+        let mut found = Vec::new();
+        for (name, property) in &vertex.properties {
+            let PropertyType::Scalar(ty) = &property.data_type else {
+                return None;
+            };
+            found.push((name.as_str(), Field { at, ty: ty.clone() }));
+            at += if binary { scalar_bytes(ty) } else { 1 };
+        }
+        let get = |name: &str| found.iter().find(|(n, _)| *n == name).map(|f| f.1.clone());
+        let three = |names: [&str; 3]| Some([get(names[0])?, get(names[1])?, get(names[2])?]);
+        Some(Fields {
+            position: three(["x", "y", "z"])?,
+            color: match layout.colors {
+                Some(names) => Some(three(names)?),
+                None => None,
+            },
+            normal: match layout.normals {
+                true => Some(three(["nx", "ny", "nz"])?),
+                false => None,
+            },
+            stride: if binary { at } else { 0 },
+        })
+    }
+}
+
+/// Reads a binary scalar of type `ty` at the start of `b`.
+fn binary_scalar(b: &[u8], ty: &ScalarType, big_endian: bool) -> Scalar {
+    macro_rules! read {
+        ($t:ty, $n:expr) => {{
+            let a: [u8; $n] = b[..$n].try_into().expect("record holds the field");
+            if big_endian {
+                <$t>::from_be_bytes(a)
+            } else {
+                <$t>::from_le_bytes(a)
+            }
+        }};
+    }
+    match ty {
+        ScalarType::Char => Scalar::Char(read!(i8, 1)),
+        ScalarType::UChar => Scalar::UChar(read!(u8, 1)),
+        ScalarType::Short => Scalar::Short(read!(i16, 2)),
+        ScalarType::UShort => Scalar::UShort(read!(u16, 2)),
+        ScalarType::Int => Scalar::Int(read!(i32, 4)),
+        ScalarType::UInt => Scalar::UInt(read!(u32, 4)),
+        ScalarType::Float => Scalar::Float(read!(f32, 4)),
+        ScalarType::Double => Scalar::Double(read!(f64, 8)),
+    }
+}
+
+/// Parses an ASCII token as the general reader does: only tokens of its
+/// grammar (`[-+]?digits(.digits)?([eE][-+]?digits)?`), then Rust's parser
+/// for the property's own type. None for anything else.
+fn ascii_scalar(token: &[u8], ty: &ScalarType) -> Option<Scalar> {
+    if !is_ply_number(token) {
+        return None;
+    }
+    // The grammar admits only ASCII.
+    let s = std::str::from_utf8(token).ok()?;
+    Some(match ty {
+        ScalarType::Char => Scalar::Char(s.parse().ok()?),
+        ScalarType::UChar => Scalar::UChar(s.parse().ok()?),
+        ScalarType::Short => Scalar::Short(s.parse().ok()?),
+        ScalarType::UShort => Scalar::UShort(s.parse().ok()?),
+        ScalarType::Int => Scalar::Int(s.parse().ok()?),
+        ScalarType::UInt => Scalar::UInt(s.parse().ok()?),
+        ScalarType::Float => Scalar::Float(s.parse().ok()?),
+        ScalarType::Double => Scalar::Double(s.parse().ok()?),
     })
 }
 
-/// A color channel scaled to [0, 1]: integers by their type's maximum,
-/// floats as they are.
-fn normalised_color(p: &Property) -> f32 {
-    let max = match p {
-        Property::Char(_) => i8::MAX as f64,
-        Property::UChar(_) => u8::MAX as f64,
-        Property::Short(_) => i16::MAX as f64,
-        Property::UShort(_) => u16::MAX as f64,
-        Property::Int(_) => i32::MAX as f64,
-        Property::UInt(_) => u32::MAX as f64,
-        _ => 1.0,
+/// Whether `t` is a number of the PLY data-line grammar.
+fn is_ply_number(t: &[u8]) -> bool {
+    let mut i = 0;
+    let digits = |i: &mut usize| {
+        let start = *i;
+        while *i < t.len() && t[*i].is_ascii_digit() {
+            *i += 1;
+        }
+        *i > start
     };
-    (scalar(p).unwrap_or(0.0) / max) as f32
+    if i < t.len() && (t[i] == b'-' || t[i] == b'+') {
+        i += 1;
+    }
+    if !digits(&mut i) {
+        return false;
+    }
+    if i < t.len() && t[i] == b'.' {
+        i += 1;
+        if !digits(&mut i) {
+            return false;
+        }
+    }
+    if i < t.len() && (t[i] == b'e' || t[i] == b'E') {
+        i += 1;
+        if i < t.len() && (t[i] == b'-' || t[i] == b'+') {
+            i += 1;
+        }
+        if !digits(&mut i) {
+            return false;
+        }
+    }
+    i == t.len()
+}
+
+/// The linear color of an 8- or 16-bit channel value, tabulated with the
+/// general reader's own conversion (so the tables are its results).
+fn color_table(ty: &ScalarType) -> Option<&'static [f32]> {
+    static U8: OnceLock<Vec<f32>> = OnceLock::new();
+    static U16: OnceLock<Vec<f32>> = OnceLock::new();
+    match ty {
+        ScalarType::UChar => Some(U8.get_or_init(|| {
+            (0..=u8::MAX)
+                .map(|v| Scalar::UChar(v).linear_color())
+                .collect()
+        })),
+        ScalarType::UShort => Some(U16.get_or_init(|| {
+            (0..=u16::MAX)
+                .map(|v| Scalar::UShort(v).linear_color())
+                .collect()
+        })),
+        _ => None,
+    }
+}
+
+/// One vertex from its scalars: the general reader's conversions.
+struct Converter {
+    tables: [Option<&'static [f32]>; 3],
+}
+
+impl Converter {
+    fn new(fields: &Fields) -> Converter {
+        Converter {
+            tables: fields
+                .color
+                .as_ref()
+                .map_or([None; 3], |c| c.each_ref().map(|f| color_table(&f.ty))),
+        }
+    }
+
+    fn position(&self, xyz: [Scalar; 3]) -> Option<Vec3> {
+        let p = Vec3::from_array(xyz.map(|v| v.value() as f32));
+        p.is_finite().then_some(p)
+    }
+
+    /// Linear color of channel `c` (0 red, 1 green, 2 blue) of value `v`.
+    fn channel(&self, c: usize, v: Scalar) -> f32 {
+        match (self.tables[c], v) {
+            (Some(t), Scalar::UChar(x)) => t[x as usize],
+            (Some(t), Scalar::UShort(x)) => t[x as usize],
+            _ => v.linear_color(),
+        }
+    }
+
+    fn color(&self, rgb: [Scalar; 3]) -> Vec3 {
+        Vec3::new(
+            self.channel(0, rgb[0]),
+            self.channel(1, rgb[1]),
+            self.channel(2, rgb[2]),
+        )
+    }
+
+    fn normal(&self, n: [Scalar; 3]) -> Vec3 {
+        Vec3::from_array(n.map(|v| v.value() as f32))
+            .try_normalize()
+            .unwrap_or(Vec3::ZERO)
+    }
+}
+
+/// The vertices `range` of a cloud, read by `scalar_of(vertex, field)`.
+fn convert_range<R, G>(
+    range: std::ops::Range<usize>,
+    fields: &Fields,
+    converter: &Converter,
+    scalar_of: &ScalarOf<R, G>,
+) -> Option<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)>
+where
+    R: Fn(usize) -> bool,
+    G: Fn(usize, &Field) -> Option<Scalar>,
+{
+    let n = range.len();
+    let (mut positions, mut colors) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut normals = Vec::with_capacity(if fields.normal.is_some() { n } else { 0 });
+    let get = &scalar_of.get;
+    let three = |i: usize, f: &[Field; 3]| -> Option<[Scalar; 3]> {
+        Some([get(i, &f[0])?, get(i, &f[1])?, get(i, &f[2])?])
+    };
+    for i in range {
+        if !(scalar_of.row_ok)(i) {
+            return None;
+        }
+        positions.push(converter.position(three(i, &fields.position)?)?);
+        colors.push(match &fields.color {
+            Some(f) => converter.color(three(i, f)?),
+            None => DEFAULT_COLOR,
+        });
+        if let Some(f) = &fields.normal {
+            normals.push(converter.normal(three(i, f)?));
+        }
+    }
+    Some((positions, colors, normals))
+}
+
+/// How the vertices are read: whether row i is well-formed as a whole, and
+/// a field of row i.
+struct ScalarOf<R, G> {
+    row_ok: R,
+    get: G,
+}
+
+/// A range of converted vertices: positions, colors, normals (empty when
+/// the file has none).
+type Part = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
+
+/// Converts `count` vertices on every core, in order: `convert` makes the
+/// vertices of one range, None when one is not well-formed.
+fn convert_all(
+    count: usize,
+    convert: impl Fn(std::ops::Range<usize>) -> Option<Part> + Sync,
+) -> Option<Part> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(count.div_ceil(16_384))
+        .max(1);
+    let chunk = count.div_ceil(threads);
+    let convert = &convert;
+    let parts: Vec<_> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                let range = t * chunk..((t + 1) * chunk).min(count);
+                scope.spawn(move || convert(range))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().ok().flatten())
+            .collect()
+    });
+    // The first part's vectors grow to hold the rest (a large realloc moves
+    // pages, not bytes).
+    let mut parts = parts.into_iter();
+    let mut all = parts.next()??;
+    for part in parts {
+        let (p, c, n) = part?;
+        all.0.extend(p);
+        all.1.extend(c);
+        all.2.extend(n);
+    }
+    Some(all)
+}
+
+/// One field of the binary records `range` of `block`, each value mapped
+/// by `map`: the type is matched once, outside the loop.
+fn binary_column<T>(
+    block: &[u8],
+    stride: usize,
+    field: &Field,
+    big_endian: bool,
+    range: std::ops::Range<usize>,
+    map: impl Fn(Scalar) -> T,
+) -> Vec<T> {
+    macro_rules! column {
+        ($variant:ident, $t:ty) => {{
+            const N: usize = std::mem::size_of::<$t>();
+            range
+                .map(|i| {
+                    let at = i * stride + field.at;
+                    let bytes: [u8; N] = block[at..at + N].try_into().expect("N bytes");
+                    map(Scalar::$variant(if big_endian {
+                        <$t>::from_be_bytes(bytes)
+                    } else {
+                        <$t>::from_le_bytes(bytes)
+                    }))
+                })
+                .collect()
+        }};
+    }
+    match field.ty {
+        ScalarType::Char => column!(Char, i8),
+        ScalarType::UChar => column!(UChar, u8),
+        ScalarType::Short => column!(Short, i16),
+        ScalarType::UShort => column!(UShort, u16),
+        ScalarType::Int => column!(Int, i32),
+        ScalarType::UInt => column!(UInt, u32),
+        ScalarType::Float => column!(Float, f32),
+        ScalarType::Double => column!(Double, f64),
+    }
+}
+
+/// The binary vertex records `range`, converted column by column.
+fn binary_part(
+    block: &[u8],
+    fields: &Fields,
+    converter: &Converter,
+    big_endian: bool,
+    range: std::ops::Range<usize>,
+) -> Option<Part> {
+    let stride = fields.stride;
+    let columns = |f: &[Field; 3], map: &dyn Fn(usize, Scalar) -> f32| -> [Vec<f32>; 3] {
+        [0, 1, 2].map(|c| {
+            binary_column(block, stride, &f[c], big_endian, range.clone(), |v| {
+                map(c, v)
+            })
+        })
+    };
+    let join = |[x, y, z]: [Vec<f32>; 3]| -> Vec<Vec3> {
+        x.into_iter()
+            .zip(y)
+            .zip(z)
+            .map(|((x, y), z)| Vec3::new(x, y, z))
+            .collect()
+    };
+    let positions = join(columns(&fields.position, &|_, v| v.value() as f32));
+    if !positions.iter().all(|p| p.is_finite()) {
+        return None;
+    }
+    let colors = match &fields.color {
+        Some(f) => join(columns(f, &|c, v| converter.channel(c, v))),
+        None => vec![DEFAULT_COLOR; range.len()],
+    };
+    let normals = match &fields.normal {
+        Some(f) => join(columns(f, &|_, v| v.value() as f32))
+            .into_iter()
+            .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
+            .collect(),
+        None => Vec::new(),
+    };
+    Some((positions, colors, normals))
+}
+
+/// The byte size of a binary element instance at the start of `b`, with
+/// its list counts read as the general reader reads them; None when `b` is
+/// too short or a count is negative.
+fn binary_element_size(b: &[u8], element: &ElementDef, big_endian: bool) -> Option<usize> {
+    let mut at = 0usize;
+    for p in element.properties.values() {
+        match &p.data_type {
+            PropertyType::Scalar(ty) => at += scalar_bytes(ty),
+            PropertyType::List(count_ty, item_ty) => {
+                let count = match binary_scalar(
+                    b.get(at..)?.get(..scalar_bytes(count_ty))?,
+                    count_ty,
+                    big_endian,
+                ) {
+                    Scalar::Float(_) | Scalar::Double(_) => return None,
+                    n => usize::try_from(n.value() as i64).ok()?,
+                };
+                at += scalar_bytes(count_ty) + count.checked_mul(scalar_bytes(item_ty))?;
+            }
+        }
+    }
+    (at <= b.len()).then_some(at)
+}
+
+/// Whether an ASCII line is an instance of `element` for the general
+/// reader: numbers of the grammar, each property's token(s) parsing as its
+/// type, list lengths included.
+fn ascii_element_ok(tokens: &[&[u8]], element: &ElementDef) -> bool {
+    if !tokens.iter().all(|t| is_ply_number(t)) {
+        return false;
+    }
+    let mut it = tokens.iter();
+    for p in element.properties.values() {
+        let ok = match &p.data_type {
+            PropertyType::Scalar(ty) => it.next().is_some_and(|t| ascii_scalar(t, ty).is_some()),
+            PropertyType::List(_, item_ty) => {
+                let count = it
+                    .next()
+                    .and_then(|t| std::str::from_utf8(t).ok()?.parse::<usize>().ok());
+                match count {
+                    Some(n) => (0..n).all(|_| {
+                        it.next()
+                            .is_some_and(|t| ascii_scalar(t, item_ty).is_some())
+                    }),
+                    None => false,
+                }
+            }
+        };
+        if !ok {
+            return false;
+        }
+    }
+    true
+}
+
+/// Tokens of an ASCII line, split on spaces and tabs.
+fn ascii_tokens(line: &[u8]) -> Vec<&[u8]> {
+    line.split(|&b| b == b' ' || b == b'\t')
+        .filter(|t| !t.is_empty())
+        .collect()
+}
+
+/// Reads the vertex element straight from the payload, or None when the
+/// file is anything but well-formed (the general reader then reads it, or
+/// says what is wrong). Every element is checked as the general reader
+/// would read it, those before and after the vertices too.
+fn read_vertices(
+    payload: &[u8],
+    header: &Header,
+    vertex: &ElementDef,
+    layout: &Layout,
+) -> Option<PointCloud> {
+    let binary = !matches!(header.encoding, Encoding::Ascii);
+    let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
+    let fields = Fields::of(vertex, layout, binary)?;
+    let count = vertex.count;
+    let (positions, colors, normals) = if binary {
+        // Where the vertex block starts; every other element walked.
+        let mut at = 0usize;
+        let mut block_at = None;
+        for element in header.elements.values() {
+            if element.name == vertex.name {
+                block_at = Some(at);
+                at = at.checked_add(fields.stride.checked_mul(count)?)?;
+                continue;
+            }
+            for _ in 0..element.count {
+                at += binary_element_size(payload.get(at..)?, element, big_endian)?;
+            }
+        }
+        let block_at = block_at?;
+        let block = payload.get(block_at..block_at + fields.stride * count)?;
+        let converter = Converter::new(&fields);
+        convert_all(count, |range| {
+            binary_part(block, &fields, &converter, big_endian, range)
+        })?
+    } else {
+        // Lines as the general reader reads them: up to each '\n', one per
+        // element instance.
+        let mut rest = payload;
+        let mut next_line = || -> Option<&[u8]> {
+            let (line, next) = match rest.iter().position(|&b| b == b'\n') {
+                Some(n) => (&rest[..n], &rest[n + 1..]),
+                None if !rest.is_empty() => (rest, &rest[rest.len()..]),
+                None => return None,
+            };
+            rest = next;
+            Some(line.strip_suffix(b"\r").unwrap_or(line))
+        };
+        let mut vertex_lines = Vec::new();
+        for element in header.elements.values() {
+            if element.name == vertex.name {
+                vertex_lines = (0..count)
+                    .map(|_| next_line())
+                    .collect::<Option<Vec<_>>>()?;
+                continue;
+            }
+            for _ in 0..element.count {
+                if !ascii_element_ok(&ascii_tokens(next_line()?), element) {
+                    return None;
+                }
+            }
+        }
+        let tokens: Vec<Vec<&[u8]>> = vertex_lines.iter().map(|l| ascii_tokens(l)).collect();
+        let scalar_of = ScalarOf {
+            row_ok: |i: usize| ascii_element_ok(&tokens[i], vertex),
+            get: |i: usize, f: &Field| ascii_scalar(tokens[i].get(f.at)?, &f.ty),
+        };
+        let converter = Converter::new(&fields);
+        convert_all(count, |range| {
+            convert_range(range, &fields, &converter, &scalar_of)
+        })?
+    };
+    Some(PointCloud {
+        positions,
+        colors,
+        normals: layout.normals.then_some(normals),
+        has_colors: layout.colors.is_some(),
+        attributes: vertex.properties.keys().cloned().collect(),
+    })
 }

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use common::{root, scratch};
 use glam::Vec3;
 use pointlens::cloud::{srgb_to_linear, DEFAULT_COLOR};
-use pointlens::ply::load_ply;
+use pointlens::ply::{load_ply, load_ply_direct, load_ply_general};
 use pointlens::PointCloud;
 
 /// The three test points: positions, 8-bit sRGB colors, and normals (not unit
@@ -254,6 +254,11 @@ fn every_encoding_type_and_naming_loads_exactly() {
                             panic!("{}: {e}\n{}", path.display(), spec.header())
                         });
                         spec.check(&cloud);
+                        // The direct reader read it, and gives the general
+                        // reader's cloud bit for bit.
+                        let direct = load_ply_direct(&path).unwrap();
+                        let general = load_ply_general(&path).unwrap();
+                        assert_same(direct.as_ref().expect("read directly"), &general, &path);
                         n += 1;
                     }
                 }
@@ -261,6 +266,68 @@ fn every_encoding_type_and_naming_loads_exactly() {
         }
     }
     assert_eq!(n, 120);
+}
+
+/// Two clouds equal bit for bit.
+fn assert_same(a: &PointCloud, b: &PointCloud, what: &Path) {
+    let bits = |v: &[Vec3]| -> Vec<[u32; 3]> {
+        v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+    };
+    let what = what.display();
+    assert_eq!(bits(&a.positions), bits(&b.positions), "{what}: positions");
+    assert_eq!(bits(&a.colors), bits(&b.colors), "{what}: colors");
+    assert_eq!(
+        a.normals.as_deref().map(bits),
+        b.normals.as_deref().map(bits),
+        "{what}: normals"
+    );
+    assert_eq!(a.has_colors, b.has_colors, "{what}");
+    assert_eq!(a.attributes, b.attributes, "{what}");
+}
+
+#[test]
+fn the_bundled_clouds_load_directly_as_the_general_reader_loads_them() {
+    for name in [
+        "bunny_colored.ply",
+        "bun_zipper.ply",
+        "pcl_table_scene_mug_rgb.ply",
+    ] {
+        let path = root().join("data").join(name);
+        let direct = load_ply_direct(&path).unwrap();
+        let general = load_ply_general(&path).unwrap();
+        assert_same(direct.as_ref().expect("read directly"), &general, &path);
+    }
+}
+
+#[test]
+fn elements_around_the_vertices_are_walked_and_bad_data_is_left_to_the_general_reader() {
+    // A list element before the vertices: walked by its counts.
+    let dir = scratch("ply-declined");
+    let faces_first = b"ply\nformat binary_little_endian 1.0\nelement face 1\n\
+        property list uchar int vertex_indices\nelement vertex 1\n\
+        property float x\nproperty float y\nproperty float z\nend_header\n";
+    let mut bytes = faces_first.to_vec();
+    bytes.extend([3u8]);
+    for i in [0i32, 0, 0] {
+        bytes.extend(i.to_le_bytes());
+    }
+    for v in [1.0f32, 2.0, 3.0] {
+        bytes.extend(v.to_le_bytes());
+    }
+    let path = write(&dir, "faces-first.ply", &bytes);
+    let direct = load_ply_direct(&path).unwrap().expect("read directly");
+    assert_eq!(direct.positions, [Vec3::new(1.0, 2.0, 3.0)]);
+    assert_same(&direct, &load_ply_general(&path).unwrap(), &path);
+    // Cut inside the face list: both readers refuse it.
+    let path = write(&dir, "faces-cut.ply", &bytes[..faces_first.len() + 7]);
+    assert!(load_ply_direct(&path).unwrap().is_none());
+    assert_error(&path, "truncated");
+    // ".5" is not a number of the PLY grammar: both readers refuse it.
+    let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
+        property float y\nproperty float z\nend_header\n.5 1 2\n";
+    let path = write(&dir, "dot-five.ply", text.as_bytes());
+    assert!(load_ply_direct(&path).unwrap().is_none());
+    assert_error(&path, "malformed data");
 }
 
 fn assert_error(path: &Path, phrase: &str) {

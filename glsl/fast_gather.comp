@@ -1,14 +1,17 @@
 #version 460
 // Fast DOF, pass 4 (Zhao §3.3, DESIGN §4): each output pixel Q averages the
 // colors of the pixels P with |p − q| <= c_P / 2 and z_P <= z_Q, weighted
-// by P's weight, gathering only as far as its tile's dilated radius.
+// by P's weight, gathering only as far as its tile's dilated radius. Where
+// that window holds only background (the tile's flag), every P has Q's own
+// CoC, weight and color: the same sums are formed from those, in the same
+// order, without loading each P — bitwise the plain gather's result.
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
 layout(binding = 1, rgba32f) uniform readonly image2D gbuffer_eye;
 layout(binding = 2, rg32f) uniform readonly image2D coc_weight;
-layout(binding = 3, r32f) uniform readonly image2D tile_radius;
+layout(binding = 3, rg32f) uniform readonly image2D tile_radius;
 layout(binding = 4, rgba16f) uniform writeonly image2D result;
 
 layout(push_constant, std430) uniform Push {
@@ -24,10 +27,32 @@ void main() {
         return;
     }
     float zq = imageLoad(gbuffer_eye, q).z;
-    float radius = imageLoad(tile_radius, q / pc.tile).x;
-    int r = int(floor(radius));
+    vec2 tile = imageLoad(tile_radius, q / pc.tile).xy;
+    int r = int(floor(tile.x));
     vec3 sum = vec3(0.0);
     float weight = 0.0;
+    if (tile.y == 0.0) {
+        // Only background around: z_P = z_Q = +inf passes the z test, and
+        // c_P, w_P and the color are Q's.
+        vec2 cw = imageLoad(coc_weight, q).xy;
+        vec3 color = imageLoad(gbuffer_color, q).rgb;
+        for (int dy = -r; dy <= r; ++dy) {
+            for (int dx = -r; dx <= r; ++dx) {
+                ivec2 p = q + ivec2(dx, dy);
+                if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, pc.extent))) {
+                    continue;
+                }
+                float d2 = float(dx * dx + dy * dy);
+                if (d2 > 0.25 * cw.x * cw.x) {
+                    continue;
+                }
+                sum += cw.y * color;
+                weight += cw.y;
+            }
+        }
+        imageStore(result, q, vec4(sum / weight, 1.0));
+        return;
+    }
     for (int dy = -r; dy <= r; ++dy) {
         for (int dx = -r; dx <= r; ++dx) {
             ivec2 p = q + ivec2(dx, dy);

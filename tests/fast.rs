@@ -215,3 +215,88 @@ fn a_sharp_foreground_keeps_its_silhouette_over_a_blurred_background() {
         }
     });
 }
+
+#[test]
+fn background_only_tiles_take_the_short_path_with_the_same_bits() {
+    // The bunny small in a wide frame on a colored background: the tiles
+    // far from it see only background within their gather window, and the
+    // gather takes its all-background path there. Tiles (with that path)
+    // and the fixed window (without it) must agree bit for bit, and both
+    // with the CPU reference.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+        let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
+        let (lo, hi) = bunny.bounds();
+        let centre = (lo + hi) / 2.0;
+        let cam = Camera {
+            width: 128,
+            height: 96,
+            eye: centre + Vec3::new(0.0, 0.0, 0.6),
+            target: centre,
+            up: Vec3::Y,
+            fovy_deg: 40.0,
+            aperture_radius: 0.004,
+            focus_distance: 0.6,
+        };
+        for weights in [FastWeights::Area, FastWeights::Uniform] {
+            let options = |window| RenderOptions {
+                background: Vec3::new(0.2, 0.45, 0.7),
+                ..options(cam, Method::fast(weights, window))
+            };
+            let (tiles, gbuffer) = renderer
+                .render_with_gbuffer(&scene, &options(GatherWindow::Tiles))
+                .unwrap();
+            let fixed = renderer
+                .render(&scene, &options(GatherWindow::Fixed))
+                .unwrap();
+            let differ = tiles
+                .image
+                .pixels
+                .iter()
+                .zip(&fixed.image.pixels)
+                .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
+                .count();
+            assert_eq!(
+                differ, 0,
+                "{weights:?}: {differ} pixels differ between the paths"
+            );
+            let cpu = reference::fast(&gbuffer, &cam, weights);
+            let worst = tiles
+                .image
+                .pixels
+                .iter()
+                .zip(&cpu.pixels)
+                .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
+                .fold(0.0f32, f32::max);
+            assert!(worst < 2e-3, "{weights:?}: GPU and CPU differ by {worst}");
+            // Tiles (16 px) whose square 16 px apron holds no point: the
+            // gather window is at most the largest CoC / 2 < 16 px, so these
+            // took the all-background path.
+            let max_coc = gbuffer
+                .eye
+                .iter()
+                .map(|e| cam.coc_px(e[2]))
+                .fold(0.0f32, f32::max);
+            assert!(max_coc / 2.0 < 16.0, "largest CoC {max_coc}");
+            let (w, h) = (gbuffer.width as i64, gbuffer.height as i64);
+            let point = |x: i64, y: i64| {
+                (0..w).contains(&x)
+                    && (0..h).contains(&y)
+                    && gbuffer.eye[(y * w + x) as usize][2].is_finite()
+            };
+            let empty_tiles = (0..(h + 15) / 16)
+                .flat_map(|ty| (0..(w + 15) / 16).map(move |tx| (tx, ty)))
+                .filter(|&(tx, ty)| {
+                    !(ty * 16 - 16..ty * 16 + 32)
+                        .any(|y| (tx * 16 - 16..tx * 16 + 32).any(|x| point(x, y)))
+                })
+                .count();
+            assert!(empty_tiles >= 8, "only {empty_tiles} background-only tiles");
+            assert!(
+                gbuffer.eye.iter().filter(|e| e[2].is_finite()).count() > 500,
+                "the bunny must be in view"
+            );
+        }
+    });
+}

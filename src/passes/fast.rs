@@ -70,7 +70,7 @@ impl Fast {
         let img = Binding::StorageImage;
         Ok(Fast {
             coc: ComputePipeline::new(ctx, "fast_coc", COC, &[img; 2])?,
-            tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[img; 2])?,
+            tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[img; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[img; 2])?,
             gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[img; 5])?,
         })
@@ -108,8 +108,14 @@ impl FastImages {
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
         Ok(FastImages {
             coc_weight: image("fast coc", vk::Format::R32G32_SFLOAT, w, h, storage)?,
-            tile_max: image("fast tile max", vk::Format::R32_SFLOAT, tw, th, storage)?,
-            tile_radius: image("fast tile radius", vk::Format::R32_SFLOAT, tw, th, storage)?,
+            tile_max: image("fast tile max", vk::Format::R32G32_SFLOAT, tw, th, storage)?,
+            tile_radius: image(
+                "fast tile radius",
+                vk::Format::R32G32_SFLOAT,
+                tw,
+                th,
+                storage,
+            )?,
             result: image(
                 "fast result",
                 vk::Format::R16G16B16A16_SFLOAT,
@@ -173,6 +179,7 @@ impl DofFrame for FastFrame<'_> {
                 &[
                     Bind::StorageImage(&images.coc_weight),
                     Bind::StorageImage(&images.tile_max),
+                    Bind::StorageImage(input.eye),
                 ],
                 &TileMaxPush {
                     extent: [w, h],

@@ -64,9 +64,9 @@ pub struct Scene {
     /// World diameters (unused when `splat` is `Pixels`).
     diameters: Vec<f32>,
     splat: SplatSize,
-    /// The last camera's [`SceneView`]: frames of one camera scan the
-    /// points once.
-    last_view: Mutex<Option<(Camera, SceneView)>>,
+    /// The last camera's [`SceneView`] (with the point-size limit it was
+    /// clamped to): frames of one camera scan the points once.
+    last_view: Mutex<Option<(Camera, f32, SceneView)>>,
     /// GPU time of the upload copy.
     pub upload_timings: FrameTimings,
     /// Wall time of computing the splat sizes on the CPU (the k-nearest
@@ -90,8 +90,8 @@ impl Scene {
     /// the splat size), from the cache when the camera is the last one.
     fn view(&self, camera: &Camera, point_size_max: f32) -> SceneView {
         let mut last = self.last_view.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((c, v)) = *last {
-            if c == *camera {
+        if let Some((c, limit, v)) = *last {
+            if c == *camera && limit == point_size_max {
                 return v;
             }
         }
@@ -116,7 +116,7 @@ impl Scene {
             depths,
             max_splat_px,
         };
-        *last = Some((*camera, view));
+        *last = Some((*camera, point_size_max, view));
         view
     }
 }

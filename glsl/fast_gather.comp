@@ -29,8 +29,10 @@ void main() {
     float zq = imageLoad(gbuffer_eye, q).z;
     vec2 tile = imageLoad(tile_radius, q / pc.tile).xy;
     int r = int(floor(tile.x));
-    vec3 sum = vec3(0.0);
-    float weight = 0.0;
+    // precise: no contraction into fused multiply-adds and no hoisting of
+    // the products, so that both paths round alike on every compiler.
+    precise vec3 sum = vec3(0.0);
+    precise float weight = 0.0;
     if (tile.y == 0.0) {
         // Only background around: z_P = z_Q = +inf passes the z test, and
         // c_P, w_P and the color are Q's.

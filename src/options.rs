@@ -203,15 +203,17 @@ impl Method {
             Some((h, o)) => (h, Some(o)),
             None => (name, None),
         };
+        // The number starts at the first digit (or its sign: `u32` parsing
+        // takes "+9" too).
         let digits_at = head
-            .find(|c: char| c.is_ascii_digit())
+            .find(|c: char| c.is_ascii_digit() || c == '+')
             .unwrap_or(head.len());
         let (word, digits) = head.split_at(digits_at);
         let kind = MethodKind::parse(word).map_err(|_| bad(String::new()))?;
         // The number after rdb / accum: required, range-checked.
         let number = |check: fn(u32) -> Result<u32>| -> Result<u32> {
             let n = digits.parse::<u32>().map_err(|_| bad(String::new()))?;
-            check(n).map_err(|e| bad(format!(": {e}")))
+            check(n).map_err(|e| Error::InvalidArgument(format!("'{name}' is out of range: {e}")))
         };
         match kind {
             MethodKind::Pinhole => {

@@ -743,6 +743,10 @@ fn read_vertices(
                 at = at.checked_add(fields.stride.checked_mul(count)?)?;
                 continue;
             }
+            if element.properties.is_empty() {
+                // Instances of no bytes: nothing to walk, whatever the count.
+                continue;
+            }
             for _ in 0..element.count {
                 at += binary_element_size(payload.get(at..)?, element, big_endian)?;
             }

@@ -321,6 +321,11 @@ impl Renderer {
         keep_gbuffer: bool,
     ) -> Result<(Rendered, Option<HostGBuffer>)> {
         check_ssaa(options.ssaa)?;
+        if !scene.vertices.made_on(&self.ctx) {
+            return Err(Error::InvalidArgument(
+                "the scene was uploaded by a renderer on another device".into(),
+            ));
+        }
         let started = Instant::now();
         let method = self.methods.get(&options.method);
         let view = self.raster_view(scene, &options.camera, method.as_ref());

@@ -297,6 +297,16 @@ fn method_names_and_statistics() {
             .collect::<Vec<_>>(),
         ["pinhole", "fast", "rdb5", "rdb9", "accum64"]
     );
+    // A sign before the number is taken, as u32 parsing takes it.
+    assert_eq!(
+        BenchMethod::parse("rdb+9").unwrap().method,
+        Method::rdb(9, RdbMode::Centre)
+    );
+    let err = BenchMethod::parse("rdb17").unwrap_err().to_string();
+    assert!(
+        err.contains("'rdb17' is out of range") && err.contains("16"),
+        "{err}"
+    );
     for bad in ["rdb1", "rdb", "accum0", "accum", "rdbx", "fastest"] {
         assert!(BenchMethod::parse(bad).is_err(), "{bad}");
     }
@@ -383,7 +393,9 @@ fn bench_fails_on_any_validation_message() {
     };
     // Clean, it succeeds; after one invalid call, the same run fails.
     bench::run(&ctx, &options, &mut |_, _, _| {}).expect("a clean run");
-    ctx.provoke_validation_message();
+    // SAFETY: a test on lavapipe with validation on, which tolerates the
+    // invalid call (a buffer of size 0).
+    unsafe { ctx.provoke_validation_message() };
     let err = bench::run(&ctx, &options, &mut |_, _, _| {}).unwrap_err();
     assert!(
         err.to_string().contains("validation reported 1 message"),

@@ -259,8 +259,9 @@ fn the_canary_sees_validation_errors() {
     })
     .expect("lavapipe with validation");
     let log = ctx.message_log();
-    // A buffer of size 0 (VUID-VkBufferCreateInfo-size-00912).
-    ctx.provoke_validation_message();
+    // SAFETY: a test on lavapipe with validation on, which tolerates the
+    // invalid call (a buffer of size 0, VUID-VkBufferCreateInfo-size-00912).
+    unsafe { ctx.provoke_validation_message() };
     drop(ctx);
     assert!(
         !log.messages().is_empty(),
@@ -341,5 +342,41 @@ fn a_scene_remembers_only_its_last_camera() {
         assert_eq!(then_b.image, fresh_b.image, "B after A is not B");
         assert_eq!(again_a.guard, first_a.guard);
         assert_eq!(again_a.image, first_a.image, "A after B is not A");
+    });
+}
+
+#[test]
+fn a_scene_from_another_device_is_an_error_not_a_crash() {
+    with_gpu(|ctx| {
+        let other = Context::new(&ContextOptions {
+            validation: true,
+            device: Some("llvmpipe".into()),
+        })
+        .expect("a second lavapipe context");
+        let other_log = other.message_log();
+        let theirs = Renderer::new(&other).unwrap();
+        let scene = theirs
+            .upload(
+                &cloud(&[(Vec3::new(0.0, 0.0, -1.0), Vec3::ONE)]),
+                SplatSize::Pixels(3.0),
+            )
+            .unwrap();
+        let ours = Renderer::new(ctx).unwrap();
+        let options = RenderOptions {
+            camera: camera(16, 16),
+            method: Method::Pinhole,
+            ssaa: 1,
+            background: Vec3::ZERO,
+        };
+        let err = ours.render(&scene, &options).err().expect("an error");
+        assert!(err.to_string().contains("another device"), "{err}");
+        // The owner still renders it.
+        theirs.render(&scene, &options).unwrap();
+        drop((scene, theirs, other));
+        assert!(
+            other_log.messages().is_empty(),
+            "{:?}",
+            other_log.messages()
+        );
     });
 }

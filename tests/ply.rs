@@ -322,6 +322,19 @@ fn elements_around_the_vertices_are_walked_and_bad_data_is_left_to_the_general_r
     let path = write(&dir, "faces-cut.ply", &bytes[..faces_first.len() + 7]);
     assert!(load_ply_direct(&path).unwrap().is_none());
     assert_error(&path, "truncated");
+    // An element of no properties takes no bytes, whatever its count: the
+    // direct reader skips it at once (the general one would try to hold
+    // 2^64 empty rows).
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\n\
+        property float x\nproperty float y\nproperty float z\n\
+        element pad 18446744073709551615\nend_header\n"
+        .to_vec();
+    for v in [4.0f32, 5.0, 6.0] {
+        bytes.extend(v.to_le_bytes());
+    }
+    let path = write(&dir, "empty-elements.ply", &bytes);
+    let direct = load_ply_direct(&path).unwrap().expect("read directly");
+    assert_eq!(direct.positions, [Vec3::new(4.0, 5.0, 6.0)]);
     // ".5" is not a number of the PLY grammar: both readers refuse it.
     let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n\
         property float y\nproperty float z\nend_header\n.5 1 2\n";

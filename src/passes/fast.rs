@@ -141,8 +141,11 @@ impl DofFrame for FastFrame<'_> {
         let images = &self.images;
         let view = &input.view;
         let camera = &view.camera;
-        let (w, h) = (input.color.width as i32, input.color.height as i32);
-        let tiles = [images.tile_max.width as i32, images.tile_max.height as i32];
+        let (w, h) = (input.color.width() as i32, input.color.height() as i32);
+        let tiles = [
+            images.tile_max.width() as i32,
+            images.tile_max.height() as i32,
+        ];
         let g = view.guard as i32;
         frame.pass("fast.coc", |rec| {
             rec.barriers(&[

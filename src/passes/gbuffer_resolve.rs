@@ -68,7 +68,7 @@ impl GBufferResolve {
                 list.push((images.gbuffer_color, Access::NONE, Access::COMPUTE_WRITE));
             }
             rec.barriers(&list);
-            let (w, h) = (images.gbuffer_color.width, images.gbuffer_color.height);
+            let (w, h) = (images.gbuffer_color.width(), images.gbuffer_color.height());
             rec.dispatch(
                 &self.pipeline,
                 &[

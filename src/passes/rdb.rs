@@ -243,7 +243,7 @@ impl DofFrame for RdbFrame<'_> {
         let mode = self.method.options.mode;
         let images = &self.images;
         let camera = &input.view.camera;
-        let (gw, gh) = (input.color.width as i32, input.color.height as i32);
+        let (gw, gh) = (input.color.width() as i32, input.color.height() as i32);
         let g = input.view.guard as i32;
         // |lens offset| ≤ c/2, plus the rounding to a pixel and a pixel for
         // the GPU's CoC rounding above the CPU's bound.

@@ -111,6 +111,9 @@ pub struct Context {
     debug_utils: ash::ext::debug_utils::Device,
     pub(super) push_descriptor: ash::khr::push_descriptor::Device,
     pub(super) queue: vk::Queue,
+    /// Held while submitting to `queue` (Vulkan requires it externally
+    /// synchronised; the context is shared between threads).
+    queue_submit: Mutex<()>,
     pub(super) queue_family: u32,
     allocator: ManuallyDrop<Mutex<Allocator>>,
     pub info: DeviceInfo,
@@ -306,6 +309,7 @@ impl Context {
             debug_utils,
             push_descriptor,
             queue,
+            queue_submit: Mutex::new(()),
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             info,
@@ -315,11 +319,23 @@ impl Context {
         Ok(Arc::new(ctx))
     }
 
+    /// The lock held while submitting to the queue.
+    pub(super) fn queue_lock(&self) -> MutexGuard<'_, ()> {
+        self.queue_submit
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
     /// Makes one invalid Vulkan call (a buffer of size 0) so that a test
-    /// can check that the validation canary sees messages. Never call it
-    /// otherwise.
+    /// can check that the validation canary sees messages.
+    ///
+    /// # Safety
+    /// The call breaks a valid-usage rule (VUID-VkBufferCreateInfo-size-00912)
+    /// on purpose: only for tests, with the validation layer on, on a driver
+    /// known to tolerate it (lavapipe returns an error or a buffer that is
+    /// destroyed at once).
     #[doc(hidden)]
-    pub fn provoke_validation_message(&self) {
+    pub unsafe fn provoke_validation_message(&self) {
         let info = vk::BufferCreateInfo::default()
             .size(0)
             .usage(vk::BufferUsageFlags::STORAGE_BUFFER);

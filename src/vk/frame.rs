@@ -217,6 +217,9 @@ impl<'r> Frame<'r> {
             ctx.device
                 .end_command_buffer(self.cmd)
                 .vk("vkEndCommandBuffer")?;
+            // The queue is externally synchronised: one submission at a
+            // time, whichever thread shares the context.
+            let _queue = ctx.queue_lock();
             ctx.device
                 .queue_submit(ctx.queue, &[submit], self.fence)
                 .vk("vkQueueSubmit")?;
@@ -300,9 +303,23 @@ impl<'r> Recorder<'_, 'r> {
         self.ctx
     }
 
+    /// Panics unless `image` was made on this frame's device: a handle of
+    /// another device in this command buffer would be undefined behaviour.
+    fn own_image(&self, image: &Image) {
+        assert!(image.made_on(self.ctx), "an image of another device");
+    }
+
+    /// As [`Recorder::own_image`], for a buffer.
+    fn own_buffer(&self, buffer: &Buffer) {
+        assert!(buffer.made_on(self.ctx), "a buffer of another device");
+    }
+
     /// Image barriers from each `src` to its `dst` (layout transitions
     /// included), in one call.
     pub fn barriers(&mut self, list: &[(&'r Image, Access, Access)]) {
+        for (image, _, _) in list {
+            self.own_image(image);
+        }
         let barriers: Vec<_> = list
             .iter()
             .map(|(image, src, dst)| {
@@ -349,12 +366,20 @@ impl<'r> Recorder<'_, 'r> {
         push: &P,
         groups: [u32; 3],
     ) {
+        assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
+        for bind in binds {
+            match bind {
+                Bind::StorageImage(image) => self.own_image(image),
+                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
+            }
+        }
         pipeline.record_dispatch(self.cmd, binds, push, groups);
     }
 
     /// Fills every layer of an unsigned-integer color image with `value`;
     /// the image must be in `TRANSFER_DST_OPTIMAL` ([`Access::CLEAR`]).
     pub fn clear_u32(&mut self, image: &'r Image, value: u32) {
+        self.own_image(image);
         let clear = vk::ClearColorValue { uint32: [value; 4] };
         // SAFETY: recording outside a render pass; the caller's barrier put
         // the image in TRANSFER_DST_OPTIMAL and the range covers it.
@@ -371,10 +396,12 @@ impl<'r> Recorder<'_, 'r> {
 
     /// Copies the first `min(src.size, dst.size)` bytes of `src` to `dst`.
     pub fn copy_buffer(&mut self, src: &'r Buffer, dst: &'r Buffer) {
+        self.own_buffer(src);
+        self.own_buffer(dst);
         let region = vk::BufferCopy {
             src_offset: 0,
             dst_offset: 0,
-            size: src.size.min(dst.size),
+            size: src.size().min(dst.size()),
         };
         // SAFETY: recording outside a render pass; the region lies inside
         // both buffers.
@@ -396,12 +423,16 @@ impl<'r> Recorder<'_, 'r> {
         extent: [u32; 2],
         buffer: &'r Buffer,
     ) {
+        self.own_image(image);
+        self.own_buffer(buffer);
+        let inside = |o: u32, e: u32, size: u32| o as u64 + e as u64 <= size as u64;
         assert!(
-            offset[0] + extent[0] <= image.width && offset[1] + extent[1] <= image.height,
+            inside(offset[0], extent[0], image.width())
+                && inside(offset[1], extent[1], image.height()),
             "copy region outside the image"
         );
-        let bytes = extent[0] as u64 * extent[1] as u64 * texel_bytes(image.format);
-        assert!(bytes <= buffer.size, "readback buffer too small");
+        let bytes = extent[0] as u64 * extent[1] as u64 * texel_bytes(image.format());
+        assert!(bytes <= buffer.size(), "readback buffer too small");
         let region = vk::BufferImageCopy {
             buffer_offset: 0,
             buffer_row_length: 0,
@@ -451,16 +482,26 @@ impl<'r> Recorder<'_, 'r> {
         count: u32,
         push: &P,
     ) {
+        assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
+        for (image, _) in colors {
+            self.own_image(image);
+        }
+        self.own_image(depth);
+        self.own_buffer(vertices);
         assert_eq!(
-            colors.iter().map(|c| c.0.format).collect::<Vec<_>>(),
+            colors.iter().map(|c| c.0.format()).collect::<Vec<_>>(),
             pipeline.color_formats,
             "color targets do not match the pipeline"
         );
-        assert_eq!(depth.format, pipeline.depth_format, "depth target format");
-        let (w, h) = (depth.width, depth.height);
+        assert_eq!(depth.format(), pipeline.depth_format, "depth target format");
+        let (w, h) = (depth.width(), depth.height());
         assert!(
-            colors.iter().all(|c| (c.0.width, c.0.height) == (w, h)),
+            colors.iter().all(|c| (c.0.width(), c.0.height()) == (w, h)),
             "targets of different sizes"
+        );
+        assert!(
+            count as u64 * pipeline.stride as u64 <= vertices.size(),
+            "{count} vertices do not fit the vertex buffer"
         );
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: 0 },
@@ -484,7 +525,7 @@ impl<'r> Recorder<'_, 'r> {
             .collect();
         let depth_attachment = vk::RenderingAttachmentInfo::default()
             .image_view(depth.view)
-            .image_layout(vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL)
+            .image_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL)
             .load_op(vk::AttachmentLoadOp::CLEAR)
             .store_op(vk::AttachmentStoreOp::DONT_CARE)
             .clear_value(vk::ClearValue {
@@ -509,10 +550,11 @@ impl<'r> Recorder<'_, 'r> {
         let (raw_pipeline, layout) = pipeline.raw();
         let device = &self.ctx.device;
         // SAFETY: recording outside a render pass, this begins and ends one;
-        // the targets match the pipeline's formats and size (asserted) and
-        // are in the layouts named above (the caller's barriers); `vertices`
-        // holds at least `count` vertices made visible to vertex input by
-        // the caller (the upload's barrier); all live for the frame (`'r`).
+        // every object is this device's (asserted); the targets match the
+        // pipeline's formats and size (asserted) and are in the layouts
+        // named above (the caller's barriers); `vertices` holds `count`
+        // vertices (asserted), made visible to vertex input by the caller
+        // (the upload's barrier); all live for the frame (`'r`).
         unsafe {
             device.cmd_begin_rendering(self.cmd, &rendering);
             device.cmd_set_viewport(self.cmd, 0, &[viewport]);

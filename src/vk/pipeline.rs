@@ -165,6 +165,13 @@ impl Layout {
     }
 }
 
+impl Layout {
+    /// Whether the pipeline was made on `ctx`.
+    fn made_on(&self, ctx: &Context) -> bool {
+        std::ptr::eq(&*self.ctx, ctx)
+    }
+}
+
 impl Drop for Layout {
     fn drop(&mut self) {
         // SAFETY: no pending submission uses the pipeline (every frame waits
@@ -258,6 +265,10 @@ impl<P: PushConstants> ComputePipeline<P> {
             bindings: types,
             push: PhantomData,
         })
+    }
+
+    pub(super) fn made_on(&self, ctx: &Context) -> bool {
+        self.layout.made_on(ctx)
     }
 
     /// Records bind, descriptors, push constants and dispatch into `cmd`.
@@ -370,6 +381,8 @@ pub struct PointPipeline<P: PushConstants> {
     layout: Layout,
     pub(super) color_formats: Vec<vk::Format>,
     pub(super) depth_format: vk::Format,
+    /// Bytes per vertex.
+    pub(super) stride: u32,
     push: PhantomData<fn(P)>,
 }
 
@@ -470,8 +483,13 @@ impl<P: PushConstants> PointPipeline<P> {
             layout,
             color_formats: desc.color_formats.to_vec(),
             depth_format: desc.depth_format,
+            stride: desc.stride,
             push: PhantomData,
         })
+    }
+
+    pub(super) fn made_on(&self, ctx: &Context) -> bool {
+        self.layout.made_on(ctx)
     }
 
     pub(super) fn raw(&self) -> (vk::Pipeline, vk::PipelineLayout) {

@@ -14,7 +14,7 @@ use crate::error::{Error, Result, VkContext};
 pub struct Buffer {
     ctx: Arc<Context>,
     pub(super) raw: vk::Buffer,
-    pub size: u64,
+    size: u64,
     allocation: Option<Allocation>,
 }
 
@@ -68,6 +68,16 @@ impl Buffer {
         Ok(buffer)
     }
 
+    /// Size in bytes.
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    /// Whether the buffer was made on `ctx`.
+    pub fn made_on(&self, ctx: &Context) -> bool {
+        std::ptr::eq(&*self.ctx, ctx)
+    }
+
     /// Host-visible bytes of the buffer (None for device-only memory).
     pub fn mapped(&self) -> Option<&[u8]> {
         self.allocation
@@ -102,10 +112,10 @@ pub struct Image {
     ctx: Arc<Context>,
     pub(super) raw: vk::Image,
     pub(super) view: vk::ImageView,
-    pub format: vk::Format,
-    pub width: u32,
-    pub height: u32,
-    pub layers: u32,
+    format: vk::Format,
+    width: u32,
+    height: u32,
+    layers: u32,
     allocation: Option<Allocation>,
 }
 
@@ -189,6 +199,28 @@ impl Image {
         ctx.set_name(raw, name);
         ctx.set_name(image.view, name);
         Ok(image)
+    }
+
+    pub fn format(&self) -> vk::Format {
+        self.format
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Array layers (1 for a plain 2D image).
+    pub fn layers(&self) -> u32 {
+        self.layers
+    }
+
+    /// Whether the image was made on `ctx`.
+    pub fn made_on(&self, ctx: &Context) -> bool {
+        std::ptr::eq(&*self.ctx, ctx)
     }
 
     /// The aspect of this image's format.

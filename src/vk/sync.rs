@@ -35,7 +35,9 @@ impl Access {
             vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_READ.as_raw()
                 | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE.as_raw(),
         ),
-        layout: vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL,
+        // The combined layout: DEPTH_ATTACHMENT_OPTIMAL would need the
+        // separateDepthStencilLayouts feature, which the device does not enable.
+        layout: vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
     };
     pub const COMPUTE_READ: Access = Access {
         stage: vk::PipelineStageFlags2::COMPUTE_SHADER,

@@ -66,7 +66,8 @@ pub fn rdb_bin(u: Vec2, n: u32) -> u32 {
 
 /// `count` normalised lens positions stratified over the unit disk: a
 /// Fibonacci lattice on the square ((i + ½)/S, frac(i/φ + ½)), mapped by
-/// [`concentric_disk`]. Deterministic; one sample is the lens centre.
+/// [`concentric_disk`]. Deterministic; `lens_samples(1)` is the lens centre
+/// (for S > 1 no sample need be).
 pub fn lens_samples(count: u32) -> Vec<Vec2> {
     let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
     (0..count)

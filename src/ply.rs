@@ -49,8 +49,7 @@ pub fn load_ply_direct(path: &Path) -> Result<Option<PointCloud>> {
 
 fn load_direct(bytes: &[u8], path: &Path) -> Result<Option<PointCloud>> {
     let (header, payload_at) = read_header(bytes, path)?;
-    let vertex = vertex_element(&header, path)?;
-    let layout = Layout::of(vertex).map_err(|msg| ply_error(path, msg))?;
+    let (vertex, layout) = vertex_element(&header, path)?;
     Ok(read_vertices(
         &bytes[payload_at..],
         &header,
@@ -97,16 +96,17 @@ fn read_header(bytes: &[u8], path: &Path) -> Result<(Header, usize)> {
     Ok((header, reader.get_ref().position() as usize))
 }
 
-fn vertex_element<'h>(header: &'h Header, path: &Path) -> Result<&'h ElementDef> {
+/// The vertex element and its layout, or the header's error.
+fn vertex_element<'h>(header: &'h Header, path: &Path) -> Result<(&'h ElementDef, Layout)> {
     let vertex = header
         .elements
         .get("vertex")
         .ok_or_else(|| ply_error(path, "no 'vertex' element in the header".into()))?;
-    Layout::of(vertex).map_err(|msg| ply_error(path, msg))?;
+    let layout = Layout::of(vertex).map_err(|msg| ply_error(path, msg))?;
     if vertex.count == 0 {
         return Err(ply_error(path, "the cloud is empty (0 vertices)".into()));
     }
-    Ok(vertex)
+    Ok((vertex, layout))
 }
 
 /// The general reader: ply-rs parses the whole payload into a map per
@@ -115,8 +115,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
     let fail = |msg: String| ply_error(path, msg);
     // The header is checked before the payload so that its errors are specific.
     let (header, _) = read_header(bytes, path)?;
-    let vertex = vertex_element(&header, path)?;
-    let layout = Layout::of(vertex).map_err(fail)?;
+    let (vertex, layout) = vertex_element(&header, path)?;
     let parser = Parser::<DefaultElement>::new();
     let ply = guarded(|| parser.read_ply(&mut &bytes[..])).map_err(|e| {
         if e.contains("end of file")
@@ -151,9 +150,9 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         let get = |name: &str| {
             row.get(name)
                 .and_then(Scalar::of)
-                .map_or(0.0, Scalar::value)
+                .map_or(0.0, Scalar::coordinate)
         };
-        let p = Vec3::new(get("x") as f32, get("y") as f32, get("z") as f32);
+        let p = Vec3::new(get("x"), get("y"), get("z"));
         if !p.is_finite() {
             return Err(fail(format!(
                 "vertex {i} has a non-finite coordinate ({p})"
@@ -171,8 +170,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         };
         cloud.colors.push(color);
         if let Some(normals) = cloud.normals.as_mut() {
-            let n = Vec3::new(get("nx") as f32, get("ny") as f32, get("nz") as f32);
-            normals.push(n.try_normalize().unwrap_or(Vec3::ZERO));
+            normals.push(unit_normal(Vec3::new(get("nx"), get("ny"), get("nz"))));
         }
     }
     Ok(cloud)
@@ -275,6 +273,11 @@ impl Scalar {
         }
     }
 
+    /// The value as a coordinate (or normal component) in f32.
+    fn coordinate(self) -> f32 {
+        self.value() as f32
+    }
+
     /// A color channel scaled to [0, 1]: integers by their type's maximum,
     /// floats as they are.
     fn normalised_color(self) -> f32 {
@@ -294,6 +297,11 @@ impl Scalar {
     fn linear_color(self) -> f32 {
         srgb_to_linear(self.normalised_color().clamp(0.0, 1.0))
     }
+}
+
+/// A normal as loaded: normalised, or zero when it has no direction.
+fn unit_normal(n: Vec3) -> Vec3 {
+    n.try_normalize().unwrap_or(Vec3::ZERO)
 }
 
 /// Where one scalar vertex property lies in a binary record, or which token
@@ -452,7 +460,8 @@ fn color_table(ty: &ScalarType) -> Option<&'static [f32]> {
     }
 }
 
-/// One vertex from its scalars: the general reader's conversions.
+/// The color conversion of the direct reader: 8- and 16-bit channels
+/// through the tables, other types through [`Scalar::linear_color`].
 struct Converter {
     tables: [Option<&'static [f32]>; 3],
 }
@@ -467,11 +476,6 @@ impl Converter {
         }
     }
 
-    fn position(&self, xyz: [Scalar; 3]) -> Option<Vec3> {
-        let p = Vec3::from_array(xyz.map(|v| v.value() as f32));
-        p.is_finite().then_some(p)
-    }
-
     /// Linear color of channel `c` (0 red, 1 green, 2 blue) of value `v`.
     fn channel(&self, c: usize, v: Scalar) -> f32 {
         match (self.tables[c], v) {
@@ -480,61 +484,6 @@ impl Converter {
             _ => v.linear_color(),
         }
     }
-
-    fn color(&self, rgb: [Scalar; 3]) -> Vec3 {
-        Vec3::new(
-            self.channel(0, rgb[0]),
-            self.channel(1, rgb[1]),
-            self.channel(2, rgb[2]),
-        )
-    }
-
-    fn normal(&self, n: [Scalar; 3]) -> Vec3 {
-        Vec3::from_array(n.map(|v| v.value() as f32))
-            .try_normalize()
-            .unwrap_or(Vec3::ZERO)
-    }
-}
-
-/// The vertices `range` of a cloud, read by `scalar_of(vertex, field)`.
-fn convert_range<R, G>(
-    range: std::ops::Range<usize>,
-    fields: &Fields,
-    converter: &Converter,
-    scalar_of: &ScalarOf<R, G>,
-) -> Option<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)>
-where
-    R: Fn(usize) -> bool,
-    G: Fn(usize, &Field) -> Option<Scalar>,
-{
-    let n = range.len();
-    let (mut positions, mut colors) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let mut normals = Vec::with_capacity(if fields.normal.is_some() { n } else { 0 });
-    let get = &scalar_of.get;
-    let three = |i: usize, f: &[Field; 3]| -> Option<[Scalar; 3]> {
-        Some([get(i, &f[0])?, get(i, &f[1])?, get(i, &f[2])?])
-    };
-    for i in range {
-        if !(scalar_of.row_ok)(i) {
-            return None;
-        }
-        positions.push(converter.position(three(i, &fields.position)?)?);
-        colors.push(match &fields.color {
-            Some(f) => converter.color(three(i, f)?),
-            None => DEFAULT_COLOR,
-        });
-        if let Some(f) = &fields.normal {
-            normals.push(converter.normal(three(i, f)?));
-        }
-    }
-    Some((positions, colors, normals))
-}
-
-/// How the vertices are read: whether row i is well-formed as a whole, and
-/// a field of row i.
-struct ScalarOf<R, G> {
-    row_ok: R,
-    get: G,
 }
 
 /// A range of converted vertices: positions, colors, normals (empty when
@@ -639,7 +588,7 @@ fn binary_part(
             .map(|((x, y), z)| Vec3::new(x, y, z))
             .collect()
     };
-    let positions = join(columns(&fields.position, &|_, v| v.value() as f32));
+    let positions = join(columns(&fields.position, &|_, v| v.coordinate()));
     if !positions.iter().all(|p| p.is_finite()) {
         return None;
     }
@@ -648,12 +597,62 @@ fn binary_part(
         None => vec![DEFAULT_COLOR; range.len()],
     };
     let normals = match &fields.normal {
-        Some(f) => join(columns(f, &|_, v| v.value() as f32))
+        Some(f) => join(columns(f, &|_, v| v.coordinate()))
             .into_iter()
-            .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
+            .map(unit_normal)
             .collect(),
         None => Vec::new(),
     };
+    Some((positions, colors, normals))
+}
+
+/// The ASCII vertex lines `range`: each line's tokens parsed once, as the
+/// general reader parses them (every token a number of its grammar, each
+/// property's token of its type; the vertex element has no list, see
+/// [`Fields::of`]); None when it would refuse a line.
+fn ascii_part(
+    lines: &[&[u8]],
+    types: &[ScalarType],
+    fields: &Fields,
+    converter: &Converter,
+    range: std::ops::Range<usize>,
+) -> Option<Part> {
+    let n = range.len();
+    let (mut positions, mut colors) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let mut normals = Vec::with_capacity(if fields.normal.is_some() { n } else { 0 });
+    let mut row: Vec<Scalar> = Vec::with_capacity(types.len());
+    for line in &lines[range] {
+        let tokens = ascii_tokens(line);
+        if tokens.len() < types.len() || !tokens[types.len()..].iter().all(|t| is_ply_number(t)) {
+            return None;
+        }
+        row.clear();
+        for (token, ty) in tokens.iter().zip(types) {
+            row.push(ascii_scalar(token, ty)?);
+        }
+        let three = |f: &[Field; 3]| f.each_ref().map(|f| row[f.at]);
+        let p = Vec3::from_array(three(&fields.position).map(Scalar::coordinate));
+        if !p.is_finite() {
+            return None;
+        }
+        positions.push(p);
+        colors.push(match &fields.color {
+            Some(f) => {
+                let [r, g, b] = three(f);
+                Vec3::new(
+                    converter.channel(0, r),
+                    converter.channel(1, g),
+                    converter.channel(2, b),
+                )
+            }
+            None => DEFAULT_COLOR,
+        });
+        if let Some(f) = &fields.normal {
+            normals.push(unit_normal(Vec3::from_array(
+                three(f).map(Scalar::coordinate),
+            )));
+        }
+    }
     Some((positions, colors, normals))
 }
 
@@ -784,14 +783,18 @@ fn read_vertices(
                 }
             }
         }
-        let tokens: Vec<Vec<&[u8]>> = vertex_lines.iter().map(|l| ascii_tokens(l)).collect();
-        let scalar_of = ScalarOf {
-            row_ok: |i: usize| ascii_element_ok(&tokens[i], vertex),
-            get: |i: usize, f: &Field| ascii_scalar(tokens[i].get(f.at)?, &f.ty),
-        };
+        // Every vertex property is a scalar (Fields::of checked).
+        let types: Vec<ScalarType> = vertex
+            .properties
+            .values()
+            .filter_map(|p| match &p.data_type {
+                PropertyType::Scalar(ty) => Some(ty.clone()),
+                PropertyType::List(..) => None,
+            })
+            .collect();
         let converter = Converter::new(&fields);
         convert_all(count, |range| {
-            convert_range(range, &fields, &converter, &scalar_of)
+            ascii_part(&vertex_lines, &types, &fields, &converter, range)
         })?
     };
     Some(PointCloud {

@@ -36,8 +36,6 @@ pub struct BenchMethod {
     /// `pinhole`, `fast`, `fast-uniform`, `rdb9`, `rdb5-pairs`, `accum64`, …
     pub name: String,
     pub method: Method,
-    /// Lens samples (accum only; 1 otherwise).
-    pub samples: u32,
 }
 
 impl BenchMethod {
@@ -51,11 +49,15 @@ impl BenchMethod {
         Ok(BenchMethod {
             name: name.to_string(),
             method,
-            samples: match method {
-                Method::Accum(o) => o.samples,
-                _ => 1,
-            },
         })
+    }
+
+    /// Lens samples: accum's, 1 for every other method.
+    pub fn samples(&self) -> u32 {
+        match self.method {
+            Method::Accum(o) => o.samples,
+            _ => 1,
+        }
     }
 
     /// Parses a comma-separated list.
@@ -435,7 +437,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     height,
                     method: m.name.clone(),
                     ssaa: options.ssaa,
-                    samples: m.samples,
+                    samples: m.samples(),
                     camera: camera.to_spec(),
                     coc_px: coc,
                     runs: options.runs,

@@ -4,8 +4,6 @@
 //! references (`crate::reference`), `render` and `bench` all read these
 //! types, and none of them depends on another for it.
 
-use std::fmt;
-
 use clap::ValueEnum;
 
 use crate::error::{Error, Result};
@@ -178,24 +176,15 @@ impl Method {
     pub const SHORT_SYNTAX: &'static str =
         "pinhole, fast, fast-uniform, fast-fixed, rdbN or rdbN-pairs (N in 2..=16), accumS (S ≥ 1)";
 
-    pub fn kind(&self) -> MethodKind {
-        match self {
-            Method::Pinhole => MethodKind::Pinhole,
-            Method::Fast(_) => MethodKind::Fast,
-            Method::Rdb(_) => MethodKind::Rdb,
-            Method::Accum(_) => MethodKind::Accum,
-        }
-    }
-
     /// Parses a method with its options in one word, as `bench --methods`
     /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`, `rdbN`,
     /// `rdbN-pairs`, `accumS`. N and S are required and go through the same
     /// range checks as `--rdb-bins` and `--samples`. [`Method::short_name`]
     /// is the inverse.
     pub fn parse_short(name: &str) -> Result<Method> {
-        let bad = |why: String| {
+        let bad = || {
             Error::InvalidArgument(format!(
-                "unknown method '{name}'{why} (known: {})",
+                "unknown method '{name}' (known: {})",
                 Self::SHORT_SYNTAX
             ))
         };
@@ -209,22 +198,22 @@ impl Method {
             .find(|c: char| c.is_ascii_digit() || c == '+')
             .unwrap_or(head.len());
         let (word, digits) = head.split_at(digits_at);
-        let kind = MethodKind::parse(word).map_err(|_| bad(String::new()))?;
+        let kind = MethodKind::parse(word).map_err(|_| bad())?;
         // The number after rdb / accum: required, range-checked.
         let number = |check: fn(u32) -> Result<u32>| -> Result<u32> {
-            let n = digits.parse::<u32>().map_err(|_| bad(String::new()))?;
+            let n = digits.parse::<u32>().map_err(|_| bad())?;
             check(n).map_err(|e| Error::InvalidArgument(format!("'{name}' is out of range: {e}")))
         };
         match kind {
             MethodKind::Pinhole => {
                 if !digits.is_empty() || option.is_some() {
-                    return Err(bad(String::new()));
+                    return Err(bad());
                 }
                 Ok(Method::Pinhole)
             }
             MethodKind::Fast => {
                 if !digits.is_empty() {
-                    return Err(bad(String::new()));
+                    return Err(bad());
                 }
                 let mut fast = FastOptions::default();
                 for o in option.into_iter().flat_map(|o| o.split('-')) {
@@ -233,7 +222,7 @@ impl Method {
                     } else if let Ok(w) = GatherWindow::from_str(o, false) {
                         fast.window = w;
                     } else {
-                        return Err(bad(String::new()));
+                        return Err(bad());
                     }
                 }
                 Ok(Method::Fast(fast))
@@ -244,13 +233,13 @@ impl Method {
                     ..RdbOptions::default()
                 };
                 if let Some(o) = option {
-                    rdb.mode = RdbMode::from_str(o, false).map_err(|_| bad(String::new()))?;
+                    rdb.mode = RdbMode::from_str(o, false).map_err(|_| bad())?;
                 }
                 Ok(Method::Rdb(rdb))
             }
             MethodKind::Accum => {
                 if option.is_some() {
-                    return Err(bad(String::new()));
+                    return Err(bad());
                 }
                 let samples = number(check_samples)?;
                 Ok(Method::Accum(AccumOptions { samples }))
@@ -277,12 +266,6 @@ impl Method {
             },
             Method::Accum(o) => format!("accum{}", o.samples),
         }
-    }
-}
-
-impl fmt::Display for MethodKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 

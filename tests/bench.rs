@@ -288,7 +288,7 @@ fn bench_rejects_bad_input_with_one_line_and_writes_nothing() {
 fn method_names_and_statistics() {
     let m = BenchMethod::parse("rdb5-pairs").unwrap();
     assert_eq!(m.method, Method::rdb(5, RdbMode::Pairs));
-    assert_eq!(BenchMethod::parse("accum64").unwrap().samples, 64);
+    assert_eq!(BenchMethod::parse("accum64").unwrap().samples(), 64);
     assert_eq!(
         BenchMethod::parse_list(BenchMethod::DEFAULT)
             .unwrap()

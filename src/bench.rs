@@ -374,13 +374,8 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     let mut cells = Vec::new();
     for model in &options.models {
         let cloud = model.load(&options.data_dir, options.points)?;
-        let started = Instant::now();
         let scene = renderer.upload(&cloud, SplatSize::Spacing)?;
-        let upload = Upload {
-            splat_sizes_ms: scene.splat_sizes_ms,
-            gpu_ms: scene.upload_timings.gpu_total_ms(),
-            wall_ms: started.elapsed().as_secs_f64() * 1e3,
-        };
+        let upload = scene.upload;
         for &(width, height) in &options.resolutions {
             let camera = model.camera(&cloud, width, height)?;
             let coc = CocRange::of(&camera, &cloud.positions);

@@ -24,7 +24,7 @@ use pointlens::options::{
 };
 use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
-use pointlens::report::{FrameReport, Upload};
+use pointlens::report::FrameReport;
 use pointlens::vk::{Context, ContextOptions};
 
 #[derive(Parser)]
@@ -86,7 +86,7 @@ struct BenchArgs {
     #[arg(long, default_value_t = 2)]
     warmup: u32,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
-    #[arg(long, default_value_t = 4, value_parser = checked(check_ssaa))]
+    #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples.
     #[arg(long)]
@@ -504,9 +504,7 @@ fn render(args: RenderArgs) -> Result<()> {
         args.device.clone(),
     ))?;
     let renderer = Renderer::new(&ctx)?;
-    let t_upload = Instant::now();
     let scene = renderer.upload(&cloud, splat)?;
-    let upload_wall_ms = t_upload.elapsed().as_secs_f64() * 1e3;
     if let Some([x, y]) = args.focus_pixel {
         cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, x, y)?;
     }
@@ -536,11 +534,7 @@ fn render(args: RenderArgs) -> Result<()> {
             cloud.len(),
             rendered.guard,
             &rendered.timings,
-            Upload {
-                splat_sizes_ms: scene.splat_sizes_ms,
-                gpu_ms: scene.upload_timings.gpu_total_ms(),
-                wall_ms: upload_wall_ms,
-            },
+            scene.upload,
         )
     };
     if args.timings {

@@ -17,6 +17,7 @@ use crate::image_io::{f16_to_f32, LinearImage};
 use crate::options::{check_ssaa, Method};
 use crate::passes::splat_raster::SplatVertex;
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
+use crate::report::Upload;
 use crate::vk::{Access, Buffer, Context, Frame, FrameTimings, Image};
 
 /// A splat's default world diameter is this multiple of its local point
@@ -67,11 +68,10 @@ pub struct Scene {
     /// The last camera's [`SceneView`] (with the point-size limit it was
     /// clamped to): frames of one camera scan the points once.
     last_view: Mutex<Option<(Camera, f32, SceneView)>>,
-    /// GPU time of the upload copy.
-    pub upload_timings: FrameTimings,
-    /// Wall time of computing the splat sizes on the CPU (the k-nearest
-    /// neighbour spacing for `SplatSize::Spacing`), milliseconds.
-    pub splat_sizes_ms: f64,
+    /// The upload's times: splat sizes on the CPU (the k-nearest neighbour
+    /// spacing for `SplatSize::Spacing`), the copy's GPU time, and the wall
+    /// time of all of it. Not part of any frame.
+    pub upload: Upload,
 }
 
 impl Scene {
@@ -223,8 +223,13 @@ impl Renderer {
             // and later submissions.
             rec.memory_barrier(Access::COPY_WRITE, Access::VERTEX_READ);
         });
-        let upload_timings = frame.submit_and_wait()?;
+        let copy = frame.submit_and_wait()?;
         drop(staging);
+        let upload = Upload {
+            splat_sizes_ms,
+            gpu_ms: copy.gpu_total_ms(),
+            wall_ms: started.elapsed().as_secs_f64() * 1e3,
+        };
         Ok(Scene {
             vertices: vertex_buffer,
             count,
@@ -232,8 +237,7 @@ impl Renderer {
             diameters,
             splat,
             last_view: Mutex::new(None),
-            upload_timings,
-            splat_sizes_ms,
+            upload,
         })
     }
 

@@ -15,10 +15,10 @@ use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage};
 use crate::options::{check_ssaa, Method};
-use crate::passes::splat_raster::SplatVertex;
+use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
 use crate::report::Upload;
-use crate::vk::{Access, Buffer, Context, Frame, FrameTimings, Image};
+use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings, Image};
 
 /// A splat's default world diameter is this multiple of its local point
 /// spacing (mean distance to its 8 nearest neighbours): it closes the bunny's
@@ -378,11 +378,11 @@ struct Readback {
 
 impl Readback {
     fn new(ctx: &Arc<Context>, view: &FrameView, keep_gbuffer: bool) -> Result<Readback> {
-        let host = |name: &str, width: u32, height: u32, texel: u64| {
+        let host = |name: &str, width: u32, height: u32, format: vk::Format| {
             Buffer::new(
                 ctx,
                 name,
-                width as u64 * height as u64 * texel,
+                width as u64 * height as u64 * texel_bytes(format),
                 vk::BufferUsageFlags::TRANSFER_DST,
                 MemoryLocation::GpuToCpu,
             )
@@ -390,11 +390,17 @@ impl Readback {
         let (gw, gh) = (view.full_width(), view.full_height());
         Ok(Readback {
             view: *view,
-            result: host("readback", view.camera.width, view.camera.height, 8)?,
+            // Every method's result is rgba16f, as the G-buffer's color.
+            result: host(
+                "readback",
+                view.camera.width,
+                view.camera.height,
+                COLOR_FORMAT,
+            )?,
             gbuffer: match keep_gbuffer {
                 true => Some((
-                    host("gbuffer color readback", gw, gh, 8)?,
-                    host("gbuffer eye readback", gw, gh, 16)?,
+                    host("gbuffer color readback", gw, gh, COLOR_FORMAT)?,
+                    host("gbuffer eye readback", gw, gh, EYE_FORMAT)?,
                 )),
                 false => None,
             },

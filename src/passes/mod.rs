@@ -93,7 +93,8 @@ pub trait DofMethod {
 /// One frame of a method: its images, ready to record.
 pub trait DofFrame {
     /// Records the method's passes after the G-buffer and returns the image
-    /// holding the result: G-buffer sized, the output inside the guard band,
+    /// holding the result: rgba16f (`splat_raster::COLOR_FORMAT`, what the
+    /// readback decodes), G-buffer sized, the output inside the guard band,
     /// in `GENERAL` layout, last written by compute.
     fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image;
 }

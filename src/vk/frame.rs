@@ -298,11 +298,6 @@ pub struct Recorder<'f, 'r> {
 }
 
 impl<'r> Recorder<'_, 'r> {
-    /// The context the frame records for.
-    pub fn ctx(&self) -> &Context {
-        self.ctx
-    }
-
     /// Panics unless `image` was made on this frame's device: a handle of
     /// another device in this command buffer would be undefined behaviour.
     fn own_image(&self, image: &Image) {
@@ -575,7 +570,7 @@ impl<'r> Recorder<'_, 'r> {
 }
 
 /// Bytes per texel of the color formats pointlens reads back.
-fn texel_bytes(format: vk::Format) -> u64 {
+pub fn texel_bytes(format: vk::Format) -> u64 {
     match format {
         vk::Format::R32G32B32A32_SFLOAT => 16,
         vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_SFLOAT => 8,

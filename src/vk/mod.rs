@@ -13,11 +13,10 @@ mod resources;
 mod sync;
 
 pub use context::{Context, ContextOptions, DeviceInfo, MessageLog, ValidationMessage};
-pub use frame::{Frame, FrameTimings, PassTiming, Recorder};
+pub use frame::{texel_bytes, Frame, FrameTimings, PassTiming, Recorder};
 pub use pipeline::{
     check_push_layout, groups, Bind, Binding, ComputePipeline, PointPipeline, PointPipelineDesc,
     PushConstants, VertexAttribute,
 };
-pub use reflect::{push_constant_block, BlockMember};
 pub use resources::{Buffer, Image};
 pub use sync::Access;

@@ -65,6 +65,7 @@ fn main() -> anyhow::Result<()> {
                 camera,
                 method,
                 ssaa: 4,
+                samples_per_pass: None,
                 background: Vec3::ZERO,
             };
             let image = renderer.render(&scene, &options)?.image;

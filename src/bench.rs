@@ -227,6 +227,8 @@ pub struct BenchOptions {
     pub warmup: u32,
     /// K of the K×K SSAA G-buffer, for every method.
     pub ssaa: u32,
+    /// The most samples per G-buffer raster pass (None: the device's best).
+    pub samples_per_pass: Option<u32>,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
     /// Where the bundled clouds are.
@@ -321,6 +323,10 @@ pub struct Cell {
     pub height: u32,
     pub method: String,
     pub ssaa: u32,
+    /// Samples per G-buffer raster pass (1 in reports written before
+    /// multisampled passes).
+    #[serde(default = "one")]
+    pub samples_per_pass: u32,
     /// Lens samples (accum; 1 otherwise).
     pub samples: u32,
     pub camera: CameraSpec,
@@ -383,6 +389,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 camera,
                 method,
                 ssaa: options.ssaa,
+                samples_per_pass: options.samples_per_pass,
                 background: Vec3::ZERO,
             };
             let what = |method: &str| format!("{} {width}×{height} {method}", model.name());
@@ -407,6 +414,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 let mut timings = Vec::new();
                 let mut encode = Vec::new();
                 let mut last: Option<LinearImage> = None;
+                let mut samples_per_pass = 1;
                 for _ in 0..options.runs {
                     progress(done, total, &what(&m.name));
                     done += 1;
@@ -415,6 +423,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     encode_png(&r.image)?;
                     encode.push(t.elapsed().as_secs_f64() * 1e3);
                     timings.push(r.timings);
+                    samples_per_pass = r.samples_per_pass;
                     last = Some(r.image);
                 }
                 let image = last.expect("runs ≥ 1");
@@ -432,6 +441,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     height,
                     method: m.name.clone(),
                     ssaa: options.ssaa,
+                    samples_per_pass,
                     samples: m.samples(),
                     camera: camera.to_spec(),
                     coc_px: coc,
@@ -606,4 +616,8 @@ fn csv_field(s: &str) -> String {
     } else {
         s.to_string()
     }
+}
+
+fn one() -> u32 {
+    1
 }

@@ -1,7 +1,9 @@
 //! The anti-aliased G-buffer (DESIGN §3): K×K raster samples at the output
-//! size plus a guard band, the sub-pixel jitter in the projection, each
-//! resolved as it is drawn into color (rgba16f, mean in linear light) and
-//! eye position (rgba32f, of the nearest sample; w = coverage fraction).
+//! size plus a guard band, taken in the passes of a [`SamplePlan`] (one
+//! sample per pass with the sub-pixel jitter in the projection, or S
+//! samples per multisampled pass), each pass resolved as it is drawn into
+//! color (rgba16f, mean in linear light) and eye position (rgba32f, of the
+//! nearest sample; w = coverage fraction).
 
 use std::sync::Arc;
 
@@ -10,9 +12,10 @@ use glam::{Vec2, Vec3};
 
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
-use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages};
+use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass};
+use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{
-    Sample, SampleTargets, SplatPush, SplatRaster, COLOR_FORMAT, EYE_FORMAT,
+    SampleTargets, SplatPush, SplatRaster, COLOR_FORMAT, EYE_FORMAT,
 };
 use crate::passes::{DofInput, FrameView};
 use crate::vk::{Buffer, Context, Frame, Image};
@@ -32,9 +35,11 @@ pub struct RasterView {
 }
 
 impl RasterView {
-    /// Push constants for one raster sample: sub-pixel `jitter` (pixels) and
-    /// normalised lens position `lens_u` (zero for a pinhole view).
-    pub fn push(&self, jitter: Vec2, lens_u: Vec2) -> SplatPush {
+    /// Push constants for one raster pass: sub-pixel `jitter` (pixels),
+    /// normalised lens position `lens_u` (zero for a pinhole view) and the
+    /// render targets' size (the G-buffer's, or one pixel more each way
+    /// when the pass's samples are read from the next pixel).
+    pub fn push(&self, jitter: Vec2, lens_u: Vec2, targets: [u32; 2]) -> SplatPush {
         let c = &self.frame.camera;
         let (right, up, forward) = c.basis();
         let g = self.frame.guard as f32;
@@ -44,10 +49,7 @@ impl RasterView {
             up: up.extend(0.0).to_array(),
             forward: forward.extend(0.0).to_array(),
             center: [c.width as f32 / 2.0 + g, c.height as f32 / 2.0 + g],
-            extent: [
-                self.frame.full_width() as f32,
-                self.frame.full_height() as f32,
-            ],
+            extent: [targets[0] as f32, targets[1] as f32],
             jitter: jitter.to_array(),
             lens_u: lens_u.to_array(),
             f_px: c.f_px(),
@@ -95,18 +97,63 @@ pub fn clip_range(range: Option<(f32, f32)>) -> (f32, f32) {
     }
 }
 
-/// The pipelines of the G-buffer: the splat raster and the resolve.
+/// The pipelines of the G-buffer: the splat raster (one per sample count
+/// the device offers) and the resolve.
 pub struct GBufferPasses {
-    raster: SplatRaster,
+    /// By samples per pixel: 1, then the device's multisampled counts.
+    rasters: Vec<(u32, SplatRaster)>,
     resolve: GBufferResolve,
 }
 
+/// The sample counts a plan may use (DESIGN §3 takes S up to 8: the
+/// standard locations beyond are optional in Vulkan).
+const PLANNED_COUNTS: [u32; 4] = [1, 2, 4, 8];
+
 impl GBufferPasses {
     pub fn new(ctx: &Arc<Context>) -> Result<GBufferPasses> {
+        let supported = ctx.info.gbuffer_sample_counts.as_raw();
+        let rasters = PLANNED_COUNTS
+            .into_iter()
+            .filter(|s| supported & s != 0)
+            .map(|s| SplatRaster::new(ctx, s).map(|r| (s, r)))
+            .collect::<Result<Vec<_>>>()?;
         Ok(GBufferPasses {
-            raster: SplatRaster::new(ctx)?,
-            resolve: GBufferResolve::new(ctx)?,
+            resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
+            rasters,
         })
+    }
+
+    /// The plan for K×K samples with at most `max_samples_per_pass`
+    /// samples per pass (None: no limit) whose sample targets for `pixels`
+    /// pixels take at most `budget_bytes`: the fewest passes the device's
+    /// sample counts allow ([`SamplePlan::best`]).
+    pub fn plan(
+        &self,
+        ssaa: u32,
+        max_samples_per_pass: Option<u32>,
+        pixels: u64,
+        budget_bytes: u64,
+    ) -> SamplePlan {
+        let max = max_samples_per_pass.unwrap_or(u32::MAX);
+        let mut counts: Vec<u32> = self
+            .rasters
+            .iter()
+            .map(|(s, _)| *s)
+            .filter(|&s| s <= max)
+            .collect();
+        loop {
+            let plan = SamplePlan::best(ssaa, counts.iter().fold(0, |m, s| m | s));
+            let s = plan.samples_per_pass;
+            if s == 1 || pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes {
+                return plan;
+            }
+            counts.retain(|&c| c < s);
+        }
+    }
+
+    fn raster(&self, samples: u32) -> &SplatRaster {
+        let found = self.rasters.iter().find(|(s, _)| *s == samples);
+        &found.expect("a plan of the device's sample counts").1
     }
 }
 
@@ -118,11 +165,13 @@ pub struct GBuffer {
     color_sum: Image,
     targets: SampleTargets,
     view: RasterView,
+    plan: SamplePlan,
 }
 
 impl GBuffer {
-    /// Allocates the G-buffer for `view`.
-    pub fn new(ctx: &Arc<Context>, view: &RasterView) -> Result<GBuffer> {
+    /// Allocates the G-buffer for `view`, and the sample targets for the
+    /// passes of `plan`.
+    pub fn new(ctx: &Arc<Context>, view: &RasterView, plan: &SamplePlan) -> Result<GBuffer> {
         let frame = &view.frame;
         let (w, h) = (frame.full_width(), frame.full_height());
         let max = ctx.info.max_image_dimension_2d;
@@ -132,20 +181,26 @@ impl GBuffer {
                 frame.camera.width, frame.camera.height, frame.guard
             )));
         }
+        // Passes whose samples are read from the next pixel draw one more.
+        let margin = u32::from(plan.reads_neighbours());
         let storage = vk::ImageUsageFlags::STORAGE;
         let readable = storage | vk::ImageUsageFlags::TRANSFER_SRC;
         Ok(GBuffer {
             color: Image::new_2d(ctx, "gbuffer color", COLOR_FORMAT, w, h, 1, readable)?,
             eye: Image::new_2d(ctx, "gbuffer eye", EYE_FORMAT, w, h, 1, readable)?,
             color_sum: Image::new_2d(ctx, "gbuffer color sum", EYE_FORMAT, w, h, 1, storage)?,
-            targets: SampleTargets::new(ctx, w, h)?,
+            targets: SampleTargets::new(ctx, w + margin, h + margin, plan.samples_per_pass)?,
             view: *view,
+            plan: plan.clone(),
         })
     }
 
-    /// Records one raster per sample, each followed by its resolve, as
+    /// Records the plan's passes through every lens position of `lens`
+    /// (lens outer, passes inner), each raster followed by its resolve, as
     /// passes `{label}.raster` and `{label}.resolve`. The color is the mean
-    /// over all samples; the eye position is the nearest sample's.
+    /// over all samples; the eye position is the nearest sample's, ties to
+    /// the lowest index in the one-sample form (lens position, then
+    /// sample), whatever the plan.
     #[allow(clippy::too_many_arguments)]
     pub fn record<'r>(
         &'r self,
@@ -153,11 +208,10 @@ impl GBuffer {
         passes: &'r GBufferPasses,
         splats: &'r Buffer,
         count: u32,
-        samples: &[Sample],
+        lens: &[Vec2],
         background: Vec3,
         label: &str,
     ) {
-        let n = samples.len() as u32;
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let t = &self.targets;
         let resolve_images = ResolveImages {
@@ -167,9 +221,14 @@ impl GBuffer {
             gbuffer_eye: &self.eye,
             gbuffer_color: &self.color,
         };
-        for (s, sample) in (0..n).zip(samples) {
-            let push = self.view.push(sample.jitter, sample.lens_u);
-            passes.raster.record(
+        let samples = self.plan.samples_per_pass;
+        let raster = passes.raster(samples);
+        let sample_count = lens.len() as u32 * self.plan.passes.len() as u32 * samples;
+        let per_lens = self.plan.passes.len() as u32 * samples;
+        let extent = [t.color.width(), t.color.height()];
+        for (i, (l, sample, planned)) in self.plan.with_lens(lens).enumerate() {
+            let push = self.view.push(sample.jitter, sample.lens_u, extent);
+            raster.record(
                 frame,
                 &raster_name,
                 t,
@@ -177,14 +236,20 @@ impl GBuffer {
                 count,
                 background.to_array(),
                 &push,
-                s == 0,
+                i == 0,
             );
+            let pass = ResolvePass {
+                first_sample: i as u32 * samples,
+                sample_count,
+                read_offsets: planned.read_offsets,
+                index_base: l * per_lens,
+                indices: planned.packed_indices(),
+            };
             passes
                 .resolve
-                .record(frame, &resolve_name, &resolve_images, s, n);
+                .record(frame, &resolve_name, &resolve_images, &pass);
         }
     }
-
     /// The resolved G-buffer, as the depth-of-field methods read it.
     pub fn output(&self) -> DofInput<'_> {
         DofInput {

@@ -19,8 +19,8 @@ use pointlens::image_io::{
 };
 use pointlens::metrics;
 use pointlens::options::{
-    check_rdb_bins, check_samples, check_ssaa, AccumOptions, FastOptions, FastWeights,
-    GatherWindow, MethodKind, RdbMode, RdbOptions,
+    check_rdb_bins, check_samples, check_samples_per_pass, check_ssaa, AccumOptions, FastOptions,
+    FastWeights, GatherWindow, MethodKind, RdbMode, RdbOptions,
 };
 use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
@@ -88,6 +88,11 @@ struct BenchArgs {
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
+    /// The most samples one G-buffer raster pass takes, 1 to 64 (default:
+    /// the device's best: multisampled passes where its sample counts tile
+    /// the K×K grid; 1 = one pass per sample, the reference form).
+    #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
+    samples_per_pass: Option<u32>,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples.
     #[arg(long)]
     quality: bool,
@@ -112,7 +117,7 @@ struct BenchArgs {
     /// Measure nothing: read a report written by --json (on this or another
     /// machine) and print its table, CSV and chart.
     #[arg(long, value_name = "FILE", conflicts_with_all = [
-        "width", "height", "methods", "models", "points", "runs", "warmup",
+        "width", "height", "methods", "models", "points", "runs", "warmup", "samples_per_pass",
         "ssaa", "quality", "data", "device", "validate",
     ])]
     from_json: Option<PathBuf>,
@@ -161,6 +166,11 @@ struct RenderArgs {
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard sprites).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
+    /// The most samples one G-buffer raster pass takes, 1 to 64 (default:
+    /// the device's best: multisampled passes where its sample counts tile
+    /// the K×K grid; 1 = one pass per sample, the reference form).
+    #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
+    samples_per_pass: Option<u32>,
     /// Vertical field of view, degrees.
     #[arg(long, allow_negative_numbers = true)]
     fovy_deg: Option<f32>,
@@ -379,6 +389,7 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
         runs: args.runs,
         warmup: args.warmup,
         ssaa: args.ssaa,
+        samples_per_pass: args.samples_per_pass,
         quality: args.quality,
         data_dir,
     };
@@ -515,6 +526,7 @@ fn render(args: RenderArgs) -> Result<()> {
         camera: cam,
         method,
         ssaa: args.ssaa,
+        samples_per_pass: args.samples_per_pass,
         background,
     };
     let rendered = renderer.render(&scene, &options)?;
@@ -524,6 +536,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let encode_ms = t_encode.elapsed().as_secs_f64() * 1e3;
 
     let report = FrameReport {
+        samples_per_pass: rendered.samples_per_pass,
         load_ms,
         encode_ms,
         ..FrameReport::new(

@@ -281,19 +281,24 @@ pub fn check_ssaa(k: u32) -> Result<u32> {
     in_range("--ssaa", k, 1, 16)
 }
 
+/// S of `--samples-per-pass` (the most samples one G-buffer raster pass
+/// takes; 1 = one pass per sample): 1 to 64.
+pub fn check_samples_per_pass(s: u32) -> Result<u32> {
+    in_range("--samples-per-pass", s, 1, 64)
+}
+
 /// N of `--rdb-bins` (N×N lens bins, DESIGN §5): 2 to 16.
 pub fn check_rdb_bins(n: u32) -> Result<u32> {
     in_range("--rdb-bins", n, 2, 16)
 }
 
-/// S of `--samples` (lens samples of `accum`): at least 1.
+/// The most lens samples of `accum`: with K² ≤ 256 sub-pixel samples each,
+/// every sample's index stays exact in the resolve's f32 (< 2^24).
+pub const MAX_SAMPLES: u32 = 65_536;
+
+/// S of `--samples` (lens samples of `accum`): 1 to [`MAX_SAMPLES`].
 pub fn check_samples(s: u32) -> Result<u32> {
-    if s == 0 {
-        return Err(Error::InvalidArgument(
-            "--samples must be at least 1".to_string(),
-        ));
-    }
-    Ok(s)
+    in_range("--samples", s, 1, MAX_SAMPLES)
 }
 
 fn in_range(flag: &str, v: u32, lo: u32, hi: u32) -> Result<u32> {

@@ -14,7 +14,7 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage};
-use crate::options::{check_ssaa, Method};
+use crate::options::{check_samples_per_pass, check_ssaa, Method};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
 use crate::report::Upload;
@@ -45,6 +45,10 @@ pub struct RenderOptions {
     pub method: Method,
     /// K: the G-buffer takes K×K samples per pixel.
     pub ssaa: u32,
+    /// The most samples per raster pass (1: one pass per sample, the
+    /// reference form); None: the device's best plan for K (DESIGN §3,
+    /// [`SamplePlan::best`]).
+    pub samples_per_pass: Option<u32>,
     /// Linear-light background color.
     pub background: Vec3,
 }
@@ -127,6 +131,8 @@ pub struct Rendered {
     pub timings: FrameTimings,
     /// The guard band the frame was rendered with, pixels.
     pub guard: u32,
+    /// Samples per G-buffer raster pass.
+    pub samples_per_pass: u32,
 }
 
 /// A G-buffer read back to the host (guard band included), for CPU
@@ -291,6 +297,7 @@ impl Renderer {
             camera: *camera,
             method: Method::Pinhole,
             ssaa,
+            samples_per_pass: None,
             background: Vec3::ZERO,
         };
         let (_, gbuffer) = self.render_with_gbuffer(scene, &options)?;
@@ -325,6 +332,9 @@ impl Renderer {
         keep_gbuffer: bool,
     ) -> Result<(Rendered, Option<HostGBuffer>)> {
         check_ssaa(options.ssaa)?;
+        if let Some(s) = options.samples_per_pass {
+            check_samples_per_pass(s)?;
+        }
         if !scene.vertices.made_on(&self.ctx) {
             return Err(Error::InvalidArgument(
                 "the scene was uploaded by a renderer on another device".into(),
@@ -335,10 +345,17 @@ impl Renderer {
         let view = self.raster_view(scene, &options.camera, method.as_ref());
         let view_ms = started.elapsed().as_secs_f64() * 1e3;
 
-        let gbuffer = GBuffer::new(&self.ctx, &view)?;
+        let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
+        let plan = self.gbuffer.plan(
+            options.ssaa,
+            options.samples_per_pass,
+            pixels,
+            self.ctx.info.device_local_heap_bytes / 4,
+        );
+        let gbuffer = GBuffer::new(&self.ctx, &view, &plan)?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
         let readback = Readback::new(&self.ctx, &view.frame, keep_gbuffer)?;
-        let samples = method.gbuffer_samples(options.ssaa);
+        let lens = method.gbuffer_lens();
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         gbuffer.record(
@@ -346,7 +363,7 @@ impl Renderer {
             &self.gbuffer,
             &scene.vertices,
             scene.count,
-            &samples,
+            &lens,
             options.background,
             method.gbuffer_label(),
         );
@@ -362,6 +379,7 @@ impl Renderer {
             image,
             timings,
             guard: view.frame.guard,
+            samples_per_pass: plan.samples_per_pass,
         };
         Ok((rendered, host_gbuffer))
     }

@@ -35,6 +35,10 @@ impl DeviceReport {
     }
 }
 
+fn one() -> u32 {
+    1
+}
+
 /// The upload of a cloud (once per scene, not part of any frame).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Upload {
@@ -58,6 +62,10 @@ pub struct FrameReport {
     pub width: u32,
     pub height: u32,
     pub ssaa: u32,
+    /// Samples per G-buffer raster pass (DESIGN §3; 1 in reports written
+    /// before multisampled passes).
+    #[serde(default = "one")]
+    pub samples_per_pass: u32,
     pub points: usize,
     pub guard_px: u32,
     /// Per pass name, in recording order: GPU time summed over its scopes.
@@ -90,6 +98,7 @@ impl FrameReport {
             width,
             height,
             ssaa,
+            samples_per_pass: 1,
             points,
             guard_px,
             passes: frame.passes.clone(),
@@ -106,7 +115,7 @@ impl FrameReport {
     pub fn text(&self) -> String {
         let d = &self.device;
         let mut s = format!(
-            "device: {} ({} {})\nframe: {}x{} method {} ssaa {} points {} guard {} px\n",
+            "device: {} ({} {})\nframe: {}x{} method {} ssaa {} ({} per raster pass) points {} guard {} px\n",
             d.name,
             d.driver,
             d.driver_info,
@@ -114,6 +123,7 @@ impl FrameReport {
             self.height,
             self.method,
             self.ssaa,
+            self.samples_per_pass,
             self.points,
             self.guard_px
         );

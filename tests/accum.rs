@@ -25,6 +25,7 @@ fn accum(
         camera: cam,
         method: Method::accum(samples),
         ssaa,
+        samples_per_pass: None,
         background: Vec3::ZERO,
     };
     renderer.render(&scene, &options).unwrap().image

@@ -388,6 +388,7 @@ fn bench_fails_on_any_validation_message() {
         runs: 1,
         warmup: 0,
         ssaa: 1,
+        samples_per_pass: None,
         quality: false,
         data_dir: common::root().join("data"),
     };

@@ -50,6 +50,7 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
                     camera: cam,
                     method,
                     ssaa: 2,
+                    samples_per_pass: None,
                     background: Vec3::ZERO,
                 };
                 let img = renderer.render(&scene, &options).unwrap().image;

@@ -18,6 +18,7 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         camera: cam,
         method,
         ssaa: 2,
+        samples_per_pass: None,
         background: Vec3::ZERO,
     }
 }

@@ -24,6 +24,7 @@ fn render(
         camera: cam,
         method: Method::Pinhole,
         ssaa,
+        samples_per_pass: None,
         background: Vec3::ZERO,
     };
     renderer.render(&scene, &options).expect("render").image
@@ -279,11 +280,13 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
                 SplatSize::Pixels(3.0),
             )
             .unwrap();
-        // 12×12 samples: 289 timed scopes, more than one query pool holds.
+        // 12×12 samples one per pass: 289 timed scopes, more than one query
+        // pool holds.
         let options = RenderOptions {
             camera: camera(16, 16),
             method: Method::Pinhole,
             ssaa: 12,
+            samples_per_pass: Some(1),
             background: Vec3::ZERO,
         };
         let timings = renderer.render(&scene, &options).unwrap().timings;
@@ -327,6 +330,7 @@ fn a_scene_remembers_only_its_last_camera() {
                 camera: cam,
                 method: Method::rdb(5, pointlens::options::RdbMode::Centre),
                 ssaa: 1,
+                samples_per_pass: None,
                 background: Vec3::ZERO,
             };
             renderer.render(scene, &options).unwrap()
@@ -366,6 +370,7 @@ fn a_scene_from_another_device_is_an_error_not_a_crash() {
             camera: camera(16, 16),
             method: Method::Pinhole,
             ssaa: 1,
+            samples_per_pass: None,
             background: Vec3::ZERO,
         };
         let err = ours.render(&scene, &options).err().expect("an error");

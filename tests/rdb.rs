@@ -21,6 +21,7 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         camera: cam,
         method,
         ssaa: 2,
+        samples_per_pass: None,
         background: Vec3::ZERO,
     }
 }
@@ -368,6 +369,7 @@ fn without_occlusion_rdb_9x9_is_within_35_db_of_accum() {
         // lens samples move them a little, does not (33.4 dB).
         let options = |method| RenderOptions {
             ssaa: 4,
+            samples_per_pass: None,
             ..options(cam, method)
         };
         let reference = renderer

@@ -5,7 +5,8 @@
 
 use std::sync::Arc;
 
-use super::splat_raster::{pinhole_samples, Sample};
+use glam::Vec2;
+
 use super::{DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::{lens_samples, Camera};
 use crate::error::Result;
@@ -20,19 +21,10 @@ impl DofMethod for Accum {
         "accum"
     }
 
-    /// Every lens sample (a Fibonacci lattice through the concentric map)
-    /// with every K×K jitter: S·K² rasters.
-    fn gbuffer_samples(&self, ssaa: u32) -> Vec<Sample> {
-        let jitters = pinhole_samples(ssaa);
+    /// Every lens sample (a Fibonacci lattice through the concentric map),
+    /// each with every K×K sub-pixel sample: S·K² raster samples.
+    fn gbuffer_lens(&self) -> Vec<Vec2> {
         lens_samples(self.0.samples)
-            .into_iter()
-            .flat_map(|u| {
-                jitters.iter().map(move |j| Sample {
-                    jitter: j.jitter,
-                    lens_u: u,
-                })
-            })
-            .collect()
     }
 
     /// The points' CoCs only: the uniform background does not move with

@@ -1,6 +1,8 @@
-//! The G-buffer resolve pass (`glsl/gbuffer_resolve.comp`): folds one raster
-//! sample into the running color sum and nearest eye position, and after the
-//! last sample writes the G-buffer (mean color, coverage fraction).
+//! The G-buffer resolve pass: folds one raster pass's samples into the
+//! running color sum and nearest eye position, and after the last pass
+//! writes the G-buffer (mean color, coverage fraction). One sample per pass:
+//! `glsl/gbuffer_resolve.comp`; multisampled passes:
+//! `glsl/gbuffer_resolve_ms.comp`; both fold through `gbuffer_fold.glsl`.
 
 use std::sync::Arc;
 
@@ -16,10 +18,41 @@ push_constants! {
     }
 }
 
+push_constants! {
+    struct MsPush {
+        extent: [i32; 2],
+        sample_base: u32,
+        sample_count: u32,
+        samples: u32,
+        read_offsets: u32,
+        index_base: u32,
+        indices: [u32; 2],
+    }
+}
+
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve.comp.spv"));
+static MS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_ms.comp.spv"));
 
 pub struct GBufferResolve {
     pipeline: ComputePipeline<Push>,
+    /// For multisampled passes, on devices that have them.
+    multisampled: Option<ComputePipeline<MsPush>>,
+}
+
+/// Which samples of the G-buffer one resolve folds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResolvePass {
+    /// Samples folded by the passes before this one.
+    pub first_sample: u32,
+    /// Samples of the whole G-buffer.
+    pub sample_count: u32,
+    /// Read offsets of this pass's samples ([`super::sample_plan::PlannedPass`]).
+    pub read_offsets: u32,
+    /// Index of the lens position's first sample in the one-sample form.
+    pub index_base: u32,
+    /// Packed indices of this pass's samples within the lens position
+    /// ([`super::sample_plan::PlannedPass::packed_indices`]).
+    pub indices: [u32; 2],
 }
 
 /// The images the pass reads and writes, all in `GENERAL` layout.
@@ -32,30 +65,47 @@ pub struct ResolveImages<'a> {
 }
 
 impl GBufferResolve {
-    pub fn new(ctx: &Arc<Context>) -> Result<GBufferResolve> {
+    /// The pipelines; the multisampled one when `multisampled` (the device
+    /// reads multisampled storage images).
+    pub fn new(ctx: &Arc<Context>, multisampled: bool) -> Result<GBufferResolve> {
+        let bindings = [Binding::StorageImage; 5];
         Ok(GBufferResolve {
-            pipeline: ComputePipeline::new(
-                ctx,
-                "gbuffer_resolve",
-                SPIRV,
-                &[Binding::StorageImage; 5],
-            )?,
+            pipeline: ComputePipeline::new(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
+            multisampled: match multisampled {
+                true => Some(ComputePipeline::new(
+                    ctx,
+                    "gbuffer_resolve_ms",
+                    MS_SPIRV,
+                    &bindings,
+                )?),
+                false => None,
+            },
         })
     }
 
-    /// Records, as pass `name`, the fold of sample `index` of `count` into
-    /// the G-buffer, with the barriers on the running images (the sample
-    /// targets' barrier is the raster's).
+    /// Records, as pass `name`, the fold of the samples of one raster pass
+    /// (as many as the sample targets have per pixel) into the G-buffer,
+    /// with the barriers on the running images (the sample targets' barrier
+    /// is the raster's).
     pub fn record<'r>(
         &'r self,
         frame: &mut Frame<'r>,
         name: &str,
         images: &ResolveImages<'r>,
-        index: u32,
-        count: u32,
+        pass: &ResolvePass,
     ) {
+        let samples = images.sample_color.samples();
+        assert_eq!(
+            samples,
+            images.sample_eye.samples(),
+            "sample targets differ"
+        );
+        assert!(
+            pass.first_sample + samples <= pass.sample_count,
+            "more samples than the G-buffer's"
+        );
         frame.pass(name, |rec| {
-            let src = if index == 0 {
+            let src = if pass.first_sample == 0 {
                 Access::NONE
             } else {
                 Access::COMPUTE_READ_WRITE
@@ -64,27 +114,49 @@ impl GBufferResolve {
                 (images.color_sum, src, Access::COMPUTE_READ_WRITE),
                 (images.gbuffer_eye, src, Access::COMPUTE_READ_WRITE),
             ];
-            if index == 0 {
+            if pass.first_sample == 0 {
                 list.push((images.gbuffer_color, Access::NONE, Access::COMPUTE_WRITE));
             }
             rec.barriers(&list);
             let (w, h) = (images.gbuffer_color.width(), images.gbuffer_color.height());
-            rec.dispatch(
-                &self.pipeline,
-                &[
-                    Bind::StorageImage(images.sample_color),
-                    Bind::StorageImage(images.sample_eye),
-                    Bind::StorageImage(images.color_sum),
-                    Bind::StorageImage(images.gbuffer_eye),
-                    Bind::StorageImage(images.gbuffer_color),
-                ],
-                &Push {
-                    extent: [w as i32, h as i32],
-                    sample_index: index,
-                    sample_count: count,
-                },
-                [groups(w, 8), groups(h, 8), 1],
-            );
+            let binds = [
+                Bind::StorageImage(images.sample_color),
+                Bind::StorageImage(images.sample_eye),
+                Bind::StorageImage(images.color_sum),
+                Bind::StorageImage(images.gbuffer_eye),
+                Bind::StorageImage(images.gbuffer_color),
+            ];
+            let extent = [w as i32, h as i32];
+            let size = [groups(w, 8), groups(h, 8), 1];
+            if samples == 1 {
+                assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
+                assert_eq!(
+                    pass.index_base + pass.indices[0],
+                    pass.first_sample,
+                    "one-sample passes fold in index order"
+                );
+                let push = Push {
+                    extent,
+                    sample_index: pass.first_sample,
+                    sample_count: pass.sample_count,
+                };
+                rec.dispatch(&self.pipeline, &binds, &push, size);
+            } else {
+                let pipeline = self
+                    .multisampled
+                    .as_ref()
+                    .expect("multisampled targets on a device that resolves them");
+                let push = MsPush {
+                    extent,
+                    sample_base: pass.first_sample,
+                    sample_count: pass.sample_count,
+                    samples,
+                    read_offsets: pass.read_offsets,
+                    index_base: pass.index_base,
+                    indices: pass.indices,
+                };
+                rec.dispatch(pipeline, &binds, &push, size);
+            }
         });
     }
 }
@@ -97,5 +169,6 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<Push>("gbuffer_resolve", SPIRV).unwrap();
+        check_push_layout::<MsPush>("gbuffer_resolve_ms", MS_SPIRV).unwrap();
     }
 }

@@ -10,6 +10,8 @@
 
 use std::sync::Arc;
 
+use glam::Vec2;
+
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::options::Method;
@@ -20,9 +22,8 @@ pub mod fast;
 pub mod gbuffer_resolve;
 pub mod pinhole;
 pub mod rdb;
+pub mod sample_plan;
 pub mod splat_raster;
-
-use splat_raster::{pinhole_samples, Sample};
 
 /// What every pass of one frame may know about its view.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,10 +68,10 @@ pub trait DofMethod {
         "gbuffer"
     }
 
-    /// The raster samples (sub-pixel jitter, lens position) the G-buffer is
-    /// made of: the K×K SSAA grid through the lens centre by default.
-    fn gbuffer_samples(&self, ssaa: u32) -> Vec<Sample> {
-        pinhole_samples(ssaa)
+    /// The normalised lens positions the G-buffer is rasterised through,
+    /// each with all K×K sub-pixel samples: the lens centre by default.
+    fn gbuffer_lens(&self) -> Vec<Vec2> {
+        vec![Vec2::ZERO]
     }
 
     /// The largest CoC (pixels) the guard band must hold, given the eye

@@ -68,17 +68,7 @@ pub fn ssaa_jitter(index: u32, k: u32) -> Vec2 {
     )
 }
 
-/// The K×K SSAA samples of a pinhole G-buffer.
-pub fn pinhole_samples(ssaa: u32) -> Vec<Sample> {
-    (0..ssaa * ssaa)
-        .map(|s| Sample {
-            jitter: ssaa_jitter(s, ssaa),
-            lens_u: Vec2::ZERO,
-        })
-        .collect()
-}
-
-/// The render targets of one raster sample.
+/// The render targets of one raster pass.
 pub struct SampleTargets {
     pub color: Image,
     pub eye: Image,
@@ -86,27 +76,34 @@ pub struct SampleTargets {
 }
 
 impl SampleTargets {
-    /// Color (rgba16f), eye position (rgba32f) and depth (D32) targets,
-    /// the color and eye targets also readable as storage images.
-    pub fn new(ctx: &Arc<Context>, width: u32, height: u32) -> Result<SampleTargets> {
+    /// Color (rgba16f), eye position (rgba32f) and depth (D32) targets of
+    /// `samples` samples per pixel, the color and eye targets also readable
+    /// as storage images.
+    pub fn new(ctx: &Arc<Context>, width: u32, height: u32, samples: u32) -> Result<SampleTargets> {
         let attach = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
+        let image = |name: &str, format: vk::Format, usage: vk::ImageUsageFlags| {
+            Image::new_multisampled(ctx, name, format, width, height, samples, usage)
+        };
         Ok(SampleTargets {
-            color: Image::new_2d(ctx, "sample color", COLOR_FORMAT, width, height, 1, attach)?,
-            eye: Image::new_2d(ctx, "sample eye", EYE_FORMAT, width, height, 1, attach)?,
-            depth: Image::new_2d(
-                ctx,
+            color: image("sample color", COLOR_FORMAT, attach)?,
+            eye: image("sample eye", EYE_FORMAT, attach)?,
+            depth: image(
                 "sample depth",
                 DEPTH_FORMAT,
-                width,
-                height,
-                1,
                 vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
             )?,
         })
     }
+
+    /// Bytes of device memory per pixel of `samples` samples.
+    pub fn bytes_per_pixel(samples: u32) -> u64 {
+        use crate::vk::texel_bytes;
+        samples as u64
+            * (texel_bytes(COLOR_FORMAT) + texel_bytes(EYE_FORMAT) + texel_bytes(DEPTH_FORMAT))
+    }
 }
 
-/// The graphics pipeline of the pass.
+/// The graphics pipeline of the pass, for targets of one sample count.
 pub struct SplatRaster {
     pipeline: PointPipeline<SplatPush>,
 }
@@ -115,7 +112,8 @@ static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.vert
 static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.frag.spv"));
 
 impl SplatRaster {
-    pub fn new(ctx: &Arc<Context>) -> Result<SplatRaster> {
+    /// The pipeline for targets of `samples` samples per pixel.
+    pub fn new(ctx: &Arc<Context>, samples: u32) -> Result<SplatRaster> {
         let pipeline = PointPipeline::new(
             ctx,
             &PointPipelineDesc {
@@ -135,13 +133,14 @@ impl SplatRaster {
                 ],
                 color_formats: &[COLOR_FORMAT, EYE_FORMAT],
                 depth_format: DEPTH_FORMAT,
+                samples,
             },
         )?;
         Ok(SplatRaster { pipeline })
     }
 
-    /// Records one raster sample as pass `name`: the targets' barriers
-    /// (`first`: nothing before; otherwise the previous sample's resolve
+    /// Records one raster pass as pass `name`: the targets' barriers
+    /// (`first`: nothing before; otherwise the previous pass's resolve
     /// read them), a clear (color to `background` with alpha 0, eye to 0,
     /// depth to 1), the draw of `count` splats, and the barrier that hands
     /// color and eye to the resolve's compute reads.

@@ -83,6 +83,11 @@ pub struct DeviceInfo {
     /// The largest single allocation the driver promises, bytes.
     pub max_memory_allocation_bytes: u64,
     pub max_image_array_layers: u32,
+    /// Sample counts a multisampled G-buffer can use: color (rgba16f,
+    /// rgba32f) and depth (D32) attachments that compute reads as storage
+    /// images, at the standard sample locations. Only `TYPE_1` where the
+    /// device lacks `shaderStorageImageMultisample` or standard locations.
+    pub gbuffer_sample_counts: vk::SampleCountFlags,
 }
 
 impl DeviceInfo {
@@ -260,7 +265,10 @@ impl Context {
             .queue_family_index(queue_family)
             .queue_priorities(&queue_priorities)];
         let device_exts = [ash::khr::push_descriptor::NAME.as_ptr()];
-        let features = vk::PhysicalDeviceFeatures::default().large_points(true);
+        let multisampled_storage = info.gbuffer_sample_counts != vk::SampleCountFlags::TYPE_1;
+        let features = vk::PhysicalDeviceFeatures::default()
+            .large_points(true)
+            .shader_storage_image_multisample(multisampled_storage);
         let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true)
@@ -497,6 +505,48 @@ fn type_rank(t: vk::PhysicalDeviceType) -> u32 {
     }
 }
 
+/// The sample counts of [`DeviceInfo::gbuffer_sample_counts`].
+fn gbuffer_sample_counts(
+    instance: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    props: &vk::PhysicalDeviceProperties,
+) -> vk::SampleCountFlags {
+    // SAFETY: `pd` comes from this instance; a plain query.
+    let features = unsafe { instance.get_physical_device_features(pd) };
+    if features.shader_storage_image_multisample == vk::FALSE
+        || props.limits.standard_sample_locations == vk::FALSE
+    {
+        return vk::SampleCountFlags::TYPE_1;
+    }
+    let limits = &props.limits;
+    let mut counts = limits.framebuffer_color_sample_counts
+        & limits.framebuffer_depth_sample_counts
+        & limits.storage_image_sample_counts;
+    let color = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
+    for (format, usage) in [
+        (vk::Format::R16G16B16A16_SFLOAT, color),
+        (vk::Format::R32G32B32A32_SFLOAT, color),
+        (
+            vk::Format::D32_SFLOAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+        ),
+    ] {
+        // SAFETY: as above.
+        let supported = unsafe {
+            instance.get_physical_device_image_format_properties(
+                pd,
+                format,
+                vk::ImageType::TYPE_2D,
+                vk::ImageTiling::OPTIMAL,
+                usage,
+                vk::ImageCreateFlags::empty(),
+            )
+        };
+        counts &= supported.map_or(vk::SampleCountFlags::TYPE_1, |p| p.sample_counts);
+    }
+    counts | vk::SampleCountFlags::TYPE_1
+}
+
 fn pick_device(
     instance: &ash::Instance,
     wanted: Option<&str>,
@@ -554,6 +604,7 @@ fn pick_device(
             .map(|h| h.size)
             .max()
             .unwrap_or(0);
+        let gbuffer_sample_counts = gbuffer_sample_counts(instance, pd, &props);
         let info = DeviceInfo {
             name,
             driver_name,
@@ -568,6 +619,7 @@ fn pick_device(
             device_local_heap_bytes,
             max_memory_allocation_bytes: maintenance3.max_memory_allocation_size,
             max_image_array_layers: props.limits.max_image_array_layers,
+            gbuffer_sample_counts,
         };
         candidates.push((pd, family as u32, info));
     }

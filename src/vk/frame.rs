@@ -420,6 +420,7 @@ impl<'r> Recorder<'_, 'r> {
     ) {
         self.own_image(image);
         self.own_buffer(buffer);
+        assert_eq!(image.samples(), 1, "copy from a multisampled image");
         let inside = |o: u32, e: u32, size: u32| o as u64 + e as u64 <= size as u64;
         assert!(
             inside(offset[0], extent[0], image.width())
@@ -489,6 +490,14 @@ impl<'r> Recorder<'_, 'r> {
             "color targets do not match the pipeline"
         );
         assert_eq!(depth.format(), pipeline.depth_format, "depth target format");
+        assert!(
+            colors
+                .iter()
+                .map(|c| c.0)
+                .chain([depth])
+                .all(|t| t.samples() == pipeline.samples),
+            "targets' sample counts do not match the pipeline's"
+        );
         let (w, h) = (depth.width(), depth.height());
         assert!(
             colors.iter().all(|c| (c.0.width(), c.0.height()) == (w, h)),
@@ -577,7 +586,8 @@ pub fn texel_bytes(format: vk::Format) -> u64 {
         vk::Format::R8G8B8A8_UNORM
         | vk::Format::R8G8B8A8_SRGB
         | vk::Format::R32_SFLOAT
-        | vk::Format::R32_UINT => 4,
+        | vk::Format::R32_UINT
+        | vk::Format::D32_SFLOAT => 4,
         other => panic!("no texel size known for {other:?}"),
     }
 }

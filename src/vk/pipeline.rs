@@ -371,6 +371,8 @@ pub struct PointPipelineDesc<'a> {
     pub attributes: &'a [VertexAttribute],
     pub color_formats: &'a [vk::Format],
     pub depth_format: vk::Format,
+    /// Rasterization samples per pixel: the targets' sample count.
+    pub samples: u32,
 }
 
 /// A graphics pipeline that draws a vertex buffer as hardware point sprites
@@ -381,6 +383,7 @@ pub struct PointPipeline<P: PushConstants> {
     layout: Layout,
     pub(super) color_formats: Vec<vk::Format>,
     pub(super) depth_format: vk::Format,
+    pub(super) samples: u32,
     /// Bytes per vertex.
     pub(super) stride: u32,
     push: PhantomData<fn(P)>,
@@ -388,6 +391,11 @@ pub struct PointPipeline<P: PushConstants> {
 
 impl<P: PushConstants> PointPipeline<P> {
     pub fn new(ctx: &Arc<Context>, desc: &PointPipelineDesc<'_>) -> Result<PointPipeline<P>> {
+        assert!(
+            desc.samples.is_power_of_two() && desc.samples <= 64,
+            "{} samples per pixel",
+            desc.samples
+        );
         check_push_layout::<P>(desc.name, desc.vertex_spirv)?;
         let mut layout = Layout::new(
             ctx,
@@ -437,7 +445,7 @@ impl<P: PushConstants> PointPipeline<P> {
             .cull_mode(vk::CullModeFlags::NONE)
             .line_width(1.0);
         let multisample = vk::PipelineMultisampleStateCreateInfo::default()
-            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+            .rasterization_samples(vk::SampleCountFlags::from_raw(desc.samples));
         let depth = vk::PipelineDepthStencilStateCreateInfo::default()
             .depth_test_enable(true)
             .depth_write_enable(true)
@@ -483,6 +491,7 @@ impl<P: PushConstants> PointPipeline<P> {
             layout,
             color_formats: desc.color_formats.to_vec(),
             depth_format: desc.depth_format,
+            samples: desc.samples,
             stride: desc.stride,
             push: PhantomData,
         })

@@ -116,10 +116,26 @@ pub struct Image {
     width: u32,
     height: u32,
     layers: u32,
+    /// Samples per pixel (1 unless made by [`Image::new_multisampled`]).
+    samples: u32,
     allocation: Option<Allocation>,
 }
 
 impl Image {
+    /// Creates a device-local multisampled 2D image with `samples` samples
+    /// per pixel (a count the device supports for the format and usage).
+    pub fn new_multisampled(
+        ctx: &Arc<Context>,
+        name: &str,
+        format: vk::Format,
+        width: u32,
+        height: u32,
+        samples: u32,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Image> {
+        Image::create(ctx, name, format, [width, height, 1], samples, usage)
+    }
+
     /// Creates a device-local 2D image (`layers > 1` for an array image) and
     /// a view of it (`TYPE_2D_ARRAY` when layered).
     pub fn new_2d(
@@ -131,6 +147,22 @@ impl Image {
         layers: u32,
         usage: vk::ImageUsageFlags,
     ) -> Result<Image> {
+        Image::create(ctx, name, format, [width, height, layers], 1, usage)
+    }
+
+    fn create(
+        ctx: &Arc<Context>,
+        name: &str,
+        format: vk::Format,
+        [width, height, layers]: [u32; 3],
+        samples: u32,
+        usage: vk::ImageUsageFlags,
+    ) -> Result<Image> {
+        let sample_flags = vk::SampleCountFlags::from_raw(samples);
+        assert!(
+            samples.is_power_of_two() && samples <= 64,
+            "{samples} samples per pixel"
+        );
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(format)
@@ -141,7 +173,7 @@ impl Image {
             })
             .mip_levels(1)
             .array_layers(layers)
-            .samples(vk::SampleCountFlags::TYPE_1)
+            .samples(sample_flags)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
@@ -175,6 +207,7 @@ impl Image {
             width,
             height,
             layers,
+            samples,
             allocation: Some(allocation),
         };
         let a = image.allocation.as_ref().expect("just set");
@@ -216,6 +249,11 @@ impl Image {
     /// Array layers (1 for a plain 2D image).
     pub fn layers(&self) -> u32 {
         self.layers
+    }
+
+    /// Samples per pixel.
+    pub fn samples(&self) -> u32 {
+        self.samples
     }
 
     /// Whether the image was made on `ctx`.

@@ -1,0 +1,56 @@
+#version 460
+// Resolves one multisampled raster pass into the G-buffer (DESIGN §3):
+// folds its S samples, in sample order, into the running color sum and
+// nearest eye position (gbuffer_fold.glsl). Sample s of output pixel p is
+// read at p + its read offset (src/passes/sample_plan.rs: the pass's jitter
+// can move a sample's position into the next pixel). After the last pass,
+// writes the mean color and the coverage fraction.
+#include "gbuffer_fold.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2DMS sample_color;
+layout(binding = 1, rgba32f) uniform readonly image2DMS sample_eye;
+layout(binding = 2, rgba32f) uniform image2D color_sum;
+layout(binding = 3, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
+layout(binding = 4, rgba16f) uniform writeonly image2D gbuffer_color;
+
+layout(push_constant, std430) uniform Push {
+    ivec2 extent;        // of the G-buffer
+    uint sample_base;    // samples folded before this pass
+    uint sample_count;   // samples of the whole G-buffer
+    uint samples;        // S, samples of this pass
+    uint read_offsets;   // bit 2s: sample s one pixel right; bit 2s + 1: one down
+    uint index_base;     // index of this lens position's first sample
+    uint indices[2];     // byte s: index of sample s in the one-sample form
+} pc;
+
+void main() {
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(p, pc.extent))) {
+        return;
+    }
+    Fold f;
+    if (pc.sample_base != 0u) {
+        f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
+    }
+    for (uint s = 0u; s < pc.samples; s++) {
+        ivec2 q = p + (ivec2(pc.read_offsets >> (2u * s), pc.read_offsets >> (2u * s + 1u)) & 1);
+        vec4 c = imageLoad(sample_color, q, int(s));
+        vec4 e = imageLoad(sample_eye, q, int(s));
+        float index = float(pc.index_base + ((pc.indices[s / 4u] >> (8u * (s % 4u))) & 0xFFu));
+        if (pc.sample_base == 0u && s == 0u) {
+            f = fold_first(c, e, index);
+        } else {
+            fold_next(f, c, e, index);
+        }
+    }
+    if (pc.sample_base + pc.samples == pc.sample_count) {
+        float n = float(pc.sample_count);
+        imageStore(gbuffer_color, p, f.sum / n);
+        imageStore(gbuffer_eye, p, fold_eye(f, n));
+    } else {
+        imageStore(color_sum, p, f.sum);
+        imageStore(gbuffer_eye, p, f.best);
+    }
+}

@@ -1,0 +1,310 @@
+//! Which raster passes take the K×K sub-pixel samples of the G-buffer
+//! (DESIGN §3): one sample per pass with the jitter in the projection, or
+//! S samples per multisampled pass at the device's standard sample
+//! locations, each pass offset so that the passes together take exactly the
+//! K×K grid of pixel-cell centres.
+//!
+//! A multisampled pass offset by `jitter` (added to every splat's pixel
+//! position) samples the scene at `q + location_s − jitter` for the pixel
+//! with corner `q`. That point lies in pixel `q + floor(location_s −
+//! jitter)`; the resolve reads it there, at a read offset of 0 or +1 pixel
+//! per axis, so each output pixel gets its own K² grid points: the same
+//! sample set as the one-sample passes, in a different order.
+
+use glam::Vec2;
+
+use super::splat_raster::{ssaa_jitter, Sample};
+
+/// The standard sample locations of Vulkan (`standardSampleLocations`) for
+/// 1, 2, 4 and 8 samples, in 1/16 pixel from the pixel's top-left corner.
+fn standard_locations(samples: u32) -> Option<&'static [[i32; 2]]> {
+    Some(match samples {
+        1 => &[[8, 8]],
+        2 => &[[12, 12], [4, 4]],
+        4 => &[[6, 2], [14, 6], [2, 10], [10, 14]],
+        8 => &[
+            [9, 5],
+            [7, 11],
+            [13, 9],
+            [5, 3],
+            [3, 13],
+            [1, 7],
+            [11, 15],
+            [15, 1],
+        ],
+        _ => return None,
+    })
+}
+
+/// One raster pass of a [`SamplePlan`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannedPass {
+    /// Sub-pixel offset added to every splat's position, pixels.
+    pub jitter: Vec2,
+    /// Per sample s, bit 2s: read one pixel to the right; bit 2s + 1: one
+    /// pixel down (the resolve's read offset).
+    pub read_offsets: u32,
+    /// Per sample, its index in the one-sample form (the order DESIGN §3's
+    /// "ties to the lowest sample index" means), < K² ≤ 256.
+    pub indices: [u8; 8],
+}
+
+impl PlannedPass {
+    /// `indices` as the resolve reads them: byte s of the 8 is sample s's.
+    pub fn packed_indices(&self) -> [u32; 2] {
+        let i = self.indices;
+        [
+            u32::from_le_bytes([i[0], i[1], i[2], i[3]]),
+            u32::from_le_bytes([i[4], i[5], i[6], i[7]]),
+        ]
+    }
+}
+
+/// The raster passes of one lens position's K×K samples.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SamplePlan {
+    /// Samples per pixel of every pass (1: the one-sample form).
+    pub samples_per_pass: u32,
+    pub passes: Vec<PlannedPass>,
+}
+
+impl SamplePlan {
+    /// K² one-sample passes with the jitter in the projection: the form
+    /// every device supports, and the reference for the others.
+    pub fn single(ssaa: u32) -> SamplePlan {
+        SamplePlan {
+            samples_per_pass: 1,
+            passes: (0..ssaa * ssaa)
+                .map(|s| PlannedPass {
+                    jitter: ssaa_jitter(s, ssaa),
+                    read_offsets: 0,
+                    indices: [s as u8, 0, 0, 0, 0, 0, 0, 0],
+                })
+                .collect(),
+        }
+    }
+
+    /// K²/S passes of S standard-location samples that together take the
+    /// K×K grid exactly, or None when the S locations do not tile it (e.g.
+    /// 4 samples for K = 2 or 3: the locations are not on that grid).
+    pub fn multisampled(ssaa: u32, samples: u32) -> Option<SamplePlan> {
+        let locations = standard_locations(samples)?;
+        let k = ssaa as i64;
+        if samples == 1 || (k * k) % samples as i64 != 0 {
+            return None;
+        }
+        // Exact arithmetic in units of 1/L pixel: the locations are in
+        // 1/16, the grid points (2i + 1)/(2K).
+        let l = lcm(16, 2 * k);
+        let cell = |i: i64| (2 * i + 1) * (l / (2 * k));
+        let mut taken = vec![false; (k * k) as usize];
+        let mut passes = Vec::new();
+        for first in 0..(k * k) {
+            if taken[first as usize] {
+                continue;
+            }
+            let (gx, gy) = (cell(first % k), cell(first / k));
+            let scale = l / 16;
+            // The pass whose location `anchor` lands on grid point `first`,
+            // when all its locations land on grid points not yet taken.
+            let attempt = |anchor: &[i32; 2]| -> Option<(Vec<usize>, i64, i64, u32)> {
+                let jx = (anchor[0] as i64 * scale - gx).rem_euclid(l);
+                let jy = (anchor[1] as i64 * scale - gy).rem_euclid(l);
+                let mut hits = Vec::with_capacity(locations.len());
+                let mut read_offsets = 0u32;
+                for (s, loc) in locations.iter().enumerate() {
+                    let x = loc[0] as i64 * scale - jx;
+                    let y = loc[1] as i64 * scale - jy;
+                    // Grid index of a coordinate, when it is on the grid.
+                    let on_grid = |v: i64| {
+                        let twice = v.rem_euclid(l) * 2 * k;
+                        (twice % l == 0 && (twice / l) % 2 == 1).then_some((twice / l - 1) / 2)
+                    };
+                    let index = (on_grid(y)? * k + on_grid(x)?) as usize;
+                    if taken[index] || hits.contains(&index) {
+                        return None;
+                    }
+                    hits.push(index);
+                    // floor(x / L) is 0 or −1 (0 ≤ location, jitter < L): a
+                    // point left of (above) the pixel is read one to the
+                    // right (down).
+                    read_offsets |= u32::from(x < 0) << (2 * s) | u32::from(y < 0) << (2 * s + 1);
+                }
+                Some((hits, jx, jy, read_offsets))
+            };
+            let (hits, jx, jy, read_offsets) = locations.iter().find_map(attempt)?;
+            for &index in &hits {
+                taken[index] = true;
+            }
+            // The one-sample form's sample s, jittered by cell centre − ½,
+            // samples the mirrored cell K² − 1 − s.
+            let mut indices = [0u8; 8];
+            for (slot, cell) in indices.iter_mut().zip(&hits) {
+                *slot = (k * k - 1 - *cell as i64) as u8;
+            }
+            passes.push(PlannedPass {
+                jitter: Vec2::new(jx as f32 / l as f32, jy as f32 / l as f32),
+                read_offsets,
+                indices,
+            });
+        }
+        Some(SamplePlan {
+            samples_per_pass: samples,
+            passes,
+        })
+    }
+
+    /// The plan with the fewest passes among the sample counts in
+    /// `supported` (bit S set: S samples per pixel) that tile the K×K
+    /// grid; the one-sample plan when none does.
+    pub fn best(ssaa: u32, supported: u32) -> SamplePlan {
+        [8, 4, 2]
+            .into_iter()
+            .filter(|s| supported & s != 0)
+            .find_map(|s| SamplePlan::multisampled(ssaa, s))
+            .unwrap_or_else(|| SamplePlan::single(ssaa))
+    }
+
+    /// Whether any pass reads a neighbouring pixel (the targets then need
+    /// one extra column and row).
+    pub fn reads_neighbours(&self) -> bool {
+        self.passes.iter().any(|p| p.read_offsets != 0)
+    }
+
+    /// The sample positions of each pass within the output pixel (pixel
+    /// units from its top-left corner), in the order the resolve folds them.
+    pub fn positions(&self) -> Vec<Vec2> {
+        let locations = standard_locations(self.samples_per_pass).expect("a planned count");
+        self.passes
+            .iter()
+            .flat_map(|pass| {
+                locations.iter().enumerate().map(move |(s, loc)| {
+                    let d = Vec2::new(
+                        (pass.read_offsets >> (2 * s) & 1) as f32,
+                        (pass.read_offsets >> (2 * s + 1) & 1) as f32,
+                    );
+                    Vec2::new(loc[0] as f32, loc[1] as f32) / 16.0 - pass.jitter + d
+                })
+            })
+            .collect()
+    }
+
+    /// The passes for lens positions `lens` (outer) × this plan (inner),
+    /// each with the index of its lens position.
+    pub fn with_lens<'a>(
+        &'a self,
+        lens: &'a [Vec2],
+    ) -> impl Iterator<Item = (u32, Sample, &'a PlannedPass)> + 'a {
+        lens.iter().enumerate().flat_map(move |(l, &lens_u)| {
+            self.passes.iter().map(move |p| {
+                let sample = Sample {
+                    jitter: p.jitter,
+                    lens_u,
+                };
+                (l as u32, sample, p)
+            })
+        })
+    }
+}
+
+fn lcm(a: i64, b: i64) -> i64 {
+    fn gcd(a: i64, b: i64) -> i64 {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+    a / gcd(a, b) * b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The K×K grid of cell centres, sorted.
+    fn grid(k: u32) -> Vec<(u32, u32)> {
+        let mut v: Vec<_> = (0..k * k)
+            .map(|s| {
+                let p = (Vec2::new((s % k) as f32, (s / k) as f32) + 0.5) / k as f32;
+                ((p.x * 1024.0) as u32, (p.y * 1024.0) as u32)
+            })
+            .collect();
+        v.sort();
+        v
+    }
+
+    /// Each sample's index is that of the one-sample form's sample at the
+    /// same position.
+    fn check_indices(plan: &SamplePlan, k: u32) {
+        let single = SamplePlan::single(k).positions();
+        let s = plan.samples_per_pass as usize;
+        for (n, p) in plan.positions().iter().enumerate() {
+            let index = plan.passes[n / s].indices[n % s] as usize;
+            assert!(
+                (single[index] - *p).abs().max_element() < 1e-6,
+                "K={k} S={s}: sample {n} at {p} has index {index}, at {}",
+                single[index]
+            );
+        }
+    }
+
+    fn sorted_positions(plan: &SamplePlan) -> Vec<(u32, u32)> {
+        let mut v: Vec<_> = plan
+            .positions()
+            .into_iter()
+            .map(|p| ((p.x * 1024.0) as u32, (p.y * 1024.0) as u32))
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn multisampled_plans_take_exactly_the_grid() {
+        let mut found = Vec::new();
+        for k in 1..=16 {
+            for s in [2, 4, 8] {
+                if let Some(plan) = SamplePlan::multisampled(k, s) {
+                    assert_eq!(plan.passes.len() as u32 * s, k * k, "K={k} S={s}");
+                    assert_eq!(sorted_positions(&plan), grid(k), "K={k} S={s}");
+                    check_indices(&plan, k);
+                    assert!(plan
+                        .passes
+                        .iter()
+                        .all(|p| (0.0..1.0).contains(&p.jitter.x)
+                            && (0.0..1.0).contains(&p.jitter.y)));
+                    found.push((k, s));
+                }
+            }
+        }
+        // The cases that matter: K = 4 (the default) with 4 samples, K = 2
+        // with 2, K = 8 with 8.
+        for case in [(2, 2), (4, 4), (4, 2), (8, 8), (8, 4)] {
+            assert!(found.contains(&case), "{case:?} not planned: {found:?}");
+        }
+        // 4 standard locations are not on the 2×2 or 3×3 grid.
+        assert!(SamplePlan::multisampled(2, 4).is_none());
+        assert!(SamplePlan::multisampled(3, 4).is_none());
+    }
+
+    #[test]
+    fn the_single_plan_is_the_jittered_grid() {
+        let plan = SamplePlan::single(4);
+        assert_eq!(plan.passes.len(), 16);
+        assert!(!plan.reads_neighbours());
+        // Jitter j moves the splats by j: pixel centre 0.5 samples 0.5 − j.
+        assert_eq!(sorted_positions(&plan), grid(4));
+        check_indices(&plan, 4);
+    }
+
+    #[test]
+    fn best_prefers_fewer_passes() {
+        assert_eq!(SamplePlan::best(4, 1 | 4).samples_per_pass, 4);
+        assert_eq!(SamplePlan::best(4, 1 | 4).passes.len(), 4);
+        assert_eq!(SamplePlan::best(4, 1 | 2 | 4 | 8).samples_per_pass, 4);
+        assert_eq!(SamplePlan::best(2, 1 | 4).samples_per_pass, 1);
+        assert_eq!(SamplePlan::best(3, 1 | 2 | 4 | 8).samples_per_pass, 1);
+        assert_eq!(SamplePlan::best(8, 1 | 4 | 8).passes.len(), 8);
+        assert_eq!(SamplePlan::best(1, 1 | 4).passes.len(), 1);
+    }
+}

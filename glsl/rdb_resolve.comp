@@ -9,13 +9,7 @@ layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
 layout(binding = 1, r32ui) uniform readonly uimage2DArray rdb_source;
 layout(binding = 2, rgba16f) uniform writeonly image2D result;
 
-layout(push_constant, std430) uniform Push {
-    ivec2 extent;   // G-buffer size
-    ivec2 origin;      // the guard band
-    ivec2 tile_origin; // output pixel of RDB texel (0, 0)
-    ivec2 tile_size;   // output pixels the RDB holds
-    int bins;
-} pc;
+#include "rdb_push.glsl"
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);

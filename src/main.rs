@@ -20,7 +20,7 @@ use pointlens::image_io::{
 use pointlens::metrics;
 use pointlens::options::{
     check_rdb_bins, check_samples, check_samples_per_pass, check_ssaa, AccumOptions, FastOptions,
-    FastWeights, GatherWindow, MethodKind, RdbMode, RdbOptions,
+    FastWeights, GatherWindow, MethodKind, RdbAtomics, RdbMode, RdbOptions,
 };
 use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
@@ -155,6 +155,11 @@ struct RenderArgs {
     /// cell centre) or pairs (the paper's pair-to-bin assignment).
     #[arg(long, value_enum, default_value_t)]
     rdb_mode: RdbMode,
+    /// Atomics of the RDB's scatter: 64 (one pass into a buffer never
+    /// cleared per frame), 32 (two passes into images cleared per tile) or
+    /// auto (64 where the device has 64-bit buffer atomics); the same image.
+    #[arg(long, value_enum, default_value_t)]
+    rdb_atomics: RdbAtomics,
     /// Memory for the bins of the ray distribution buffer, MiB (default a
     /// quarter of the device-local heap); above it the frame is processed
     /// in tiles, with the same result.
@@ -457,6 +462,7 @@ fn render(args: RenderArgs) -> Result<()> {
             bins: args.rdb_bins,
             mode: args.rdb_mode,
             memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
+            atomics: args.rdb_atomics,
         },
         AccumOptions {
             samples: args.samples,

@@ -41,6 +41,23 @@ pub enum RdbMode {
     Pairs,
 }
 
+/// Which atomics the RDB's scatter uses (`--rdb-atomics`); both give the
+/// same image, bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum RdbAtomics {
+    /// 64-bit where the device has 64-bit buffer atomics, else 32-bit.
+    #[default]
+    Auto,
+    /// One scatter pass of 64-bit (tag, depth, source) words into a buffer
+    /// that is never cleared per frame.
+    #[value(name = "64")]
+    Int64,
+    /// Two scatter passes (depth, then source) of 32-bit image atomics
+    /// into images cleared for every tile.
+    #[value(name = "32")]
+    Int32,
+}
+
 /// Options of the fast gather (DESIGN §4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FastOptions {
@@ -57,6 +74,7 @@ pub struct RdbOptions {
     /// Memory for the bins, bytes; above it the frame is processed in
     /// tiles. None: a quarter of the largest device-local heap.
     pub memory_bytes: Option<u64>,
+    pub atomics: RdbAtomics,
 }
 
 impl Default for RdbOptions {
@@ -65,6 +83,7 @@ impl Default for RdbOptions {
             bins: DEFAULT_RDB_BINS,
             mode: RdbMode::Centre,
             memory_bytes: None,
+            atomics: RdbAtomics::Auto,
         }
     }
 }
@@ -164,6 +183,7 @@ impl Method {
             bins,
             mode,
             memory_bytes: None,
+            atomics: RdbAtomics::Auto,
         })
     }
 

@@ -10,7 +10,7 @@ use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow};
-use pointlens::options::{RdbMode, RdbOptions};
+use pointlens::options::{RdbAtomics, RdbMode, RdbOptions};
 use pointlens::passes::rdb::{bytes_per_pixel, TilePlan};
 use pointlens::ply::load_ply;
 use pointlens::reference;
@@ -245,6 +245,7 @@ fn tiled_equals_untiled_bitwise() {
                 bins,
                 mode,
                 memory_bytes: Some(budget),
+                ..RdbOptions::default()
             });
             let tiled = renderer.render(&scene, &tiled_options).unwrap();
             let tiles = |r: &pointlens::render::Rendered| {
@@ -393,5 +394,79 @@ fn without_occlusion_rdb_9x9_is_within_35_db_of_accum() {
         let db = psnr(&reference, &rdb.image).unwrap();
         eprintln!("RDB 9×9 centre against accum 256: {db:.2} dB");
         assert!(db >= 35.0, "RDB 9×9 centre: {db:.2} dB against accum 256");
+    });
+}
+
+#[test]
+fn both_atomics_give_the_same_image_bit_for_bit_across_frames_and_tag_wraps() {
+    with_gpu(|ctx| {
+        assert!(
+            ctx.info.buffer_int64_atomics,
+            "the test device has no 64-bit buffer atomics"
+        );
+        let renderer = Renderer::new(ctx).unwrap();
+        let scan = load_ply(&root().join("data/pcl_table_scene_mug_rgb.ply")).unwrap();
+        let scene = renderer.upload(&scan, SplatSize::Spacing).unwrap();
+        let cam = mug_camera(61, 45);
+        let count = |r: &pointlens::render::Rendered, name: &str| {
+            r.timings
+                .passes
+                .iter()
+                .find(|p| p.name == name)
+                .map_or(0, |p| p.count)
+        };
+        let mut fills = 0;
+        // Frames in a row on one renderer: the 64-bit bins are kept, reused,
+        // grown (16×16 bins after 9×9), and their 31 tags run out within
+        // the frame of 4×4 bins in tiles of 30 pixels (92 tiles).
+        for (bins, mode, budget) in [
+            (5, RdbMode::Centre, None),
+            (9, RdbMode::Pairs, None),
+            (16, RdbMode::Centre, Some(1 << 20)),
+            (4, RdbMode::Centre, Some(128 * 30)),
+            (5, RdbMode::Centre, None),
+            (9, RdbMode::Centre, Some(100_000)),
+        ] {
+            let render = |atomics| {
+                let mut o = options(cam, Method::rdb(bins, mode));
+                o.method = Method::Rdb(RdbOptions {
+                    bins,
+                    mode,
+                    memory_bytes: budget,
+                    atomics,
+                });
+                renderer.render(&scene, &o).unwrap()
+            };
+            let wide = render(RdbAtomics::Int64);
+            let split = render(RdbAtomics::Int32);
+            let what = format!("{bins}×{bins} {mode:?} budget {budget:?}");
+            let differ = wide
+                .image
+                .pixels
+                .iter()
+                .zip(&split.image.pixels)
+                .filter(|(a, b)| a.map(f32::to_bits) != b.map(f32::to_bits))
+                .count();
+            assert_eq!(differ, 0, "{what}: {differ} pixels differ");
+            // One scatter pass per tile and no clear in the 64-bit form; a
+            // clear and two scatters per tile in the 32-bit one.
+            let tiles = count(&wide, "rdb.resolve");
+            assert_eq!(tiles, count(&split, "rdb.resolve"), "{what}");
+            assert_eq!(count(&wide, "rdb.scatter"), tiles, "{what}");
+            assert_eq!(count(&wide, "rdb.clear"), 0, "{what}");
+            assert_eq!(count(&split, "rdb.clear"), tiles, "{what}");
+            assert_eq!(count(&split, "rdb.depth"), tiles, "{what}");
+            let filled = count(&wide, "rdb.fill");
+            if tiles > 31 {
+                // A fill before the first tile (made anew, or tags left)
+                // and one after every 31 uses.
+                assert!(
+                    (tiles / 31..=tiles / 31 + 1).contains(&filled),
+                    "{what}: {filled} fills for {tiles} tiles"
+                );
+            }
+            fills += filled;
+        }
+        assert!(fills >= 3, "{fills} fills: made, grown, wrapped");
     });
 }

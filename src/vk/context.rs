@@ -88,6 +88,11 @@ pub struct DeviceInfo {
     /// images, at the standard sample locations. Only `TYPE_1` where the
     /// device lacks `shaderStorageImageMultisample` or standard locations.
     pub gbuffer_sample_counts: vk::SampleCountFlags,
+    /// 64-bit integer atomics on storage buffers (`shaderInt64` and
+    /// `shaderBufferInt64Atomics`), enabled when present.
+    pub buffer_int64_atomics: bool,
+    /// The largest storage-buffer binding, bytes.
+    pub max_storage_buffer_range: u64,
 }
 
 impl DeviceInfo {
@@ -268,7 +273,10 @@ impl Context {
         let multisampled_storage = info.gbuffer_sample_counts != vk::SampleCountFlags::TYPE_1;
         let features = vk::PhysicalDeviceFeatures::default()
             .large_points(true)
-            .shader_storage_image_multisample(multisampled_storage);
+            .shader_storage_image_multisample(multisampled_storage)
+            .shader_int64(info.buffer_int64_atomics);
+        let mut features12 = vk::PhysicalDeviceVulkan12Features::default()
+            .shader_buffer_int64_atomics(info.buffer_int64_atomics);
         let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true)
@@ -277,6 +285,7 @@ impl Context {
             .queue_create_infos(&queue_infos)
             .enabled_extension_names(&device_exts)
             .enabled_features(&features)
+            .push_next(&mut features12)
             .push_next(&mut features13);
         // SAFETY: physical device from this instance; pointers are locals.
         let device = unsafe {
@@ -605,6 +614,13 @@ fn pick_device(
             .max()
             .unwrap_or(0);
         let gbuffer_sample_counts = gbuffer_sample_counts(instance, pd, &props);
+        let mut features12 = vk::PhysicalDeviceVulkan12Features::default();
+        let mut features2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut features12);
+        // SAFETY: as above; `features2` chains only the Vulkan 1.2 features,
+        // core in the 1.3 devices kept here.
+        unsafe { instance.get_physical_device_features2(pd, &mut features2) };
+        let buffer_int64_atomics = features2.features.shader_int64 == vk::TRUE
+            && features12.shader_buffer_int64_atomics == vk::TRUE;
         let info = DeviceInfo {
             name,
             driver_name,
@@ -620,6 +636,8 @@ fn pick_device(
             max_memory_allocation_bytes: maintenance3.max_memory_allocation_size,
             max_image_array_layers: props.limits.max_image_array_layers,
             gbuffer_sample_counts,
+            buffer_int64_atomics,
+            max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
         };
         candidates.push((pd, family as u32, info));
     }

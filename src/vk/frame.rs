@@ -389,6 +389,21 @@ impl<'r> Recorder<'_, 'r> {
         };
     }
 
+    /// Fills all of `buffer` with the 32-bit `value` ([`Access::FILL`] in
+    /// memory barriers).
+    pub fn fill_u32(&mut self, buffer: &'r Buffer, value: u32) {
+        self.own_buffer(buffer);
+        assert_eq!(buffer.size() % 4, 0, "a fill writes whole words");
+        // SAFETY: recording outside a render pass; the buffer is this
+        // device's (asserted) and was made with TRANSFER_DST usage (the
+        // validation layer checks); the range is the whole buffer.
+        unsafe {
+            self.ctx
+                .device
+                .cmd_fill_buffer(self.cmd, buffer.raw, 0, vk::WHOLE_SIZE, value)
+        };
+    }
+
     /// Copies the first `min(src.size, dst.size)` bytes of `src` to `dst`.
     pub fn copy_buffer(&mut self, src: &'r Buffer, dst: &'r Buffer) {
         self.own_buffer(src);

@@ -63,6 +63,14 @@ impl Access {
         access: vk::AccessFlags2::TRANSFER_WRITE,
         layout: vk::ImageLayout::TRANSFER_DST_OPTIMAL,
     };
+    /// A buffer filled by [`Recorder::fill_u32`](super::Recorder::fill_u32):
+    /// all transfer stages, since the specification counts a fill among
+    /// the clear commands and validation layer 1.3.239 among the copies.
+    pub const FILL: Access = Access {
+        stage: vk::PipelineStageFlags2::ALL_TRANSFER,
+        access: vk::AccessFlags2::TRANSFER_WRITE,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
     /// An image read by a copy.
     pub const COPY_SRC: Access = Access {
         stage: vk::PipelineStageFlags2::COPY,

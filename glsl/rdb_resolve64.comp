@@ -1,0 +1,37 @@
+#version 460
+// Ray distribution buffer, resolve from the 64-bit bins (rdb_bins64.glsl):
+// as rdb_resolve.comp, each output pixel is the mean, in linear light, of
+// the colors of the sources its filled bins kept; a pixel with no filled bin
+// keeps its G-buffer color.
+#include "rdb_bins64.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
+layout(binding = 1, std430) readonly buffer Bins { uint64_t bins64[]; };
+layout(binding = 2, rgba16f) uniform writeonly image2D result;
+
+#include "rdb_push.glsl"
+
+void main() {
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(t, pc.tile_size))) {
+        return;
+    }
+    ivec2 q = pc.tile_origin + t;
+    int n2 = pc.bins * pc.bins;
+    uint first = uint((t.y * pc.tile_size.x + t.x) * n2);
+    vec3 sum = vec3(0.0);
+    float n = 0.0;
+    for (int b = 0; b < n2; ++b) {
+        uint64_t word = bins64[first + uint(b)];
+        if (bin_filled(word, pc.step)) {
+            uint source = bin_source(word);
+            ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
+            sum += imageLoad(gbuffer_color, p).rgb;
+            n += 1.0;
+        }
+    }
+    vec3 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin).rgb;
+    imageStore(result, q + pc.origin, vec4(color, 1.0));
+}

@@ -518,7 +518,10 @@ impl BenchReport {
             let dof: f64 = c
                 .passes
                 .iter()
-                .filter(|p| !p.name.starts_with("gbuffer") && p.name != "readback")
+                .filter(|p| {
+                    !p.name.starts_with("gbuffer")
+                        && !["readback", "output"].contains(&p.name.as_str())
+                })
                 .map(|p| p.gpu_ms.median)
                 .sum::<f64>()
                 + 0.0; // an empty sum is −0.0

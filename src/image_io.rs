@@ -226,10 +226,75 @@ pub fn check_output_path(path: &Path) -> Result<()> {
 /// The PNG bytes [`write_image`] would write for `img` (8-bit sRGB RGB),
 /// encoded in memory: what `bench` times as the encoding cost.
 pub fn encode_png(img: &LinearImage) -> Result<Vec<u8>> {
-    let mut bytes = Vec::new();
-    png_rgb8(&mut bytes, &srgb8_rgb(img), img.width, img.height)
-        .map_err(|e| encoding_error(e, Path::new("(memory)"), FileFormat::Png))?;
-    Ok(bytes)
+    Srgb8Image::of(img).encode_png()
+}
+
+/// An image already encoded as a PNG's pixels: 8-bit sRGB RGB, row by row
+/// from the top (what the renderer's output pass reads back for `.png`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Srgb8Image {
+    pub width: u32,
+    pub height: u32,
+    /// `3 · width · height` bytes.
+    pub rgb: Vec<u8>,
+}
+
+impl Srgb8Image {
+    /// The encoding of `img` on the host ([`linear_to_srgb8`] per channel;
+    /// alpha dropped).
+    pub fn of(img: &LinearImage) -> Srgb8Image {
+        Srgb8Image {
+            width: img.width,
+            height: img.height,
+            rgb: srgb8_rgb(img),
+        }
+    }
+
+    /// The PNG file's bytes, encoded in memory.
+    pub fn encode_png(&self) -> Result<Vec<u8>> {
+        let mut bytes = Vec::new();
+        self.check(Path::new("(memory)"))?;
+        png_rgb8(&mut bytes, &self.rgb, self.width, self.height)
+            .map_err(|e| encoding_error(e, Path::new("(memory)"), FileFormat::Png))?;
+        Ok(bytes)
+    }
+
+    /// Writes the image to `path`, a `.png`, atomically as [`write_image`].
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        if FileFormat::from_path(path)? != FileFormat::Png {
+            return Err(Error::InvalidArgument(format!(
+                "{}: 8-bit sRGB pixels are written as PNG only",
+                path.display()
+            )));
+        }
+        self.check(path)?;
+        write_atomically(path, |file| {
+            let mut out = BufWriter::new(file);
+            png_rgb8(&mut out, &self.rgb, self.width, self.height)
+                .map_err(|e| encoding_error(e, path, FileFormat::Png))?;
+            sync_buffered(out, path)
+        })
+    }
+
+    fn check(&self, path: &Path) -> Result<()> {
+        let expected = 3 * self.width as u64 * self.height as u64;
+        if self.rgb.len() as u64 != expected {
+            return Err(Error::InvalidArgument(format!(
+                "{}: a {}x{} RGB image needs {expected} bytes but has {}",
+                path.display(),
+                self.width,
+                self.height,
+                self.rgb.len()
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Whether `path` names a PNG output (an error for a format
+/// [`write_image`] does not write).
+pub fn is_png_path(path: &Path) -> Result<bool> {
+    FileFormat::from_path(path).map(|f| f == FileFormat::Png)
 }
 
 /// Checks that `path` names a PNG, for outputs that can only be PNG (a

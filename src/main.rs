@@ -15,7 +15,7 @@ use pointlens::camera::{self, CameraSpec};
 use pointlens::chart;
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{
-    check_output_path, check_png_path, read_image, write_atomically, write_image,
+    check_output_path, check_png_path, is_png_path, read_image, write_atomically, write_image,
 };
 use pointlens::metrics;
 use pointlens::options::{
@@ -535,11 +535,18 @@ fn render(args: RenderArgs) -> Result<()> {
         samples_per_pass: args.samples_per_pass,
         background,
     };
-    let rendered = renderer.render(&scene, &options)?;
-
-    let t_encode = Instant::now();
-    write_image(&rendered.image, &args.output)?;
-    let encode_ms = t_encode.elapsed().as_secs_f64() * 1e3;
+    // PNG pixels are encoded on the device; EXR gets the linear floats.
+    let (rendered, encode_ms) = if is_png_path(&args.output)? {
+        let rendered = renderer.render_srgb8(&scene, &options)?;
+        let t_encode = Instant::now();
+        rendered.image.write_png(&args.output)?;
+        (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3)
+    } else {
+        let rendered = renderer.render(&scene, &options)?;
+        let t_encode = Instant::now();
+        write_image(&rendered.image, &args.output)?;
+        (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3)
+    };
 
     let report = FrameReport {
         samples_per_pass: rendered.samples_per_pass,

@@ -13,12 +13,13 @@ use crate::camera::Camera;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
-use crate::image_io::{f16_to_f32, LinearImage};
+use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{check_samples_per_pass, check_ssaa, Method};
+use crate::passes::output::{OutputConvert, OutputFormat};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
 use crate::report::Upload;
-use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings, Image};
+use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point
 /// spacing (mean distance to its 8 nearest neighbours): it closes the bunny's
@@ -126,8 +127,10 @@ impl Scene {
 }
 
 /// The result of a frame: the image without guard band, and its timings.
-pub struct Rendered {
-    pub image: LinearImage,
+pub struct Rendered<I = LinearImage> {
+    /// The output pixels: linear f32 ([`Renderer::render`]) or 8-bit sRGB
+    /// ([`Renderer::render_srgb8`]).
+    pub image: I,
     pub timings: FrameTimings,
     /// The guard band the frame was rendered with, pixels.
     pub guard: u32,
@@ -154,6 +157,7 @@ pub struct Renderer {
     ctx: Arc<Context>,
     gbuffer: GBufferPasses,
     methods: Methods,
+    output: OutputConvert,
 }
 
 fn unorm16(c: f32) -> u16 {
@@ -166,6 +170,7 @@ impl Renderer {
             ctx: ctx.clone(),
             gbuffer: GBufferPasses::new(ctx)?,
             methods: Methods::new(ctx)?,
+            output: OutputConvert::new(ctx)?,
         })
     }
 
@@ -272,7 +277,19 @@ impl Renderer {
 
     /// Renders one frame of `scene`.
     pub fn render(&self, scene: &Scene, options: &RenderOptions) -> Result<Rendered> {
-        self.render_frame(scene, options, false).map(|(r, _)| r)
+        let (r, _) = self.render_frame(scene, options, OutputFormat::LinearF32, false)?;
+        Ok(r.map(|pixels| pixels.linear().expect("asked for")))
+    }
+
+    /// Renders one frame of `scene` as a PNG's pixels, encoded on the
+    /// device: the same bytes as [`Srgb8Image::of`] the linear frame.
+    pub fn render_srgb8(
+        &self,
+        scene: &Scene,
+        options: &RenderOptions,
+    ) -> Result<Rendered<Srgb8Image>> {
+        let (r, _) = self.render_frame(scene, options, OutputFormat::Srgb8, false)?;
+        Ok(r.map(|pixels| pixels.srgb8().expect("asked for")))
     }
 
     /// The eye depth of the nearest surface at output pixel (x, y) of a
@@ -317,20 +334,23 @@ impl Renderer {
         scene: &Scene,
         options: &RenderOptions,
     ) -> Result<(Rendered, HostGBuffer)> {
-        let (rendered, gbuffer) = self.render_frame(scene, options, true)?;
+        let (rendered, gbuffer) =
+            self.render_frame(scene, options, OutputFormat::LinearF32, true)?;
+        let rendered = rendered.map(|pixels| pixels.linear().expect("asked for"));
         Ok((rendered, gbuffer.expect("asked for")))
     }
 
     /// The frame: view → G-buffer → method → readback. Everything is
     /// allocated before recording starts; the frame's wall time runs from
-    /// the view (the CPU's look at the points) to the result decoded on the
+    /// the view (the CPU's look at the points) to the output pixels copied to the
     /// host.
     fn render_frame(
         &self,
         scene: &Scene,
         options: &RenderOptions,
+        format: OutputFormat,
         keep_gbuffer: bool,
-    ) -> Result<(Rendered, Option<HostGBuffer>)> {
+    ) -> Result<(Rendered<Pixels>, Option<HostGBuffer>)> {
         check_ssaa(options.ssaa)?;
         if let Some(s) = options.samples_per_pass {
             check_samples_per_pass(s)?;
@@ -354,7 +374,7 @@ impl Renderer {
         );
         let gbuffer = GBuffer::new(&self.ctx, &view, &plan)?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
-        let readback = Readback::new(&self.ctx, &view.frame, keep_gbuffer)?;
+        let readback = Readback::new(&self.ctx, &view.frame, format, keep_gbuffer)?;
         let lens = method.gbuffer_lens();
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
@@ -369,7 +389,9 @@ impl Renderer {
         );
         let input = gbuffer.output();
         let result = dof.record(&mut frame, &input);
-        readback.record(&mut frame, result, &input);
+        self.output
+            .record(&mut frame, result, &view.frame, format, &readback.result);
+        readback.record(&mut frame, &input);
         let mut timings = frame.submit_and_wait()?;
 
         let decoding = Instant::now();
@@ -389,76 +411,115 @@ impl Renderer {
 /// (rgba16f, guard band cropped) and, when asked for, the whole G-buffer.
 struct Readback {
     view: FrameView,
+    format: OutputFormat,
+    /// Written by the output pass ([`OutputConvert`]).
     result: Buffer,
     /// Color (rgba16f) and eye position (rgba32f) of the G-buffer.
     gbuffer: Option<(Buffer, Buffer)>,
 }
 
+/// A frame's output pixels as read back.
+enum Pixels {
+    Linear(LinearImage),
+    Srgb8(Srgb8Image),
+}
+
+impl Pixels {
+    fn linear(self) -> Option<LinearImage> {
+        match self {
+            Pixels::Linear(image) => Some(image),
+            Pixels::Srgb8(_) => None,
+        }
+    }
+
+    fn srgb8(self) -> Option<Srgb8Image> {
+        match self {
+            Pixels::Srgb8(image) => Some(image),
+            Pixels::Linear(_) => None,
+        }
+    }
+}
+
+impl<I> Rendered<I> {
+    /// The same frame with its pixels mapped by `f`.
+    pub fn map<J>(self, f: impl FnOnce(I) -> J) -> Rendered<J> {
+        Rendered {
+            image: f(self.image),
+            timings: self.timings,
+            guard: self.guard,
+            samples_per_pass: self.samples_per_pass,
+        }
+    }
+}
+
 impl Readback {
-    fn new(ctx: &Arc<Context>, view: &FrameView, keep_gbuffer: bool) -> Result<Readback> {
-        let host = |name: &str, width: u32, height: u32, format: vk::Format| {
-            Buffer::new(
-                ctx,
-                name,
-                width as u64 * height as u64 * texel_bytes(format),
-                vk::BufferUsageFlags::TRANSFER_DST,
-                MemoryLocation::GpuToCpu,
-            )
+    fn new(
+        ctx: &Arc<Context>,
+        view: &FrameView,
+        format: OutputFormat,
+        keep_gbuffer: bool,
+    ) -> Result<Readback> {
+        let host = |name: &str, bytes: u64, usage: vk::BufferUsageFlags| {
+            Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuToCpu)
         };
-        let (gw, gh) = (view.full_width(), view.full_height());
+        let texels = |format: vk::Format| {
+            view.full_width() as u64 * view.full_height() as u64 * texel_bytes(format)
+        };
+        let copied = vk::BufferUsageFlags::TRANSFER_DST;
+        let pixels = view.camera.width as u64 * view.camera.height as u64;
         Ok(Readback {
             view: *view,
-            // Every method's result is rgba16f, as the G-buffer's color.
+            format,
             result: host(
-                "readback",
-                view.camera.width,
-                view.camera.height,
-                COLOR_FORMAT,
+                "output",
+                format.buffer_bytes(pixels),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
             )?,
             gbuffer: match keep_gbuffer {
                 true => Some((
-                    host("gbuffer color readback", gw, gh, COLOR_FORMAT)?,
-                    host("gbuffer eye readback", gw, gh, EYE_FORMAT)?,
+                    host("gbuffer color readback", texels(COLOR_FORMAT), copied)?,
+                    host("gbuffer eye readback", texels(EYE_FORMAT), copied)?,
                 )),
                 false => None,
             },
         })
     }
 
-    /// Records the copies of `result` (and the G-buffer of `input`) as pass
-    /// `readback`, made visible to the host.
-    fn record<'r>(&'r self, frame: &mut Frame<'r>, result: &'r Image, input: &DofInput<'r>) {
+    /// Records the copies of the G-buffer of `input`, when asked for, as
+    /// pass `readback`, made visible to the host (the output pass writes
+    /// the result).
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) {
+        let Some((color, eye)) = &self.gbuffer else {
+            return;
+        };
         frame.pass("readback", |rec| {
-            let mut images = vec![result];
-            if self.gbuffer.is_some() && !std::ptr::eq(result, input.color) {
-                images.push(input.color);
-            }
-            if self.gbuffer.is_some() {
-                images.push(input.eye);
-            }
-            let list: Vec<_> = images
-                .iter()
-                .map(|i| (*i, Access::COMPUTE_READ_WRITE, Access::COPY_SRC))
-                .collect();
-            rec.barriers(&list);
-            let g = self.view.guard;
-            let (w, h) = (self.view.camera.width, self.view.camera.height);
-            rec.copy_image_to_buffer(result, [g, g], [w, h], &self.result);
-            if let Some((color, eye)) = &self.gbuffer {
-                let full = [self.view.full_width(), self.view.full_height()];
-                rec.copy_image_to_buffer(input.color, [0, 0], full, color);
-                rec.copy_image_to_buffer(input.eye, [0, 0], full, eye);
-            }
+            rec.barriers(&[
+                (input.color, Access::COMPUTE_READ_WRITE, Access::COPY_SRC),
+                (input.eye, Access::COMPUTE_READ_WRITE, Access::COPY_SRC),
+            ]);
+            let full = [self.view.full_width(), self.view.full_height()];
+            rec.copy_image_to_buffer(input.color, [0, 0], full, color);
+            rec.copy_image_to_buffer(input.eye, [0, 0], full, eye);
             rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
         });
     }
 
-    /// Decodes the copies once the frame has completed.
-    fn read(&self) -> Result<(LinearImage, Option<HostGBuffer>)> {
-        let image = LinearImage {
-            width: self.view.camera.width,
-            height: self.view.camera.height,
-            pixels: rgba16f_texels(host_bytes(&self.result)?),
+    /// Copies the pixels out once the frame has completed.
+    fn read(&self) -> Result<(Pixels, Option<HostGBuffer>)> {
+        let (width, height) = (self.view.camera.width, self.view.camera.height);
+        let pixels = width as usize * height as usize;
+        let bytes = host_bytes(&self.result)?;
+        let image = match self.format {
+            OutputFormat::LinearF32 => Pixels::Linear(LinearImage {
+                width,
+                height,
+                pixels: bytemuck::pod_collect_to_vec(&bytes[..16 * pixels]),
+            }),
+            OutputFormat::Srgb8 => Pixels::Srgb8(Srgb8Image {
+                width,
+                height,
+                rgb: bytes[..3 * pixels].to_vec(),
+            }),
         };
         let gbuffer = match &self.gbuffer {
             Some((color, eye)) => Some(HostGBuffer {
@@ -466,14 +527,7 @@ impl Readback {
                 height: self.view.full_height(),
                 guard: self.view.guard,
                 color: rgba16f_texels(host_bytes(color)?),
-                eye: host_bytes(eye)?
-                    .chunks_exact(16)
-                    .map(|t| {
-                        std::array::from_fn(|i| {
-                            f32::from_le_bytes([t[4 * i], t[4 * i + 1], t[4 * i + 2], t[4 * i + 3]])
-                        })
-                    })
-                    .collect(),
+                eye: bytemuck::pod_collect_to_vec(host_bytes(eye)?),
             }),
             None => None,
         };
@@ -481,7 +535,6 @@ impl Readback {
     }
 }
 
-/// The bytes of a host-visible readback buffer.
 fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
     buffer
         .mapped()

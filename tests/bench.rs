@@ -141,7 +141,7 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
             _ => "rdb.resolve",
         };
         assert!(names.contains(&expect), "{what}: {names:?}");
-        assert!(names.contains(&"readback"), "{what}: {names:?}");
+        assert!(names.contains(&"output"), "{what}: {names:?}");
         for p in passes {
             assert!(p["count"].as_u64().unwrap() >= 1);
             stats(&p["gpu_ms"], &format!("{what} {}", p["name"]));

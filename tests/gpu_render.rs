@@ -299,7 +299,8 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
         };
         assert_eq!(count("gbuffer.raster"), Some(144));
         assert_eq!(count("gbuffer.resolve"), Some(144));
-        assert_eq!(count("readback"), Some(1));
+        assert_eq!(count("output"), Some(1));
+        assert_eq!(count("readback"), None);
         assert!(timings
             .passes
             .iter()

@@ -20,6 +20,7 @@ use crate::vk::{Context, Frame, Image};
 pub mod accum;
 pub mod fast;
 pub mod gbuffer_resolve;
+pub mod output;
 pub mod pinhole;
 pub mod rdb;
 pub mod sample_plan;

@@ -1,0 +1,161 @@
+//! The output pass (`glsl/output_convert.comp`): converts a frame's result
+//! (rgba16f, inside the guard band) on the device into the output file's
+//! pixels — linear f32 RGBA for EXR, 8-bit sRGB RGB for PNG — written
+//! straight into a host-visible buffer, so that the host only copies them.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use super::FrameView;
+use crate::error::{Error, Result};
+use crate::image_io::{f16_to_f32, linear_to_srgb8};
+use crate::push_constants;
+use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
+
+static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/output_convert.comp.spv"));
+
+push_constants! {
+    struct Push {
+        origin: [i32; 2],
+        size: [i32; 2],
+        format: u32,
+        count: u32,
+    }
+}
+
+/// What the output pass writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// Linear RGBA, 4 × f32 per pixel (EXR, and every caller that computes
+    /// on the image).
+    LinearF32,
+    /// 8-bit sRGB RGB, 3 bytes per pixel, tightly packed (PNG).
+    Srgb8,
+}
+
+impl OutputFormat {
+    /// Invocations of the pass with work, for `pixels` pixels.
+    fn count(self, pixels: u64) -> u64 {
+        match self {
+            OutputFormat::LinearF32 => pixels,
+            OutputFormat::Srgb8 => pixels.div_ceil(4),
+        }
+    }
+
+    /// Bytes the pass writes for `pixels` pixels (the sRGB form rounded up
+    /// to whole 4-pixel groups).
+    pub fn buffer_bytes(self, pixels: u64) -> u64 {
+        match self {
+            OutputFormat::LinearF32 => 16 * pixels,
+            OutputFormat::Srgb8 => 12 * pixels.div_ceil(4),
+        }
+    }
+}
+
+/// The pipeline and the sRGB table, made once per renderer.
+pub struct OutputConvert {
+    pipeline: ComputePipeline<Push>,
+    /// `linear_to_srgb8(f16_to_f32(h))` for every half-float bit pattern h,
+    /// four codes per word.
+    srgb8_lut: Buffer,
+}
+
+impl OutputConvert {
+    pub fn new(ctx: &Arc<Context>) -> Result<OutputConvert> {
+        let codes: Vec<u8> = (0..=u16::MAX)
+            .map(|h| linear_to_srgb8(f16_to_f32(h)))
+            .collect();
+        let mut srgb8_lut = Buffer::new(
+            ctx,
+            "srgb8 table",
+            codes.len() as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        srgb8_lut
+            .mapped_mut()
+            .ok_or_else(|| Error::Allocation("the sRGB table is not host-visible".into()))?
+            .copy_from_slice(&codes);
+        Ok(OutputConvert {
+            pipeline: ComputePipeline::new(
+                ctx,
+                "output_convert",
+                SPIRV,
+                &[
+                    Binding::StorageImage,
+                    Binding::StorageBuffer,
+                    Binding::StorageBuffer,
+                ],
+            )?,
+            srgb8_lut,
+        })
+    }
+
+    /// Records, as pass `output`, the conversion of the output part of
+    /// `result` (G-buffer sized, `GENERAL`, last written by compute) into
+    /// `out` (host-visible, at least [`OutputFormat::buffer_bytes`]), made
+    /// visible to the host.
+    pub fn record<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        result: &'r Image,
+        view: &FrameView,
+        format: OutputFormat,
+        out: &'r Buffer,
+    ) {
+        let (w, h) = (view.camera.width, view.camera.height);
+        let pixels = w as u64 * h as u64;
+        assert!(
+            out.size() >= format.buffer_bytes(pixels),
+            "output buffer too small"
+        );
+        let count = format.count(pixels);
+        let count = u32::try_from(count).expect("fewer than 2^32 pixels");
+        // Workgroups of 64 as a 2D grid within the per-dimension limit.
+        let groups = count.div_ceil(64);
+        let gx = groups.clamp(1, 65_535);
+        let g = view.guard as i32;
+        frame.pass("output", |rec| {
+            rec.barriers(&[(result, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ)]);
+            rec.dispatch(
+                &self.pipeline,
+                &[
+                    Bind::StorageImage(result),
+                    Bind::StorageBuffer(&self.srgb8_lut),
+                    Bind::StorageBuffer(out),
+                ],
+                &Push {
+                    origin: [g, g],
+                    size: [w as i32, h as i32],
+                    format: match format {
+                        OutputFormat::LinearF32 => 0,
+                        OutputFormat::Srgb8 => 1,
+                    },
+                    count,
+                },
+                [gx, groups.div_ceil(gx).max(1), 1],
+            );
+            rec.memory_barrier(Access::COMPUTE_WRITE, Access::HOST_READ);
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::check_push_layout;
+
+    #[test]
+    fn push_constants_match_the_glsl_block() {
+        check_push_layout::<Push>("output_convert", SPIRV).unwrap();
+    }
+
+    #[test]
+    fn buffer_sizes_round_to_whole_groups() {
+        assert_eq!(OutputFormat::Srgb8.buffer_bytes(5), 24);
+        assert_eq!(OutputFormat::Srgb8.buffer_bytes(8), 24);
+        assert_eq!(OutputFormat::LinearF32.buffer_bytes(5), 80);
+    }
+}

@@ -7,11 +7,10 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(binding = 0, rgba16f) uniform readonly image2D sample_color;
-layout(binding = 1, rgba32f) uniform readonly image2D sample_eye;
-layout(binding = 2, rgba32f) uniform image2D color_sum;
-layout(binding = 3, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
-layout(binding = 4, rgba16f) uniform writeonly image2D gbuffer_color;
+layout(binding = 0, rgba32f) uniform readonly image2D sample_target; // (r, g, b, z)
+layout(binding = 1, rgba32f) uniform image2D color_sum;
+layout(binding = 2, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
+layout(binding = 3, rgba16f) uniform writeonly image2D gbuffer_color;
 
 layout(push_constant, std430) uniform Push {
     ivec2 extent;
@@ -24,15 +23,14 @@ void main() {
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
-    vec4 c = imageLoad(sample_color, p);
-    vec4 e = imageLoad(sample_eye, p);
+    vec4 s = imageLoad(sample_target, p);
     float index = float(pc.sample_index);
     Fold f;
     if (pc.sample_index == 0u) {
-        f = fold_first(c, e, index);
+        f = fold_first(s, index);
     } else {
         f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
-        fold_next(f, c, e, index);
+        fold_next(f, s, index);
     }
     if (pc.sample_index + 1u == pc.sample_count) {
         float n = float(pc.sample_count);

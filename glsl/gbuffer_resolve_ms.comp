@@ -9,11 +9,10 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(binding = 0, rgba16f) uniform readonly image2DMS sample_color;
-layout(binding = 1, rgba32f) uniform readonly image2DMS sample_eye;
-layout(binding = 2, rgba32f) uniform image2D color_sum;
-layout(binding = 3, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
-layout(binding = 4, rgba16f) uniform writeonly image2D gbuffer_color;
+layout(binding = 0, rgba32f) uniform readonly image2DMS sample_target; // (r, g, b, z)
+layout(binding = 1, rgba32f) uniform image2D color_sum;
+layout(binding = 2, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
+layout(binding = 3, rgba16f) uniform writeonly image2D gbuffer_color;
 
 layout(push_constant, std430) uniform Push {
     ivec2 extent;        // of the G-buffer
@@ -36,13 +35,12 @@ void main() {
     }
     for (uint s = 0u; s < pc.samples; s++) {
         ivec2 q = p + (ivec2(pc.read_offsets >> (2u * s), pc.read_offsets >> (2u * s + 1u)) & 1);
-        vec4 c = imageLoad(sample_color, q, int(s));
-        vec4 e = imageLoad(sample_eye, q, int(s));
+        vec4 t = imageLoad(sample_target, q, int(s));
         float index = float(pc.index_base + ((pc.indices[s / 4u] >> (8u * (s % 4u))) & 0xFFu));
         if (pc.sample_base == 0u && s == 0u) {
-            f = fold_first(c, e, index);
+            f = fold_first(t, index);
         } else {
-            fold_next(f, c, e, index);
+            fold_next(f, t, index);
         }
     }
     if (pc.sample_base + pc.samples == pc.sample_count) {

@@ -9,13 +9,13 @@ layout(location = 0) in vec4 in_position_size; // xyz world, w world diameter
 layout(location = 1) in vec4 in_color;          // linear RGB
 
 layout(location = 0) flat out vec3 v_color;
-layout(location = 1) flat out vec3 v_eye;
+layout(location = 1) flat out float v_z;
 
 void main() {
     vec3 d = in_position_size.xyz - pc.eye.xyz;
     vec3 e = vec3(dot(d, pc.right.xyz), dot(d, pc.up.xyz), dot(d, pc.forward.xyz));
     v_color = in_color.rgb;
-    v_eye = e;
+    v_z = e.z;
     if (e.z <= pc.near || e.z >= pc.far) {
         // Behind the eye or outside the depth range: outside the clip volume.
         gl_Position = vec4(0.0, 0.0, -2.0, 1.0);

@@ -2,8 +2,11 @@
 //! size plus a guard band, taken in the passes of a [`SamplePlan`] (one
 //! sample per pass with the sub-pixel jitter in the projection, or S
 //! samples per multisampled pass), each pass resolved as it is drawn into
-//! color (rgba16f, mean in linear light) and eye position (rgba32f, of the
-//! nearest sample; w = coverage fraction).
+//! color (rgba16f, mean in linear light) and eye depth (rgba32f
+//! (0, 0, z, coverage): z of the nearest sample, w the covered fraction).
+//! A raster pass writes one rgba32f target per sample, (r, g, b, z): the
+//! DOF methods read only the eye depth of DESIGN §3's eye position, so its
+//! x and y are neither drawn nor kept.
 
 use std::sync::Arc;
 
@@ -198,7 +201,7 @@ impl GBuffer {
     /// Records the plan's passes through every lens position of `lens`
     /// (lens outer, passes inner), each raster followed by its resolve, as
     /// passes `{label}.raster` and `{label}.resolve`. The color is the mean
-    /// over all samples; the eye position is the nearest sample's, ties to
+    /// over all samples; the eye depth is the nearest sample's, ties to
     /// the lowest index in the one-sample form (lens position, then
     /// sample), whatever the plan.
     #[allow(clippy::too_many_arguments)]
@@ -215,8 +218,7 @@ impl GBuffer {
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let t = &self.targets;
         let resolve_images = ResolveImages {
-            sample_color: &t.color,
-            sample_eye: &t.eye,
+            sample: &t.sample,
             color_sum: &self.color_sum,
             gbuffer_eye: &self.eye,
             gbuffer_color: &self.color,
@@ -225,7 +227,7 @@ impl GBuffer {
         let raster = passes.raster(samples);
         let sample_count = lens.len() as u32 * self.plan.passes.len() as u32 * samples;
         let per_lens = self.plan.passes.len() as u32 * samples;
-        let extent = [t.color.width(), t.color.height()];
+        let extent = [t.sample.width(), t.sample.height()];
         for (i, (l, sample, planned)) in self.plan.with_lens(lens).enumerate() {
             let push = self.view.push(sample.jitter, sample.lens_u, extent);
             raster.record(

@@ -147,8 +147,8 @@ pub struct HostGBuffer {
     pub guard: u32,
     /// Linear color, alpha = coverage.
     pub color: Vec<[f32; 4]>,
-    /// Eye position (DESIGN §2's eye space; z = +inf for background),
-    /// w = coverage.
+    /// (0, 0, z, coverage): eye depth (DESIGN §2's eye space; +inf for
+    /// background) and covered fraction; x and y are not kept.
     pub eye: Vec<[f32; 4]>,
 }
 
@@ -414,7 +414,7 @@ struct Readback {
     format: OutputFormat,
     /// Written by the output pass ([`OutputConvert`]).
     result: Buffer,
-    /// Color (rgba16f) and eye position (rgba32f) of the G-buffer.
+    /// Color (rgba16f) and eye depth (rgba32f) of the G-buffer.
     gbuffer: Option<(Buffer, Buffer)>,
 }
 

@@ -1,5 +1,5 @@
 //! The G-buffer resolve pass: folds one raster pass's samples into the
-//! running color sum and nearest eye position, and after the last pass
+//! running color sum and nearest eye depth, and after the last pass
 //! writes the G-buffer (mean color, coverage fraction). One sample per pass:
 //! `glsl/gbuffer_resolve.comp`; multisampled passes:
 //! `glsl/gbuffer_resolve_ms.comp`; both fold through `gbuffer_fold.glsl`.
@@ -57,8 +57,8 @@ pub struct ResolvePass {
 
 /// The images the pass reads and writes, all in `GENERAL` layout.
 pub struct ResolveImages<'a> {
-    pub sample_color: &'a Image,
-    pub sample_eye: &'a Image,
+    /// The pass's sample target: (r, g, b, z).
+    pub sample: &'a Image,
     pub color_sum: &'a Image,
     pub gbuffer_eye: &'a Image,
     pub gbuffer_color: &'a Image,
@@ -68,7 +68,7 @@ impl GBufferResolve {
     /// The pipelines; the multisampled one when `multisampled` (the device
     /// reads multisampled storage images).
     pub fn new(ctx: &Arc<Context>, multisampled: bool) -> Result<GBufferResolve> {
-        let bindings = [Binding::StorageImage; 5];
+        let bindings = [Binding::StorageImage; 4];
         Ok(GBufferResolve {
             pipeline: ComputePipeline::new(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
             multisampled: match multisampled {
@@ -94,12 +94,7 @@ impl GBufferResolve {
         images: &ResolveImages<'r>,
         pass: &ResolvePass,
     ) {
-        let samples = images.sample_color.samples();
-        assert_eq!(
-            samples,
-            images.sample_eye.samples(),
-            "sample targets differ"
-        );
+        let samples = images.sample.samples();
         assert!(
             pass.first_sample + samples <= pass.sample_count,
             "more samples than the G-buffer's"
@@ -120,8 +115,7 @@ impl GBufferResolve {
             rec.barriers(&list);
             let (w, h) = (images.gbuffer_color.width(), images.gbuffer_color.height());
             let binds = [
-                Bind::StorageImage(images.sample_color),
-                Bind::StorageImage(images.sample_eye),
+                Bind::StorageImage(images.sample),
                 Bind::StorageImage(images.color_sum),
                 Bind::StorageImage(images.gbuffer_eye),
                 Bind::StorageImage(images.gbuffer_color),

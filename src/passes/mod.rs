@@ -55,8 +55,9 @@ impl FrameView {
 pub struct DofInput<'r> {
     /// Linear color (rgba16f), alpha = coverage.
     pub color: &'r Image,
-    /// Eye position of the nearest sample (rgba32f; z = +∞ for background),
-    /// w = coverage.
+    /// (0, 0, z, coverage) (rgba32f): the eye depth of the nearest sample
+    /// (+∞ for background) and the covered fraction; x and y are not kept
+    /// (no method reads them).
     pub eye: &'r Image,
     pub view: FrameView,
 }

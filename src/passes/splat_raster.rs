@@ -1,6 +1,7 @@
 //! The splat raster pass (`glsl/splat_raster.{vert,frag}`): every splat as
 //! a hardware point sprite (POINT_LIST + `gl_PointSize`), depth-tested
-//! (strict LESS), into one sample's color, eye-position and depth targets.
+//! (strict LESS), into one pass's sample target — (r, g, b, z): linear
+//! color and eye depth, rgba32f — and depth target.
 
 use std::sync::Arc;
 
@@ -15,6 +16,8 @@ use crate::vk::{
 
 pub const COLOR_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const EYE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+/// A raster sample: linear color and eye depth.
+pub const SAMPLE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 
 /// One splat as the vertex shader reads it (24 bytes).
@@ -70,23 +73,21 @@ pub fn ssaa_jitter(index: u32, k: u32) -> Vec2 {
 
 /// The render targets of one raster pass.
 pub struct SampleTargets {
-    pub color: Image,
-    pub eye: Image,
+    /// (r, g, b, z) per sample; uncovered: (background, +∞).
+    pub sample: Image,
     pub depth: Image,
 }
 
 impl SampleTargets {
-    /// Color (rgba16f), eye position (rgba32f) and depth (D32) targets of
-    /// `samples` samples per pixel, the color and eye targets also readable
-    /// as storage images.
+    /// The sample (rgba32f, also a storage image) and depth (D32) targets
+    /// of `samples` samples per pixel.
     pub fn new(ctx: &Arc<Context>, width: u32, height: u32, samples: u32) -> Result<SampleTargets> {
         let attach = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
         let image = |name: &str, format: vk::Format, usage: vk::ImageUsageFlags| {
             Image::new_multisampled(ctx, name, format, width, height, samples, usage)
         };
         Ok(SampleTargets {
-            color: image("sample color", COLOR_FORMAT, attach)?,
-            eye: image("sample eye", EYE_FORMAT, attach)?,
+            sample: image("sample", SAMPLE_FORMAT, attach)?,
             depth: image(
                 "sample depth",
                 DEPTH_FORMAT,
@@ -98,8 +99,7 @@ impl SampleTargets {
     /// Bytes of device memory per pixel of `samples` samples.
     pub fn bytes_per_pixel(samples: u32) -> u64 {
         use crate::vk::texel_bytes;
-        samples as u64
-            * (texel_bytes(COLOR_FORMAT) + texel_bytes(EYE_FORMAT) + texel_bytes(DEPTH_FORMAT))
+        samples as u64 * (texel_bytes(SAMPLE_FORMAT) + texel_bytes(DEPTH_FORMAT))
     }
 }
 
@@ -131,7 +131,7 @@ impl SplatRaster {
                         offset: std::mem::offset_of!(SplatVertex, color) as u32,
                     },
                 ],
-                color_formats: &[COLOR_FORMAT, EYE_FORMAT],
+                color_formats: &[SAMPLE_FORMAT],
                 depth_format: DEPTH_FORMAT,
                 samples,
             },
@@ -141,9 +141,9 @@ impl SplatRaster {
 
     /// Records one raster pass as pass `name`: the targets' barriers
     /// (`first`: nothing before; otherwise the previous pass's resolve
-    /// read them), a clear (color to `background` with alpha 0, eye to 0,
-    /// depth to 1), the draw of `count` splats, and the barrier that hands
-    /// color and eye to the resolve's compute reads.
+    /// read them), a clear (the sample to (`background`, +∞), depth to 1),
+    /// the draw of `count` splats, and the barrier that hands the sample to
+    /// the resolve's compute reads.
     #[allow(clippy::too_many_arguments)]
     pub fn record<'r>(
         &'r self,
@@ -163,28 +163,19 @@ impl SplatRaster {
                 (Access::COMPUTE_READ, Access::DEPTH_WRITE)
             };
             rec.barriers(&[
-                (&targets.color, color_src, Access::COLOR_WRITE),
-                (&targets.eye, color_src, Access::COLOR_WRITE),
+                (&targets.sample, color_src, Access::COLOR_WRITE),
                 (&targets.depth, depth_src, Access::DEPTH_WRITE),
             ]);
+            let [r, g, b] = background;
             rec.draw_points(
                 &self.pipeline,
-                &[
-                    (
-                        &targets.color,
-                        [background[0], background[1], background[2], 0.0],
-                    ),
-                    (&targets.eye, [0.0; 4]),
-                ],
+                &[(&targets.sample, [r, g, b, f32::INFINITY])],
                 &targets.depth,
                 splats,
                 count,
                 push,
             );
-            rec.barriers(&[
-                (&targets.color, Access::COLOR_WRITE, Access::COMPUTE_READ),
-                (&targets.eye, Access::COLOR_WRITE, Access::COMPUTE_READ),
-            ]);
+            rec.barriers(&[(&targets.sample, Access::COLOR_WRITE, Access::COMPUTE_READ)]);
         });
     }
 }

@@ -27,6 +27,25 @@ use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 /// PCL stereo scan) keep some holes; `--splat-size` / `--splat-px` cover them.
 pub const SPACING_TO_DIAMETER: f32 = 1.0;
 
+/// Every point's world diameter under `splat` (DESIGN §3), as the upload
+/// makes them: `SPACING_TO_DIAMETER` × local spacing (the cloud's median
+/// spacing where a point's is 0), W for `World(W)`, and 0 for `Pixels`
+/// (sized on the GPU).
+pub fn splat_diameters(cloud: &PointCloud, splat: SplatSize) -> Vec<f32> {
+    match splat {
+        SplatSize::World(w) => vec![w; cloud.len()],
+        SplatSize::Pixels(_) => vec![0.0; cloud.len()],
+        SplatSize::Spacing => {
+            let spacing = cloud.local_spacing();
+            let fallback = crate::cloud::median(spacing.clone());
+            spacing
+                .iter()
+                .map(|&s| SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback })
+                .collect()
+        }
+    }
+}
+
 /// How big a splat is (DESIGN §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SplatSize {
@@ -184,18 +203,7 @@ impl Renderer {
         let count = u32::try_from(cloud.len())
             .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
         let started = Instant::now();
-        let diameters: Vec<f32> = match splat {
-            SplatSize::World(w) => vec![w; cloud.len()],
-            SplatSize::Pixels(_) => vec![0.0; cloud.len()],
-            SplatSize::Spacing => {
-                let spacing = cloud.local_spacing();
-                let fallback = crate::cloud::median(spacing.clone());
-                spacing
-                    .iter()
-                    .map(|&s| SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback })
-                    .collect()
-            }
-        };
+        let diameters = splat_diameters(cloud, splat);
         let splat_sizes_ms = started.elapsed().as_secs_f64() * 1e3;
         let vertices: Vec<SplatVertex> = cloud
             .positions

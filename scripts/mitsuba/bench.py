@@ -1,0 +1,697 @@
+"""pointlens against Mitsuba 3: time and PSNR of the same splats through the
+same thin lens (run by scripts/bench-vs-mitsuba, which sets up the Python
+environment and the binaries; see that script for the options).
+
+For each scene: pointlens prints its depth-of-field camera
+(`render --print-camera`); examples/export_splats writes the splats (world
+diameters and linear colors) that `render` draws; splat_scene.py turns them
+into camera-facing emitting squares for Mitsuba. Then, alternating in every
+round, pointlens renders each method (one process per frame, its frame wall
+time from `--timings-json`) and Mitsuba renders each sample count (steady
+render time, after a first render that includes the JIT). Every image is
+compared with Mitsuba at the reference sample count by `pointlens compare`.
+"""
+
+import argparse
+import csv
+import datetime
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import splat_scene as ss
+
+# The cameras: pointlens `render` flags; the rest of the camera is pointlens's
+# default (auto-framing) and is read back with --print-camera.
+SCENES = {
+    # The Stanford bunny with its synthetic color checker (same points as
+    # bun_zipper.ply, so the same splats): the default camera (auto-framed
+    # from +z), focused on the nearest point (the chest, pixel 360,343),
+    # R = 0.012: CoC 0 at the chest to 25 px at the back of the bunny.
+    "bunny": {
+        "file": "data/bunny_colored.ply",
+        "flags": ["--focus-pixel", "360,343", "--aperture-radius", "0.012"],
+        "accum": [16, 64],
+    },
+    # The same points, uncolored (gray): blur shows only at silhouettes.
+    "bun_zipper": {
+        "file": "data/bun_zipper.ply",
+        "flags": ["--focus-pixel", "360,343", "--aperture-radius", "0.012"],
+        "accum": [16, 64],
+    },
+    # The PCL stereo scan from its sensor (as `bench`'s mug), focused on the
+    # mug (pixel 380,330), R = 0.015: the back wall blurs to 29 px.
+    "mug": {
+        "file": "data/pcl_table_scene_mug_rgb.ply",
+        "flags": [
+            "--eye", "0,0,0", "--target", "0,0,1", "--up", "0,-1,0", "--fovy-deg", "27.95",
+            "--focus-pixel", "380,330", "--aperture-radius", "0.015",
+        ],
+        # accum 64 takes about 2 minutes here on 2 cores (lavapipe).
+        "accum": [16],
+    },
+}
+
+
+class Failure(Exception):
+    """A one-line error for the user."""
+
+
+def fail(msg):
+    raise Failure(msg)
+
+
+def log(msg):
+    print(f"[bench-vs-mitsuba] {msg}", file=sys.stderr, flush=True)
+
+
+def run(cmd, what):
+    """Runs a command; its stdout, or a Failure naming `what` with the last
+    line of its stderr."""
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or ["(no message)"])[-1]
+        fail(f"{what} failed (exit {proc.returncode}): {last}")
+    return proc.stdout
+
+
+def parse_list(text, name, cast=int):
+    try:
+        values = [cast(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        fail(f"{name}: not a list of numbers: {text}")
+    if not values or any(v <= 0 for v in values):
+        fail(f"{name}: needs positive numbers, got {text}")
+    return values
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="bench-vs-mitsuba", add_help=True)
+    p.add_argument("--pointlens", required=True)
+    p.add_argument("--export-splats", required=True)
+    p.add_argument("--repo", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--work", required=True)
+    p.add_argument("--scenes", default="bunny,mug")
+    p.add_argument("--reps", type=int, default=3)
+    p.add_argument("--spp", default="1,2,4,8,16,32,64,128")
+    p.add_argument("--ref-spp", type=int, default=1024)
+    p.add_argument("--accum", default=None)
+    p.add_argument("--repeat-limit-s", type=float, default=15.0)
+    p.add_argument("--pinhole-spp", type=int, default=128)
+    p.add_argument("--variant", default="llvm_ad_rgb")
+    p.add_argument("--device", default=None)
+    p.add_argument("--label", default=None)
+    try:
+        args = p.parse_args(argv)
+    except SystemExit as e:
+        raise Failure("bad arguments (see the usage above)") if e.code else e
+    args.scenes = [s for s in args.scenes.split(",") if s]
+    for s in args.scenes:
+        if s not in SCENES:
+            fail(f"--scenes: unknown scene '{s}' (known: {', '.join(SCENES)})")
+    args.spp = sorted(set(parse_list(args.spp, "--spp")))
+    args.accum = sorted(set(parse_list(args.accum, "--accum"))) if args.accum else None
+    if not args.scenes:
+        fail("--scenes: no scene given")
+    if args.reps < 1:
+        fail("--reps must be at least 1")
+    if args.ref_spp < 1 or args.pinhole_spp < 1:
+        fail("--ref-spp and --pinhole-spp must be positive")
+    for name, n in [("--spp", v) for v in args.spp] + [("--ref-spp", args.ref_spp),
+                                                        ("--pinhole-spp", args.pinhole_spp)]:
+        if n > 64 and n % 64:
+            fail(f"{name}: sample counts above 64 must be multiples of 64 (rendered in passes of 64), got {n}")
+    return args
+
+
+def methods(args, scene):
+    """pointlens methods: (name as `bench` names it, render flags); accum's
+    sample counts from --accum, else the scene's."""
+    m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
+         ("rdb9", ["--method", "rdb", "--rdb-bins", "9"])]
+    m += [(f"accum{s}", ["--method", "accum", "--samples", str(s)]) for s in args.accum or SCENES[scene]["accum"]]
+    return m
+
+
+class Bench:
+    def __init__(self, args):
+        self.args = args
+        self.repo = Path(args.repo)
+        self.work = Path(args.work)
+        self.out = Path(args.out)
+        import drjit as dr
+        import mitsuba as mi
+
+        try:
+            mi.set_variant(args.variant)
+        except Exception as e:  # noqa: BLE001 - Mitsuba raises plain errors
+            fail(f"Mitsuba variant {args.variant} is not usable here: {e}")
+        self.mi, self.dr = mi, dr
+        self.cache_dir = os.environ.get("DRJIT_CACHE_DIR")
+        self.results = {"scenes": {}}
+
+    # -- pointlens ---------------------------------------------------------
+
+    def pointlens(self, *argv, what):
+        cmd = [self.args.pointlens, *argv]
+        return run(cmd, what)
+
+    def device_flags(self):
+        return ["--device", self.args.device] if self.args.device else []
+
+    def render_pointlens(self, scene, name, flags, out_exr, camera):
+        tj = out_exr.with_suffix(".timings.json")
+        started = time.perf_counter()
+        self.pointlens("render", str(self.repo / SCENES[scene]["file"]), "-o", str(out_exr),
+                       "--camera", str(camera), *flags, *self.device_flags(), "--timings-json", str(tj),
+                       what=f"pointlens render ({scene}, {name})")
+        process_s = time.perf_counter() - started
+        t = json.loads(tj.read_text())
+        return {
+            "frame_wall_ms": t["frame_wall_ms"],
+            "gpu_total_ms": t["gpu_total_ms"],
+            "upload_wall_ms": t["upload"]["wall_ms"],
+            "splat_sizes_ms": t["upload"].get("splat_sizes_ms", 0.0),
+            "load_ms": t["load_ms"],
+            "encode_ms": t["encode_ms"],
+            "process_ms": process_s * 1e3,
+            "device": t["device"],
+            "guard_px": t["guard_px"],
+        }
+
+    def compare(self, a, b):
+        out = self.pointlens("compare", str(a), str(b), what=f"pointlens compare {a.name} {b.name}")
+        vals = {}
+        for line in out.splitlines():
+            k, _, v = line.partition(":")
+            vals[k.strip()] = float(v)
+        if "psnr" not in vals:
+            fail(f"pointlens compare printed no psnr for {a} {b}")
+        return vals
+
+    # -- Mitsuba -----------------------------------------------------------
+
+    def cold_jit(self):
+        """Makes the next render compile its kernels again: Dr.Jit's kernel
+        cache is emptied in memory and on disk (the wrapper points
+        DRJIT_CACHE_DIR at a folder of this run)."""
+        self.dr.flush_kernel_cache()
+        if self.cache_dir and Path(self.cache_dir).is_dir():
+            for f in Path(self.cache_dir).iterdir():
+                if f.is_file():
+                    f.unlink()
+
+    def mitsuba_render(self, scene, spp, seed):
+        # One pass holds W·H·spp samples; above 64 spp render passes of
+        # 64 spp with distinct seeds and average them (memory).
+        if spp <= 64:
+            return ss.render(self.mi, self.dr, scene, spp, seed)
+        if spp % 64:
+            fail(f"sample counts above 64 must be multiples of 64, got {spp}")
+        total, seconds = None, 0.0
+        for k in range(spp // 64):
+            img, s = ss.render(self.mi, self.dr, scene, 64, seed * 7919 + k)
+            total = img if total is None else total + img
+            seconds += s
+        return total / (spp // 64), seconds
+
+    # -- the steps ---------------------------------------------------------
+
+    def prepare(self, scene):
+        """Camera, splats, pinhole check, Mitsuba scene."""
+        a = self.args
+        d = self.work / scene
+        d.mkdir(parents=True, exist_ok=True)
+        ply = self.repo / SCENES[scene]["file"]
+        # The DOF camera, as pointlens resolves it (auto-framing, --focus-pixel).
+        cam_text = self.pointlens("render", str(ply), "-o", str(d / "camera_probe.exr"), "--method", "pinhole",
+                                  *SCENES[scene]["flags"], *self.device_flags(), "--print-camera",
+                                  what=f"pointlens --print-camera ({scene})")
+        try:
+            cam = json.loads(cam_text)
+        except json.JSONDecodeError:
+            fail(f"pointlens --print-camera ({scene}) printed no JSON camera")
+        (d / "camera.json").write_text(json.dumps(cam, indent=2))
+        pin = dict(cam, aperture_radius=0.0)
+        (d / "camera_pinhole.json").write_text(json.dumps(pin, indent=2))
+
+        splats = d / "splats.bin"
+        run([a.export_splats, str(ply), str(splats)], f"export_splats ({scene})")
+        try:
+            positions, diameters, colors = ss.read_splats(splats)
+        except ValueError as e:
+            fail(str(e))
+
+        info = {"camera": cam, "points": int(len(positions)),
+                "diameter_median": float(np.median(diameters)), "file": SCENES[scene]["file"]}
+        eye, right, up, forward = ss.camera_basis(cam)
+        z = (positions.astype(np.float64) - eye) @ forward
+        fpx = ss.f_px(cam)
+        coc = 2 * cam["aperture_radius"] * fpx * np.abs(z - cam["focus_distance"]) / (z * cam["focus_distance"])
+        info["coc_px_max"] = float(coc.max())
+        info["coc_px_background"] = float(2 * cam["aperture_radius"] * fpx / cam["focus_distance"])
+        info["splat_px_median"] = float(np.median(fpx * diameters / z))
+
+        # Convention check: pinhole pointlens against a pinhole Mitsuba.
+        log(f"{scene}: pinhole convention check ({a.pinhole_spp} spp)")
+        pl_pin = d / "pointlens_pinhole_check.exr"
+        self.render_pointlens(scene, "pinhole", ["--method", "pinhole"], pl_pin, d / "camera_pinhole.json")
+        mscene, minfo = ss.build_scene(self.mi, pin, positions, diameters, colors)
+        img, _ = self.mitsuba_render(mscene, a.pinhole_spp, 7)
+        mi_pin = d / "mitsuba_pinhole_check.exr"
+        ss.write_exr(self.mi, mi_pin, img)
+        check = self.compare(pl_pin, mi_pin)
+        check.update(alignment(read_exr(self.mi, pl_pin), img))
+        check["squares"] = minfo
+        # The two emulations of pointlens's rasteriser, each left out once
+        # for the record where it moves at least 0.1 % of the squares: the
+        # 1-pixel sprite minimum and the tie order.
+        for key, extra in (("psnr_without_1px_minimum", {"min_px": 0.0}),
+                           ("psnr_without_tie_order", {"ties": False})):
+            changed = minfo["enlarged_to_min_px"] if "min_px" in extra else minfo["tie_points_moved"]
+            if changed >= 0.001 * len(positions):
+                raw, _ = ss.build_scene(self.mi, pin, positions, diameters, colors, **extra)
+                img, _ = self.mitsuba_render(raw, a.pinhole_spp, 7)
+                ss.write_exr(self.mi, d / "mitsuba_pinhole_variant.exr", img)
+                check[key] = self.compare(pl_pin, d / "mitsuba_pinhole_variant.exr")["psnr"]
+                del raw
+        # What is left is pointlens's anti-aliasing (K×K point samples per
+        # pixel against Mitsuba's area integral): it shrinks with K.
+        pl_pin8 = d / "pointlens_pinhole_check_ssaa8.exr"
+        self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--ssaa", "8"], pl_pin8,
+                              d / "camera_pinhole.json")
+        check["psnr_pointlens_ssaa8"] = self.compare(pl_pin8, mi_pin)["psnr"]
+        info["pinhole_check"] = check
+        del mscene
+
+        self.cold_jit()
+        mscene, minfo = ss.build_scene(self.mi, cam, positions, diameters, colors)
+        info["mitsuba_build_ms"] = minfo["build_s"] * 1e3
+        info["squares"] = minfo
+        return d, info, mscene, (positions, diameters, colors)
+
+    def max_depth_check(self, cam, splats):
+        """What Mitsuba's max_depth means, by rendering: the benchmark scene
+        at max_depth 0, 1, 2 (mean pixel value), and a probe scene with a
+        gray diffuse wall, a square lamp facing the wall (its unlit back to
+        the camera) and a small square lamp facing the camera: the mean
+        value of the lamp seen directly and of the wall lit by the other."""
+        mi = self.mi
+        out = {}
+        for md in (0, 1, 2):
+            scene, _ = ss.build_scene(mi, cam, *splats, max_depth=md)
+            img, _ = ss.render(mi, self.dr, scene, 8, 3)
+            out[f"scene_max_depth_{md}"] = float(img.mean())
+
+        def square(z, half, normal_z, cx=0.0, cy=0.0, emit=None, reflect=None):
+            # A rectangle's default normal is +z; flip it to face -z.
+            t = mi.ScalarTransform4f().translate([cx, cy, z]) @ mi.ScalarTransform4f().scale([half, half, 1.0])
+            if normal_z < 0:
+                t = t @ mi.ScalarTransform4f().rotate([1, 0, 0], 180)
+            d = {"type": "rectangle", "to_world": t}
+            if emit is not None:
+                d["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": emit}}
+                d["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+            else:
+                d["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": reflect}}
+            return d
+
+        probe_cam = {"width": 64, "height": 64, "eye": [0, 0, 0], "target": [0, 0, 1], "up": [0, 1, 0],
+                     "fovy_deg": 40.0, "aperture_radius": 0.0, "focus_distance": 1.0}
+        for md in (0, 1, 2):
+            scene = mi.load_dict({
+                "type": "scene",
+                "integrator": {"type": "path", "max_depth": md},
+                "sensor": ss.sensor_dict(mi, probe_cam),
+                # The wall at z = 3 facing the camera, a lamp at z = 1.5 facing
+                # the wall (its back, one-sided, to the camera), and a small
+                # lamp at z = 1 facing the camera, off to the side.
+                "wall": square(3.0, 2.0, -1, reflect=[0.5, 0.5, 0.5]),
+                "lamp": square(1.5, 0.15, +1, emit=[10.0, 10.0, 10.0]),
+                "seen": square(1.0, 0.05, -1, cx=0.25, cy=0.25, emit=[1.0, 1.0, 1.0]),
+            })
+            img, _ = ss.render(mi, self.dr, scene, 16, 3)
+            # The small lamp at (0.25, 0.25, 1) covers pixels 5.6–14.4 in x and y (upper
+            # left: x = +0.25 is the camera's left here); the wall's corner
+            # region at the lower right sees neither lamp.
+            out[f"probe_max_depth_{md}_lamp_seen"] = float(img[7:13, 7:13].mean())
+            out[f"probe_max_depth_{md}_wall"] = float(img[48:58, 48:58].mean())
+        return out
+
+    def main(self):
+        a = self.args
+        self.work.mkdir(parents=True, exist_ok=True)
+        self.out.mkdir(parents=True, exist_ok=True)
+        prepared = {}
+        for scene in a.scenes:
+            prepared[scene] = self.prepare(scene)
+        first = prepared[a.scenes[0]]
+        log("max_depth check")
+        self.results["max_depth_check"] = self.max_depth_check(first[1]["camera"], first[3])
+
+        meths = {s: methods(a, s) for s in a.scenes}
+        pl = {s: {m: [] for m, _ in meths[s]} for s in a.scenes}
+        mt = {s: {spp: [] for spp in a.spp} for s in a.scenes}
+        mt_first = {s: {} for s in a.scenes}
+        load = []
+        for r in range(a.reps):
+            for scene in a.scenes:
+                d, info, mscene, _ = prepared[scene]
+                # pointlens frames and Mitsuba renders in turn, one of each
+                # after the other, so that both see the same load.
+                jobs_pl = [(name, flags) for name, flags in meths[scene]
+                           if not (pl[scene][name]
+                                   and pl[scene][name][0]["frame_wall_ms"] > a.repeat_limit_s * 1e3)]
+                jobs_mi = [spp for spp in a.spp
+                           if not (mt[scene][spp] and mt[scene][spp][0] > a.repeat_limit_s * 1e3)]
+                jobs = []
+                for k in range(max(len(jobs_pl), len(jobs_mi))):
+                    if k < len(jobs_pl):
+                        jobs.append(("pointlens", jobs_pl[k]))
+                    if k < len(jobs_mi):
+                        jobs.append(("mitsuba", jobs_mi[k]))
+                load.append(os.getloadavg()[0])
+                for kind, job in jobs:
+                    if kind == "pointlens":
+                        name, flags = job
+                        log(f"round {r + 1}/{a.reps} {scene}: pointlens {name}")
+                        pl[scene][name].append(self.render_pointlens(scene, name, flags, d / f"pointlens_{name}.exr",
+                                                                     d / "camera.json"))
+                        continue
+                    spp = job
+                    log(f"round {r + 1}/{a.reps} {scene}: Mitsuba {spp} spp")
+                    if r == 0:
+                        # What one run of Mitsuba at this sample count pays:
+                        # the kernels compiled from scratch.
+                        self.cold_jit()
+                        img, s = self.mitsuba_render(mscene, spp, 0)
+                        mt_first[scene][spp] = s * 1e3
+                        ss.write_exr(self.mi, d / f"mitsuba_{spp}spp.exr", img)
+                    _, s = self.mitsuba_render(mscene, spp, 0)
+                    mt[scene][spp].append(s * 1e3)
+        load.append(os.getloadavg()[0])
+        self.results["load_average_1min"] = load
+
+        for scene in a.scenes:
+            d, info, mscene, _ = prepared[scene]
+            log(f"{scene}: Mitsuba reference, {a.ref_spp} spp")
+            img, s = self.mitsuba_render(mscene, a.ref_spp, 1000)
+            ref = d / f"mitsuba_ref_{a.ref_spp}spp.exr"
+            ss.write_exr(self.mi, ref, img)
+            info["reference_render_ms"] = s * 1e3
+            rows = []
+            for name, _ in meths[scene]:
+                runs = pl[scene][name]
+                q = self.compare(d / f"pointlens_{name}.exr", ref)
+                ms = [x["frame_wall_ms"] for x in runs]
+                rows.append({"renderer": "pointlens", "setting": name, "psnr": q["psnr"], "ssim": q["ssim"],
+                             "time_ms": statistics.median(ms), "time_min_ms": min(ms), "time_max_ms": max(ms),
+                             "n": len(ms), "first_ms": None,
+                             "gpu_total_ms": statistics.median(x["gpu_total_ms"] for x in runs),
+                             "process_ms": statistics.median(x["process_ms"] for x in runs),
+                             "load_ms": statistics.median(x["load_ms"] for x in runs),
+                             "splat_sizes_ms": statistics.median(x["splat_sizes_ms"] for x in runs),
+                             "upload_wall_ms": statistics.median(x["upload_wall_ms"] for x in runs),
+                             "runs": runs})
+            for spp in a.spp:
+                q = self.compare(d / f"mitsuba_{spp}spp.exr", ref)
+                ms = mt[scene][spp]
+                rows.append({"renderer": "mitsuba", "setting": f"{spp} spp", "spp": spp, "psnr": q["psnr"],
+                             "ssim": q["ssim"], "time_ms": statistics.median(ms), "time_min_ms": min(ms),
+                             "time_max_ms": max(ms), "n": len(ms), "first_ms": mt_first[scene][spp],
+                             "runs_ms": ms})
+            curve = [(r["spp"], r["psnr"], r["time_ms"]) for r in rows if r["renderer"] == "mitsuba"]
+            for r in rows:
+                if r["renderer"] == "pointlens":
+                    eq = equal_quality(curve, r["psnr"])
+                    r.update(eq)
+                    r["ratio"] = eq["mitsuba_ms_same_psnr"] / r["time_ms"] if eq["mitsuba_ms_same_psnr"] else None
+            info["rows"] = rows
+            info["pointlens_device"] = pl[scene]["pinhole"][0]["device"]
+            self.results["scenes"][scene] = info
+        self.finish()
+
+    def finish(self):
+        a = self.args
+        env = environment(a, self.mi, self.dr, self.results)
+        self.results["environment"] = env
+        (self.out / "results.json").write_text(json.dumps(self.results, indent=2) + "\n")
+        write_csv(self.out / "results.csv", self.results)
+        chart(self.out / "time_vs_psnr.png", self.results)
+        print(markdown(self.results))
+        log(f"wrote {self.out}/results.json, results.csv, time_vs_psnr.png")
+
+
+def read_exr(mi, path):
+    return np.array(mi.Bitmap(str(path)), dtype=np.float32)[..., :3]
+
+
+def srgb(x):
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def psnr_np(a, b):
+    m = float(np.mean((srgb(a) - srgb(b)) ** 2))
+    return math.inf if m == 0 else 10 * math.log10(1 / m)
+
+
+def alignment(pl, mi_img):
+    """Evidence for the pixel conventions: the PSNR (sRGB, as `compare`)
+    of the Mitsuba image as is, flipped, and shifted by one pixel; and the
+    difference of the two images' luminance centroids in pixels (a
+    half-pixel convention error would show as 0.5)."""
+    out = {"psnr_as_is": psnr_np(pl, mi_img),
+           "psnr_flipped_y": psnr_np(pl, mi_img[::-1]),
+           "psnr_flipped_x": psnr_np(pl, mi_img[:, ::-1])}
+    best = max((psnr_np(pl[1:-1, 1:-1], np.roll(mi_img, (dy, dx), (0, 1))[1:-1, 1:-1]), dx, dy)
+               for dx in (-1, 0, 1) for dy in (-1, 0, 1))
+    out["best_integer_shift"] = {"psnr": best[0], "dx": best[1], "dy": best[2]}
+
+    def centroid(img):
+        w = img.mean(axis=2)
+        ys, xs = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+        return float((w * xs).sum() / w.sum()), float((w * ys).sum() / w.sum())
+
+    (ax, ay), (bx, by) = centroid(pl), centroid(mi_img)
+    out["centroid_offset_px"] = {"dx": bx - ax, "dy": by - ay}
+    return out
+
+
+def equal_quality(curve, p):
+    """The Mitsuba sample count and steady render time at PSNR p, by linear
+    interpolation of PSNR in log2(spp) and of log(time) in log2(spp) along
+    the Mitsuba curve; beyond its ends, the last segment's slope
+    (extrapolated, marked)."""
+    curve = sorted(curve)
+    if len(curve) < 2:
+        return {"mitsuba_spp_same_psnr": None, "mitsuba_ms_same_psnr": None, "same_psnr_note": "no curve"}
+    xs = [math.log2(c[0]) for c in curve]
+    ps = [c[1] for c in curve]
+    ts = [math.log(c[2]) for c in curve]
+    note = ""
+    if p < ps[0]:
+        i, note = 0, "below 1 spp (extrapolated)"
+    elif p > ps[-1]:
+        i, note = len(curve) - 2, f"above {curve[-1][0]} spp (extrapolated)"
+    else:
+        i = next(k for k in range(len(curve) - 1) if ps[k] <= p <= ps[k + 1] or k == len(curve) - 2)
+        # A noisy, non-monotonic curve: the first bracketing segment.
+        for k in range(len(curve) - 1):
+            if min(ps[k], ps[k + 1]) <= p <= max(ps[k], ps[k + 1]):
+                i = k
+                break
+    dp = ps[i + 1] - ps[i]
+    f = (p - ps[i]) / dp if dp != 0 else 0.0
+    x = xs[i] + f * (xs[i + 1] - xs[i])
+    t = ts[i] + (x - xs[i]) * (ts[i + 1] - ts[i]) / (xs[i + 1] - xs[i])
+    return {"mitsuba_spp_same_psnr": 2 ** x, "mitsuba_ms_same_psnr": math.exp(t), "same_psnr_note": note}
+
+
+def cpu_model():
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def environment(a, mi, dr, results):
+    scenes = results["scenes"]
+    dev = next(iter(scenes.values()))["pointlens_device"] if scenes else {}
+    return {
+        "date": datetime.date.today().isoformat(),
+        "cpu": cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "pointlens_binary": a.pointlens,
+        "label": a.label,
+        "pointlens_device": f"{dev.get('name', '?')} ({dev.get('driver_info', '?')}, Vulkan {dev.get('api_version', '?')})",
+        "mitsuba": mi.__version__,
+        "drjit": dr.__version__,
+        "variant": a.variant,
+        "llvm": os.environ.get("DRJIT_LIBLLVM_PATH"),
+        "reps": a.reps,
+        "repeat_limit_s": a.repeat_limit_s,
+        "ref_spp": a.ref_spp,
+        "pinhole_spp": a.pinhole_spp,
+        "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
+        "load_average_1min": results.get("load_average_1min"),
+    }
+
+
+def write_csv(path, results):
+    cols = ["scene", "renderer", "setting", "time_ms", "time_min_ms", "time_max_ms", "n", "first_ms",
+            "psnr", "ssim", "mitsuba_spp_same_psnr", "mitsuba_ms_same_psnr", "ratio", "same_psnr_note",
+            "gpu_total_ms", "load_ms", "splat_sizes_ms", "upload_wall_ms", "process_ms"]
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for scene, info in results["scenes"].items():
+            for r in info["rows"]:
+                w.writerow([scene] + [fmt_csv(r.get(c)) for c in cols[1:]])
+
+
+def fmt_csv(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.4f}"
+    return str(v)
+
+
+def chart(path, results):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = results["scenes"]
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5.5 * len(scenes), 4.2), squeeze=False)
+    for ax, (scene, info) in zip(axes[0], scenes.items()):
+        mrows = [r for r in info["rows"] if r["renderer"] == "mitsuba"]
+        prow = [r for r in info["rows"] if r["renderer"] == "pointlens"]
+        ax.plot([r["time_ms"] / 1e3 for r in mrows], [r["psnr"] for r in mrows], "-o", color="tab:gray",
+                ms=4, label="Mitsuba 3 (spp)")
+        for r in mrows:
+            ax.annotate(str(r["spp"]), (r["time_ms"] / 1e3, r["psnr"]), textcoords="offset points",
+                        xytext=(3, -10), fontsize=7, color="tab:gray")
+        for r in prow:
+            ax.plot(r["time_ms"] / 1e3, r["psnr"], "s", color="tab:blue", ms=6)
+            ax.annotate(r["setting"], (r["time_ms"] / 1e3, r["psnr"]), textcoords="offset points",
+                        xytext=(5, 3), fontsize=8, color="tab:blue")
+        ax.plot([], [], "s", color="tab:blue", label="pointlens (method)")
+        ax.set_xscale("log")
+        ax.set_xlabel("frame / render time, s (log)")
+        ax.set_ylabel(f"PSNR dB vs Mitsuba {results['environment']['ref_spp']} spp")
+        ax.set_title(f"{scene}: {info['points']:,} splats, 640×480" if info["camera"]["width"] == 640
+                     else f"{scene}: {info['points']:,} splats")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="lower right", fontsize=8)
+    env = results["environment"]
+    fig.suptitle(f"{env['cpu']} ({env['cpu_count']} cores): pointlens on {env['pointlens_device'].split(' (')[0]}, "
+                 f"Mitsuba {env['mitsuba']} {env['variant']}; {env['date']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def ms(v):
+    if v is None:
+        return "—"
+    return f"{v:,.0f}" if v >= 100 else f"{v:.1f}"
+
+
+def markdown(results):
+    env = results["environment"]
+    md = results["max_depth_check"]
+    lines = []
+    lines.append(f"Measured {env['date']} with `{env['command'].strip()}`"
+                 + (f" ({env['label']})" if env["label"] else "") + ".")
+    lines.append(f"Machine: {env['cpu']}, {env['cpu_count']} cores. pointlens on {env['pointlens_device']}; "
+                 f"Mitsuba {env['mitsuba']} (Dr.Jit {env['drjit']}), variant `{env['variant']}`"
+                 + (f", LLVM `{Path(env['llvm']).name}`" if env["llvm"] and "llvm" in env["variant"] else "")
+                 + ". 1-minute load average at the start of each round and at the end: "
+                 + ", ".join(f"{v:.1f}" for v in env["load_average_1min"] or [])
+                 + " (the benchmark itself keeps about 2 busy).")
+    lines.append("")
+    for scene, info in results["scenes"].items():
+        cam = info["camera"]
+        pc = info["pinhole_check"]
+        lines.append(f"**{scene}** (`{info['file']}`, {info['points']:,} splats, {cam['width']}×{cam['height']}, "
+                     f"fovy {cam['fovy_deg']:.2f}°, R = {cam['aperture_radius']:g}, S = {cam['focus_distance']:.4f}; "
+                     f"CoC of the points up to {info['coc_px_max']:.1f} px, background {info['coc_px_background']:.1f} px; "
+                     f"median splat {info['splat_px_median']:.1f} px). Pinhole check, pointlens `pinhole` against "
+                     f"Mitsuba at {env['pinhole_spp']} spp: {pc['psnr']:.2f} dB PSNR, SSIM {pc['ssim']:.4f} "
+                     f"({pc['psnr_pointlens_ssaa8']:.2f} dB with `--ssaa 8`"
+                     + (f"; {pc['psnr_without_tie_order']:.2f} dB without the tie order"
+                        if "psnr_without_tie_order" in pc else "")
+                     + (f"; {pc['psnr_without_1px_minimum']:.2f} dB without the 1 px minimum"
+                        if "psnr_without_1px_minimum" in pc else "")
+                     + f"; flipped in y {pc['psnr_flipped_y']:.1f} dB, in x {pc['psnr_flipped_x']:.1f} dB; "
+                     f"centroid offset {pc['centroid_offset_px']['dx']:+.3f}, {pc['centroid_offset_px']['dy']:+.3f} px).")
+        lines.append("")
+        lines.append("| renderer | setting | time ms: median (min–max), n | first render (JIT) ms | PSNR dB | SSIM "
+                     "| Mitsuba for the same PSNR | Mitsuba time / pointlens time |")
+        lines.append("|---|---|---:|---:|---:|---:|---:|---:|")
+        for r in info["rows"]:
+            t = f"{ms(r['time_ms'])} ({ms(r['time_min_ms'])}–{ms(r['time_max_ms'])}), {r['n']}"
+            if r["renderer"] == "pointlens":
+                spp = r["mitsuba_spp_same_psnr"]
+                note = " (extrap.)" if r["same_psnr_note"] else ""
+                same = f"{spp:.1f} spp, {ms(r['mitsuba_ms_same_psnr'])} ms{note}" if spp else "—"
+                ratio = f"{r['ratio']:.2f}{'*' if note else ''}" if r["ratio"] else "—"
+                lines.append(f"| pointlens | {r['setting']} | {t} | — | {r['psnr']:.2f} | {r['ssim']:.4f} "
+                             f"| {same} | {ratio} |")
+            else:
+                lines.append(f"| Mitsuba | {r['setting']} | {t} | {ms(r['first_ms'])} | {r['psnr']:.2f} "
+                             f"| {r['ssim']:.4f} | | |")
+        if any(r.get("same_psnr_note") for r in info["rows"]):
+            lines.append("")
+            lines.append("(extrap.), *: beyond the Mitsuba curve's sample counts, extrapolated along its "
+                         "last segment.")
+        p0 = next(r for r in info["rows"] if r["renderer"] == "pointlens")
+        lines.append("")
+        lines.append(f"Outside the times above: pointlens reads the file in {ms(p0['load_ms'])} ms and uploads "
+                     f"in {ms(p0['upload_wall_ms'])} ms (splat sizes {ms(p0['splat_sizes_ms'])} ms), a whole "
+                     f"`render` process of pinhole takes {ms(p0['process_ms'])} ms; Mitsuba builds the scene "
+                     f"(squares, mesh, BVH) in {ms(info['mitsuba_build_ms'])} ms"
+                     + (f" (plus {ms(info['squares']['tie_seconds'] * 1e3)} ms in Python ordering "
+                        f"{info['squares']['tie_points_moved']:,} equal-depth squares as pointlens draws them)"
+                        if info["squares"]["tie_points_moved"] else "")
+                     + f"; the reference "
+                     f"({env['ref_spp']} spp) rendered in {ms(info['reference_render_ms'])} ms.")
+        lines.append("")
+    lines.append(f"Mitsuba's `max_depth`, checked by rendering: the first scene's mean pixel value at max_depth "
+                 f"0/1/2 is {md['scene_max_depth_0']:.4f}/{md['scene_max_depth_1']:.4f}/"
+                 f"{md['scene_max_depth_2']:.4f}; in a probe scene (a gray wall lit by a lamp the camera "
+                 f"sees from behind, and a small lamp facing the camera) the directly seen lamp reads "
+                 f"{md['probe_max_depth_0_lamp_seen']:.3f}/{md['probe_max_depth_1_lamp_seen']:.3f}/"
+                 f"{md['probe_max_depth_2_lamp_seen']:.3f} and the lit wall "
+                 f"{md['probe_max_depth_0_wall']:.3f}/{md['probe_max_depth_1_wall']:.3f}/"
+                 f"{md['probe_max_depth_2_wall']:.3f}: max_depth 1 is exactly the emitters seen directly.")
+    return "\n".join(lines)
+
+
+def main(argv):
+    try:
+        args = parse_args(argv)
+        Bench(args).main()
+    except Failure as e:
+        print(f"bench-vs-mitsuba: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

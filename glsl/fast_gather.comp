@@ -4,7 +4,9 @@
 // by P's weight, gathering only as far as its tile's dilated radius. Where
 // that window holds only background (the tile's flag), every P has Q's own
 // CoC, weight and color: the same sums are formed from those, in the same
-// order, without loading each P — bitwise the plain gather's result.
+// order, without loading each P — bitwise the plain gather's result; for a
+// black background every product and sum is +0 and the mean is +0, so
+// there is no loop at all.
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -38,6 +40,10 @@ void main() {
         // c_P, w_P and the color are Q's.
         vec2 cw = imageLoad(coc_weight, q).xy;
         vec3 color = imageLoad(gbuffer_color, q).rgb;
+        if (all(equal(color, vec3(0.0)))) {
+            imageStore(result, q, vec4(0.0, 0.0, 0.0, 1.0));
+            return;
+        }
         for (int dy = -r; dy <= r; ++dy) {
             for (int dx = -r; dx <= r; ++dx) {
                 ivec2 p = q + ivec2(dx, dy);

@@ -240,9 +240,14 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
             aperture_radius: 0.004,
             focus_distance: 0.6,
         };
-        for weights in [FastWeights::Area, FastWeights::Uniform] {
+        // A colored background takes the short loop; a black one skips it.
+        for (weights, background) in [
+            (FastWeights::Area, Vec3::new(0.2, 0.45, 0.7)),
+            (FastWeights::Uniform, Vec3::new(0.2, 0.45, 0.7)),
+            (FastWeights::Area, Vec3::ZERO),
+        ] {
             let options = |window| RenderOptions {
-                background: Vec3::new(0.2, 0.45, 0.7),
+                background,
                 ..options(cam, Method::fast(weights, window))
             };
             let (tiles, gbuffer) = renderer

@@ -225,11 +225,11 @@ impl GBuffer {
         };
         let samples = self.plan.samples_per_pass;
         let raster = passes.raster(samples);
-        let sample_count = lens.len() as u32 * self.plan.passes.len() as u32 * samples;
         let per_lens = self.plan.passes.len() as u32 * samples;
+        let sample_count = lens.len() as u32 * per_lens;
         let extent = [t.sample.width(), t.sample.height()];
-        for (i, (l, sample, planned)) in self.plan.with_lens(lens).enumerate() {
-            let push = self.view.push(sample.jitter, sample.lens_u, extent);
+        for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
+            let push = self.view.push(planned.jitter, lens_u, extent);
             raster.record(
                 frame,
                 &raster_name,
@@ -252,6 +252,7 @@ impl GBuffer {
                 .record(frame, &resolve_name, &resolve_images, &pass);
         }
     }
+
     /// The resolved G-buffer, as the depth-of-field methods read it.
     pub fn output(&self) -> DofInput<'_> {
         DofInput {

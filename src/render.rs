@@ -402,9 +402,9 @@ impl Renderer {
         readback.record(&mut frame, &input);
         let mut timings = frame.submit_and_wait()?;
 
-        let decoding = Instant::now();
+        let copying = Instant::now();
         let (image, host_gbuffer) = readback.read()?;
-        timings.wall_ms += view_ms + decoding.elapsed().as_secs_f64() * 1e3;
+        timings.wall_ms += view_ms + copying.elapsed().as_secs_f64() * 1e3;
         let rendered = Rendered {
             image,
             timings,
@@ -415,8 +415,9 @@ impl Renderer {
     }
 }
 
-/// The host-visible buffers a frame's results are copied into: the output
-/// (rgba16f, guard band cropped) and, when asked for, the whole G-buffer.
+/// The host-visible buffers a frame's results land in: the output pixels
+/// (written by the output pass in the file's format, guard band cropped)
+/// and, when asked for, the whole G-buffer.
 struct Readback {
     view: FrameView,
     format: OutputFormat,

@@ -375,10 +375,20 @@ struct TileScan {
 }
 
 impl TileScan {
-    fn groups(&self) -> [u32; 3] {
+    /// Workgroups of a scatter: the scanned pixels.
+    fn scatter_groups(&self) -> [u32; 3] {
         [
             groups((self.hi[0] - self.lo[0]) as u32, 8),
             groups((self.hi[1] - self.lo[1]) as u32, 8),
+            1,
+        ]
+    }
+
+    /// Workgroups of a resolve: the tile's pixels.
+    fn resolve_groups(&self) -> [u32; 3] {
+        [
+            groups(self.size[0] as u32, 8),
+            groups(self.size[1] as u32, 8),
             1,
         ]
     }
@@ -427,7 +437,9 @@ impl DofFrame for RdbFrame<'_> {
 }
 
 impl RdbFrame<'_> {
-    fn scatter_push(&self, input: &DofInput<'_>, scan: &TileScan) -> ScatterPush {
+    /// The scatter's push constants for `scan`, with `step` (the 32-bit
+    /// form's pass, the 64-bit form's tag).
+    fn scatter_push(&self, input: &DofInput<'_>, scan: &TileScan, step: u32) -> ScatterPush {
         let camera = &input.view.camera;
         let g = input.view.guard as i32;
         ScatterPush {
@@ -438,14 +450,16 @@ impl RdbFrame<'_> {
             tile_size: scan.size,
             bins: self.images.bins as i32,
             pairs: (self.method.options.mode == RdbMode::Pairs) as u32,
-            step: 0,
+            step,
             f_px: camera.f_px(),
             aperture_radius: camera.aperture_radius,
             focus_distance: camera.focus_distance,
         }
     }
 
-    fn resolve_push(&self, input: &DofInput<'_>, scan: &TileScan) -> ResolvePush {
+    /// The resolve's push constants for `scan`, with `step` (the 64-bit
+    /// form's tag; 0 in the 32-bit form).
+    fn resolve_push(&self, input: &DofInput<'_>, scan: &TileScan, step: u32) -> ResolvePush {
         let g = input.view.guard as i32;
         ResolvePush {
             extent: [input.color.width() as i32, input.color.height() as i32],
@@ -453,7 +467,7 @@ impl RdbFrame<'_> {
             tile_origin: scan.origin,
             tile_size: scan.size,
             bins: self.images.bins as i32,
-            step: 0,
+            step,
         }
     }
 
@@ -509,10 +523,7 @@ impl RdbFrame<'_> {
             }
             // The previous use's resolve read the bins, its scatter wrote them.
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-            let push = ScatterPush {
-                step: tag,
-                ..self.scatter_push(input, scan)
-            };
+            let push = self.scatter_push(input, scan, tag);
             rec.dispatch(
                 &p.scatter,
                 &[
@@ -521,16 +532,13 @@ impl RdbFrame<'_> {
                     Bind::StorageBuffer(&self.images.lens),
                 ],
                 &push,
-                scan.groups(),
+                scan.scatter_groups(),
             );
         });
         frame.pass("rdb.resolve", |rec| {
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ);
             rec.barriers(&self.resolve_barriers(input, first));
-            let push = ResolvePush {
-                step: tag,
-                ..self.resolve_push(input, scan)
-            };
+            let push = self.resolve_push(input, scan, tag);
             rec.dispatch(
                 &p.resolve,
                 &[
@@ -539,11 +547,7 @@ impl RdbFrame<'_> {
                     Bind::StorageImage(&self.images.result),
                 ],
                 &push,
-                [
-                    groups(scan.size[0] as u32, 8),
-                    groups(scan.size[1] as u32, 8),
-                    1,
-                ],
+                scan.resolve_groups(),
             );
         });
     }
@@ -608,11 +612,8 @@ impl RdbFrame<'_> {
                         Bind::StorageImage(source),
                         Bind::StorageBuffer(&self.images.lens),
                     ],
-                    &ScatterPush {
-                        step: pass_index,
-                        ..self.scatter_push(input, scan)
-                    },
-                    scan.groups(),
+                    &self.scatter_push(input, scan, pass_index),
+                    scan.scatter_groups(),
                 );
             });
         }
@@ -627,12 +628,8 @@ impl RdbFrame<'_> {
                     Bind::StorageImage(source),
                     Bind::StorageImage(&self.images.result),
                 ],
-                &self.resolve_push(input, scan),
-                [
-                    groups(scan.size[0] as u32, 8),
-                    groups(scan.size[1] as u32, 8),
-                    1,
-                ],
+                &self.resolve_push(input, scan, 0),
+                scan.resolve_groups(),
             );
         });
     }

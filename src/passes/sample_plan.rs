@@ -13,7 +13,16 @@
 
 use glam::Vec2;
 
-use super::splat_raster::{ssaa_jitter, Sample};
+/// Sub-pixel offset of sample `index` of a K×K grid in the one-sample
+/// form: cell centres of the pixel, row by row, relative to the pixel
+/// centre.
+pub fn ssaa_jitter(index: u32, k: u32) -> Vec2 {
+    let (i, j) = (index % k, index / k);
+    Vec2::new(
+        (i as f32 + 0.5) / k as f32 - 0.5,
+        (j as f32 + 0.5) / k as f32 - 0.5,
+    )
+}
 
 /// The standard sample locations of Vulkan (`standardSampleLocations`) for
 /// 1, 2, 4 and 8 samples, in 1/16 pixel from the pixel's top-left corner.
@@ -171,39 +180,15 @@ impl SamplePlan {
         self.passes.iter().any(|p| p.read_offsets != 0)
     }
 
-    /// The sample positions of each pass within the output pixel (pixel
-    /// units from its top-left corner), in the order the resolve folds them.
-    pub fn positions(&self) -> Vec<Vec2> {
-        let locations = standard_locations(self.samples_per_pass).expect("a planned count");
-        self.passes
-            .iter()
-            .flat_map(|pass| {
-                locations.iter().enumerate().map(move |(s, loc)| {
-                    let d = Vec2::new(
-                        (pass.read_offsets >> (2 * s) & 1) as f32,
-                        (pass.read_offsets >> (2 * s + 1) & 1) as f32,
-                    );
-                    Vec2::new(loc[0] as f32, loc[1] as f32) / 16.0 - pass.jitter + d
-                })
-            })
-            .collect()
-    }
-
     /// The passes for lens positions `lens` (outer) × this plan (inner),
-    /// each with the index of its lens position.
+    /// each with the index and position of its lens position.
     pub fn with_lens<'a>(
         &'a self,
         lens: &'a [Vec2],
-    ) -> impl Iterator<Item = (u32, Sample, &'a PlannedPass)> + 'a {
-        lens.iter().enumerate().flat_map(move |(l, &lens_u)| {
-            self.passes.iter().map(move |p| {
-                let sample = Sample {
-                    jitter: p.jitter,
-                    lens_u,
-                };
-                (l as u32, sample, p)
-            })
-        })
+    ) -> impl Iterator<Item = (u32, Vec2, &'a PlannedPass)> + 'a {
+        lens.iter()
+            .enumerate()
+            .flat_map(move |(l, &lens_u)| self.passes.iter().map(move |p| (l as u32, lens_u, p)))
     }
 }
 
@@ -222,6 +207,25 @@ fn lcm(a: i64, b: i64) -> i64 {
 mod tests {
     use super::*;
 
+    /// The sample positions of each pass of `plan` within the output pixel
+    /// (pixel units from its top-left corner), in the order the resolve
+    /// folds them.
+    fn positions(plan: &SamplePlan) -> Vec<Vec2> {
+        let locations = standard_locations(plan.samples_per_pass).expect("a planned count");
+        plan.passes
+            .iter()
+            .flat_map(|pass| {
+                locations.iter().enumerate().map(move |(s, loc)| {
+                    let d = Vec2::new(
+                        (pass.read_offsets >> (2 * s) & 1) as f32,
+                        (pass.read_offsets >> (2 * s + 1) & 1) as f32,
+                    );
+                    Vec2::new(loc[0] as f32, loc[1] as f32) / 16.0 - pass.jitter + d
+                })
+            })
+            .collect()
+    }
+
     /// The K×K grid of cell centres, sorted.
     fn grid(k: u32) -> Vec<(u32, u32)> {
         let mut v: Vec<_> = (0..k * k)
@@ -237,9 +241,9 @@ mod tests {
     /// Each sample's index is that of the one-sample form's sample at the
     /// same position.
     fn check_indices(plan: &SamplePlan, k: u32) {
-        let single = SamplePlan::single(k).positions();
+        let single = positions(&SamplePlan::single(k));
         let s = plan.samples_per_pass as usize;
-        for (n, p) in plan.positions().iter().enumerate() {
+        for (n, p) in positions(plan).iter().enumerate() {
             let index = plan.passes[n / s].indices[n % s] as usize;
             assert!(
                 (single[index] - *p).abs().max_element() < 1e-6,
@@ -250,8 +254,7 @@ mod tests {
     }
 
     fn sorted_positions(plan: &SamplePlan) -> Vec<(u32, u32)> {
-        let mut v: Vec<_> = plan
-            .positions()
+        let mut v: Vec<_> = positions(plan)
             .into_iter()
             .map(|p| ((p.x * 1024.0) as u32, (p.y * 1024.0) as u32))
             .collect();

@@ -6,7 +6,6 @@
 use std::sync::Arc;
 
 use ash::vk;
-use glam::Vec2;
 
 use crate::error::Result;
 use crate::push_constants;
@@ -52,23 +51,6 @@ push_constants! {
         pub max_point_size: f32,
         pub pad: f32,
     }
-}
-
-/// One raster sample: sub-pixel jitter and normalised lens position.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Sample {
-    pub jitter: Vec2,
-    pub lens_u: Vec2,
-}
-
-/// Sub-pixel offset of sample `index` of a K×K grid: cell centres of the
-/// pixel, row by row, relative to the pixel centre.
-pub fn ssaa_jitter(index: u32, k: u32) -> Vec2 {
-    let (i, j) = (index % k, index / k);
-    Vec2::new(
-        (i as f32 + 0.5) / k as f32 - 0.5,
-        (j as f32 + 0.5) / k as f32 - 0.5,
-    )
 }
 
 /// The render targets of one raster pass.

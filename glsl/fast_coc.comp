@@ -4,6 +4,7 @@
 // inverse of the number of pixel centres inside its disk (area weights) or 1
 // (uniform weights, the paper's plain mean).
 #include "lens.glsl"
+#include "disk.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -17,21 +18,6 @@ layout(push_constant, std430) uniform Push {
     float focus_distance;
     uint area_weights;
 } pc;
-
-// Pixel centres (integer offsets) within distance c/2 of a pixel centre.
-float disk_pixel_count(float c) {
-    float r2 = 0.25 * c * c;
-    int r = int(floor(0.5 * c));
-    float n = 0.0;
-    for (int dy = -r; dy <= r; ++dy) {
-        // Largest dx with dx² + dy² <= r², found exactly in integers.
-        int dx = int(floor(sqrt(max(r2 - float(dy * dy), 0.0))));
-        while (float(dx * dx + dy * dy) > r2) { --dx; }
-        while (float((dx + 1) * (dx + 1) + dy * dy) <= r2) { ++dx; }
-        n += float(2 * dx + 1);
-    }
-    return max(n, 1.0);
-}
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);

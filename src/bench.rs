@@ -33,7 +33,8 @@ pub const REFERENCE_SAMPLES: u32 = 256;
 /// A method of the matrix, as named on the command line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchMethod {
-    /// `pinhole`, `fast`, `fast-uniform`, `rdb9`, `rdb5-pairs`, `accum64`, …
+    /// `pinhole`, `fast`, `fast-uniform`, `rdb9`, `rdb5-pairs`, `layered4`,
+    /// `accum64`, …
     pub name: String,
     pub method: Method,
 }
@@ -52,11 +53,13 @@ impl BenchMethod {
         })
     }
 
-    /// Lens samples: accum's, 1 for every other method.
+    /// Lens samples: accum's, 1 for every other method (they all start
+    /// from the pinhole G-buffer; layered peels it into K layers, still
+    /// through one lens position).
     pub fn samples(&self) -> u32 {
         match self.method {
             Method::Accum(o) => o.samples,
-            _ => 1,
+            Method::Pinhole | Method::Fast(_) | Method::Rdb(_) | Method::Layered(_) => 1,
         }
     }
 

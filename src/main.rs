@@ -19,8 +19,9 @@ use pointlens::image_io::{
 };
 use pointlens::metrics;
 use pointlens::options::{
-    check_rdb_bins, check_samples, check_samples_per_pass, check_ssaa, AccumOptions, FastOptions,
-    FastWeights, GatherWindow, MethodKind, RdbAtomics, RdbMode, RdbOptions,
+    check_layers, check_rdb_bins, check_samples, check_samples_per_pass, check_ssaa, AccumOptions,
+    FastOptions, FastWeights, GatherWindow, LayeredOptions, MethodKind, RdbAtomics, RdbMode,
+    RdbOptions,
 };
 use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
@@ -69,8 +70,8 @@ struct BenchArgs {
     width: Option<u32>,
     #[arg(long, requires = "width")]
     height: Option<u32>,
-    /// Comma-separated methods: pinhole, fast, fast-uniform, rdbN,
-    /// rdbN-pairs, accumS.
+    /// Comma-separated methods: pinhole, fast, fast-uniform, fast-fixed,
+    /// rdbN, rdbN-pairs, layeredK, accumS.
     #[arg(long, default_value = BenchMethod::DEFAULT)]
     methods: String,
     /// Comma-separated models: bunny, mug, synthetic, or PLY files.
@@ -137,7 +138,7 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole | fast | rdb | accum (layered is being built).
+    /// pinhole | fast | rdb | layered | accum.
     #[arg(long, default_value = "pinhole", value_parser = method_kind)]
     method: MethodKind,
     /// Weights of the fast method: area (by inverse CoC area) or uniform
@@ -165,6 +166,9 @@ struct RenderArgs {
     /// in tiles, with the same result.
     #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
     rdb_memory_mb: Option<u64>,
+    /// Depth-peeled layers of `--method layered` (1-8).
+    #[arg(long, default_value_t = pointlens::options::DEFAULT_LAYERS, value_parser = checked(check_layers))]
+    layers: u32,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
     samples: u32,
@@ -467,6 +471,10 @@ fn render(args: RenderArgs) -> Result<()> {
         AccumOptions {
             samples: args.samples,
         },
+        LayeredOptions {
+            layers: args.layers,
+            ..LayeredOptions::default()
+        },
     );
     check_output_path(&args.output)?;
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
@@ -550,6 +558,7 @@ fn render(args: RenderArgs) -> Result<()> {
 
     let report = FrameReport {
         samples_per_pass: rendered.samples_per_pass,
+        counts: rendered.counts.clone(),
         load_ms,
         encode_ms,
         ..FrameReport::new(

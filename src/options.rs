@@ -103,6 +103,26 @@ impl Default for AccumOptions {
     }
 }
 
+/// Options of the layered method (DESIGN §6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LayeredOptions {
+    /// K: depth-peeled G-buffer layers, in 1..=8 ([`check_layers`]).
+    pub layers: u32,
+    /// Keep every occluded pixel of the later layers (the plain peel)
+    /// instead of only those that can be seen through the lens (the
+    /// paper's modified peel, the default): for comparisons.
+    pub keep_occluded: bool,
+}
+
+impl Default for LayeredOptions {
+    fn default() -> Self {
+        LayeredOptions {
+            layers: DEFAULT_LAYERS,
+            keep_occluded: false,
+        }
+    }
+}
+
 /// The depth-of-field methods of DESIGN §8, each with its options.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
@@ -115,6 +135,9 @@ pub enum Method {
     /// The accumulation-buffer reference: the splats rendered through
     /// `samples` lens positions with the sheared projection, averaged.
     Accum(AccumOptions),
+    /// Yu et al.'s layered method: K depth-peeled layers, each pixel's
+    /// color spread over its CoC, composited back to front.
+    Layered(LayeredOptions),
 }
 
 /// A method's name alone (`--method`), without its options.
@@ -124,19 +147,18 @@ pub enum MethodKind {
     Fast,
     Rdb,
     Accum,
+    Layered,
 }
 
 impl MethodKind {
     /// Every method this build implements, in the order help texts list them.
-    pub const ALL: [MethodKind; 4] = [
+    pub const ALL: [MethodKind; 5] = [
         MethodKind::Pinhole,
         MethodKind::Fast,
         MethodKind::Rdb,
+        MethodKind::Layered,
         MethodKind::Accum,
     ];
-
-    /// The method names DESIGN §8 lists that this build does not implement yet.
-    pub const PLANNED: [&'static str; 1] = ["layered"];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -144,6 +166,7 @@ impl MethodKind {
             MethodKind::Fast => "fast",
             MethodKind::Rdb => "rdb",
             MethodKind::Accum => "accum",
+            MethodKind::Layered => "layered",
         }
     }
 
@@ -153,20 +176,25 @@ impl MethodKind {
             return Ok(kind);
         }
         let available = Self::ALL.map(MethodKind::name).join(", ");
-        Err(Error::InvalidArgument(if Self::PLANNED.contains(&name) {
-            format!("method '{name}' is not implemented yet; available methods: {available}")
-        } else {
-            format!("unknown method '{name}'; available methods: {available}")
-        }))
+        Err(Error::InvalidArgument(format!(
+            "unknown method '{name}'; available methods: {available}"
+        )))
     }
 
     /// The method with these options (those of other methods are ignored).
-    pub fn with(self, fast: FastOptions, rdb: RdbOptions, accum: AccumOptions) -> Method {
+    pub fn with(
+        self,
+        fast: FastOptions,
+        rdb: RdbOptions,
+        accum: AccumOptions,
+        layered: LayeredOptions,
+    ) -> Method {
         match self {
             MethodKind::Pinhole => Method::Pinhole,
             MethodKind::Fast => Method::Fast(fast),
             MethodKind::Rdb => Method::Rdb(rdb),
             MethodKind::Accum => Method::Accum(accum),
+            MethodKind::Layered => Method::Layered(layered),
         }
     }
 }
@@ -192,13 +220,20 @@ impl Method {
         Method::Accum(AccumOptions { samples })
     }
 
+    /// The layered method with `layers` depth-peeled layers.
+    pub const fn layered(layers: u32) -> Method {
+        Method::Layered(LayeredOptions {
+            layers,
+            keep_occluded: false,
+        })
+    }
+
     /// Syntax of [`Method::parse_short`], for error messages and help.
-    pub const SHORT_SYNTAX: &'static str =
-        "pinhole, fast, fast-uniform, fast-fixed, rdbN or rdbN-pairs (N in 2..=16), accumS (S ≥ 1)";
+    pub const SHORT_SYNTAX: &'static str = "pinhole, fast, fast-uniform, fast-fixed, rdbN or rdbN-pairs (N in 2..=16), layeredK (K in 1..=8), accumS (S ≥ 1)";
 
     /// Parses a method with its options in one word, as `bench --methods`
     /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`, `rdbN`,
-    /// `rdbN-pairs`, `accumS`. N and S are required and go through the same
+    /// `rdbN-pairs`, `layeredK`, `accumS`. N and S are required and go through the same
     /// range checks as `--rdb-bins` and `--samples`. [`Method::short_name`]
     /// is the inverse.
     pub fn parse_short(name: &str) -> Result<Method> {
@@ -264,6 +299,12 @@ impl Method {
                 let samples = number(check_samples)?;
                 Ok(Method::Accum(AccumOptions { samples }))
             }
+            MethodKind::Layered => {
+                if option.is_some() {
+                    return Err(bad());
+                }
+                Ok(Method::layered(number(check_layers)?))
+            }
         }
     }
 }
@@ -285,6 +326,7 @@ impl Method {
                 RdbMode::Pairs => format!("rdb{}-pairs", o.bins),
             },
             Method::Accum(o) => format!("accum{}", o.samples),
+            Method::Layered(o) => format!("layered{}", o.layers),
         }
     }
 }
@@ -293,6 +335,8 @@ impl Method {
 pub const DEFAULT_RDB_BINS: u32 = 9;
 /// Default lens samples of `accum`.
 pub const DEFAULT_SAMPLES: u32 = 256;
+/// Default K of the layered method's depth-peeled layers.
+pub const DEFAULT_LAYERS: u32 = 4;
 /// Default K of the K×K SSAA G-buffer.
 pub const DEFAULT_SSAA: u32 = 4;
 
@@ -310,6 +354,11 @@ pub fn check_samples_per_pass(s: u32) -> Result<u32> {
 /// N of `--rdb-bins` (N×N lens bins, DESIGN §5): 2 to 16.
 pub fn check_rdb_bins(n: u32) -> Result<u32> {
     in_range("--rdb-bins", n, 2, 16)
+}
+
+/// K of `--layers` (depth-peeled layers of `layered`, DESIGN §6): 1 to 8.
+pub fn check_layers(k: u32) -> Result<u32> {
+    in_range("--layers", k, 1, 8)
 }
 
 /// The most lens samples of `accum`: with K² ≤ 256 sub-pixel samples each,

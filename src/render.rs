@@ -155,6 +155,9 @@ pub struct Rendered<I = LinearImage> {
     pub guard: u32,
     /// Samples per G-buffer raster pass.
     pub samples_per_pass: u32,
+    /// What the method counted ([`crate::passes::DofFrame::counts`]), e.g.
+    /// the layered method's kept and discarded pixels per layer.
+    pub counts: Vec<(String, u64)>,
 }
 
 /// A G-buffer read back to the host (guard band included), for CPU
@@ -272,6 +275,7 @@ impl Renderer {
                 camera: *camera,
                 guard: Camera::guard_band_px(max_coc_px, seen.max_splat_px),
                 max_coc_px,
+                depths: seen.depths,
             },
             near,
             far,
@@ -374,13 +378,15 @@ impl Renderer {
         let view_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
+        let layers = method.gbuffer_layers();
         let plan = self.gbuffer.plan(
             options.ssaa,
+            layers,
             options.samples_per_pass,
             pixels,
             self.ctx.info.device_local_heap_bytes / 4,
         );
-        let gbuffer = GBuffer::new(&self.ctx, &view, &plan)?;
+        let gbuffer = GBuffer::new(&self.ctx, &view, &plan, layers, options.background)?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
         let readback = Readback::new(&self.ctx, &view.frame, format, keep_gbuffer)?;
         let lens = method.gbuffer_lens();
@@ -392,7 +398,6 @@ impl Renderer {
             &scene.vertices,
             scene.count,
             &lens,
-            options.background,
             method.gbuffer_label(),
         );
         let input = gbuffer.output();
@@ -410,6 +415,7 @@ impl Renderer {
             timings,
             guard: view.frame.guard,
             samples_per_pass: plan.samples_per_pass,
+            counts: dof.counts(),
         };
         Ok((rendered, host_gbuffer))
     }
@@ -457,6 +463,7 @@ impl<I> Rendered<I> {
             timings: self.timings,
             guard: self.guard,
             samples_per_pass: self.samples_per_pass,
+            counts: self.counts,
         }
     }
 }

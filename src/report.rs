@@ -70,6 +70,10 @@ pub struct FrameReport {
     pub guard_px: u32,
     /// Per pass name, in recording order: GPU time summed over its scopes.
     pub passes: Vec<PassTiming>,
+    /// What the method counted in the frame (name, value): the layered
+    /// method's slices and kept and discarded pixels per layer.
+    #[serde(default)]
+    pub counts: Vec<(String, u64)>,
     pub gpu_total_ms: f64,
     pub frame_wall_ms: f64,
     pub upload: Upload,
@@ -102,6 +106,7 @@ impl FrameReport {
             points,
             guard_px,
             passes: frame.passes.clone(),
+            counts: Vec::new(),
             gpu_total_ms: frame.gpu_total_ms(),
             frame_wall_ms: frame.wall_ms,
             upload,
@@ -132,6 +137,9 @@ impl FrameReport {
             s += &format!("{:<20} {:>10.3} {:>6}\n", p.name, p.gpu_ms, p.count);
         }
         s += &format!("{:<20} {:>10.3}\n", "gpu total", self.gpu_total_ms);
+        for (name, value) in &self.counts {
+            s += &format!("{name:<28} {value:>10}\n");
+        }
         s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
         for (name, ms) in [
             ("upload gpu", self.upload.gpu_ms),

@@ -310,6 +310,36 @@ fn method_names_and_statistics() {
     for bad in ["rdb1", "rdb", "accum0", "accum", "rdbx", "fastest"] {
         assert!(BenchMethod::parse(bad).is_err(), "{bad}");
     }
+    // layeredK: K depth-peeled layers in 1..=8, through one lens position.
+    let m = BenchMethod::parse("layered4").unwrap();
+    assert_eq!(m.method, Method::layered(4));
+    assert_eq!((m.name.as_str(), m.samples()), ("layered4", 1));
+    for k in 1..=8 {
+        let name = format!("layered{k}");
+        let m = BenchMethod::parse(&name).unwrap();
+        assert_eq!(m.method, Method::layered(k), "{name}");
+        assert_eq!(m.method.short_name(), name);
+        assert_eq!(Method::parse_short(&name).unwrap(), m.method);
+    }
+    for bad in ["layered9", "layered0"] {
+        let err = BenchMethod::parse(bad).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("'{bad}' is out of range")) && err.contains("--layers"),
+            "{err}"
+        );
+    }
+    for bad in ["layered", "layered4-x", "layered-4", "layeredx", "layers4"] {
+        let err = BenchMethod::parse(bad).unwrap_err().to_string();
+        assert!(
+            err.contains("--methods") && err.contains(bad),
+            "{bad}: {err}"
+        );
+    }
+    assert!(BenchMethod::parse_list("pinhole,layered2,layered8")
+        .unwrap()
+        .iter()
+        .map(|m| m.method)
+        .eq([Method::Pinhole, Method::layered(2), Method::layered(8)]));
     assert_eq!(
         BenchModel::parse_list(BenchModel::DEFAULT).unwrap().len(),
         3

@@ -147,13 +147,8 @@ fn bad_input_gives_one_line_and_no_output() {
         &dir.join("x.jpg"),
     );
     assert_fails(
-        &["render", &b, "-o", &out_s, "--method", "layered"],
-        "available methods: pinhole, fast, rdb, accum",
-        &out,
-    );
-    assert_fails(
         &["render", &b, "-o", &out_s, "--method", "magic"],
-        "unknown method",
+        "unknown method 'magic'; available methods: pinhole, fast, rdb, layered, accum",
         &out,
     );
     assert_fails(&["render", &b, "-o", &out_s, "--ssaa", "0"], "--ssaa", &out);
@@ -198,6 +193,15 @@ fn bad_input_gives_one_line_and_no_output() {
         "--rdb-bins",
         &out,
     );
+    // --layers out of 1..=8: clap's one line naming the flag and the
+    // range, and the usage error's exit status 2.
+    for k in ["0", "9"] {
+        let args = [
+            "render", &b, "-o", &out_s, "--method", "layered", "--layers", k,
+        ];
+        assert_fails(&args, "--layers must be between 1 and 8", &out);
+        assert_eq!(pointlens(&args).status.code(), Some(2), "--layers {k}");
+    }
     assert_fails(
         &["render", &b, "-o", &out_s, "--frobnicate"],
         "frobnicate",
@@ -271,7 +275,7 @@ fn bad_input_gives_one_line_and_no_output() {
 
     // An existing output survives a failed render untouched.
     std::fs::write(&out, b"old").unwrap();
-    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "layered"]);
+    let o = pointlens(&["render", &b, "-o", &out_s, "--method", "magic"]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read(&out).unwrap(), b"old");
 }

@@ -8,11 +8,13 @@ use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow, RdbMode};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 
-const METHODS: [Method; 5] = [
+const METHODS: [Method; 7] = [
     Method::fast(FastWeights::Area, GatherWindow::Tiles),
     Method::fast(FastWeights::Uniform, GatherWindow::Tiles),
     Method::rdb(9, RdbMode::Centre),
     Method::rdb(9, RdbMode::Pairs),
+    Method::layered(1),
+    Method::layered(4),
     Method::accum(16),
 ];
 

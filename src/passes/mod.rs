@@ -10,7 +10,7 @@
 
 use std::sync::Arc;
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 use crate::camera::Camera;
 use crate::error::Result;
@@ -20,6 +20,7 @@ use crate::vk::{Context, Frame, Image};
 pub mod accum;
 pub mod fast;
 pub mod gbuffer_resolve;
+pub mod layered;
 pub mod output;
 pub mod pinhole;
 pub mod rdb;
@@ -35,6 +36,9 @@ pub struct FrameView {
     /// The largest CoC (pixels) the method meets in this view, which the
     /// guard band was sized for.
     pub max_coc_px: f32,
+    /// The eye-depth range of the points in front of the camera (None: no
+    /// point), which the depth buffer and the CoC bound were made for.
+    pub depths: Option<(f32, f32)>,
 }
 
 impl FrameView {
@@ -49,16 +53,30 @@ impl FrameView {
     }
 }
 
-/// What a method reads: the resolved G-buffer (guard band included), both
-/// images in `GENERAL` layout and last written by compute.
-#[derive(Clone, Copy)]
-pub struct DofInput<'r> {
-    /// Linear color (rgba16f), alpha = coverage.
-    pub color: &'r Image,
+/// One resolved G-buffer layer (guard band included).
+pub struct GBufferLayer {
+    /// Linear color (rgba16f): the mean over the pixel's samples, the
+    /// background's color where a sample saw nothing; alpha = coverage.
+    pub color: Image,
     /// (0, 0, z, coverage) (rgba32f): the eye depth of the nearest sample
     /// (+∞ for background) and the covered fraction; x and y are not kept
     /// (no method reads them).
+    pub eye: Image,
+}
+
+/// What a method reads: the resolved G-buffer (guard band included), every
+/// image in `GENERAL` layout and last written by compute.
+#[derive(Clone, Copy)]
+pub struct DofInput<'r> {
+    /// Linear color (rgba16f) of the first (pinhole) layer, alpha = coverage.
+    pub color: &'r Image,
+    /// (0, 0, z, coverage) (rgba32f) of the first layer.
     pub eye: &'r Image,
+    /// Every layer, the first included: one unless the method asked for
+    /// depth-peeled layers ([`DofMethod::gbuffer_layers`]).
+    pub layers: &'r [GBufferLayer],
+    /// The background's linear color (what an uncovered sample holds).
+    pub background: Vec3,
     pub view: FrameView,
 }
 
@@ -74,6 +92,12 @@ pub trait DofMethod {
     /// each with all K×K sub-pixel samples: the lens centre by default.
     fn gbuffer_lens(&self) -> Vec<Vec2> {
         vec![Vec2::ZERO]
+    }
+
+    /// How many depth-peeled G-buffer layers the method reads (DESIGN §6):
+    /// 1, the pinhole G-buffer, by default.
+    fn gbuffer_layers(&self) -> u32 {
+        1
     }
 
     /// The largest CoC (pixels) the guard band must hold, given the eye
@@ -100,6 +124,12 @@ pub trait DofFrame {
     /// readback decodes), G-buffer sized, the output inside the guard band,
     /// in `GENERAL` layout, last written by compute.
     fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image;
+
+    /// What the method counted in the frame, (name, value), read after the
+    /// frame has completed (`--timings` prints them): none by default.
+    fn counts(&self) -> Vec<(String, u64)> {
+        Vec::new()
+    }
 }
 
 /// The largest CoC a G-buffer pixel can have: a point's in `depths`, or the
@@ -124,6 +154,7 @@ pub struct Configured<'p, P, O> {
 pub struct Methods {
     fast: fast::Fast,
     rdb: rdb::Rdb,
+    layered: layered::Layered,
 }
 
 impl Methods {
@@ -131,6 +162,7 @@ impl Methods {
         Ok(Methods {
             fast: fast::Fast::new(ctx)?,
             rdb: rdb::Rdb::new(ctx)?,
+            layered: layered::Layered::new(ctx)?,
         })
     }
 
@@ -147,6 +179,10 @@ impl Methods {
                 options,
             }),
             Method::Accum(options) => Box::new(accum::Accum(options)),
+            Method::Layered(options) => Box::new(Configured {
+                pipelines: &self.layered,
+                options,
+            }),
         }
     }
 }

@@ -10,7 +10,8 @@ use ash::vk;
 use crate::error::Result;
 use crate::push_constants;
 use crate::vk::{
-    Access, Buffer, Context, Frame, Image, PointPipeline, PointPipelineDesc, VertexAttribute,
+    Access, Bind, Binding, Buffer, Context, Frame, Image, PointPipeline, PointPipelineDesc,
+    VertexAttribute,
 };
 
 pub const COLOR_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
@@ -85,23 +86,48 @@ impl SampleTargets {
     }
 }
 
-/// The graphics pipeline of the pass, for targets of one sample count.
+/// The graphics pipeline of the pass, for targets of one sample count:
+/// the plain raster, or the depth peel of a layer after the first, which
+/// reads the previous layer's sample target (`glsl/splat_peel*.frag`).
 pub struct SplatRaster {
     pipeline: PointPipeline<SplatPush>,
+    peel: bool,
 }
 
 static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.vert.spv"));
 static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.frag.spv"));
+static PEEL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel.frag.spv"));
+static PEEL_MS_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel_ms.frag.spv"));
+
+/// How thick a surface is for the depth peel, in splat diameters: a layer
+/// keeps only splats beyond the previous layer's sample by more than this
+/// (mirrors `PEEL_THICKNESS` in `glsl/splat_peel.glsl`).
+pub const PEEL_THICKNESS_DIAMETERS: f32 = 1.0;
+
+/// Where a raster pass's targets were last used, for its barriers.
+#[derive(Debug, Clone, Copy)]
+pub struct TargetsBefore {
+    pub sample: Access,
+    pub depth: Access,
+    /// The previous layer's sample target, read by a peel.
+    pub previous: Access,
+}
 
 impl SplatRaster {
-    /// The pipeline for targets of `samples` samples per pixel.
-    pub fn new(ctx: &Arc<Context>, samples: u32) -> Result<SplatRaster> {
+    /// The pipeline for targets of `samples` samples per pixel; the depth
+    /// peel's when `peel` (multisampled peels need `sampleRateShading`).
+    pub fn new(ctx: &Arc<Context>, samples: u32, peel: bool) -> Result<SplatRaster> {
+        let (name, fragment_spirv, fragment_bindings): (_, _, &[Binding]) = match (peel, samples) {
+            (false, _) => ("splat_raster", FRAG, &[]),
+            (true, 1) => ("splat_peel", PEEL_FRAG, &[Binding::StorageImage]),
+            (true, _) => ("splat_peel_ms", PEEL_MS_FRAG, &[Binding::StorageImage]),
+        };
         let pipeline = PointPipeline::new(
             ctx,
             &PointPipelineDesc {
-                name: "splat_raster",
+                name,
                 vertex_spirv: VERT,
-                fragment_spirv: FRAG,
+                fragment_spirv,
                 stride: std::mem::size_of::<SplatVertex>() as u32,
                 attributes: &[
                     VertexAttribute {
@@ -116,48 +142,58 @@ impl SplatRaster {
                 color_formats: &[SAMPLE_FORMAT],
                 depth_format: DEPTH_FORMAT,
                 samples,
+                fragment_bindings,
             },
         )?;
-        Ok(SplatRaster { pipeline })
+        Ok(SplatRaster { pipeline, peel })
     }
 
-    /// Records one raster pass as pass `name`: the targets' barriers
-    /// (`first`: nothing before; otherwise the previous pass's resolve
-    /// read them), a clear (the sample to (`background`, +∞), depth to 1),
-    /// the draw of `count` splats, and the barrier that hands the sample to
-    /// the resolve's compute reads.
+    /// Records one raster pass as pass `name` into `sample` and `depth`:
+    /// the barriers from their last uses (`before`), a clear (the sample to
+    /// (`background`, +∞), depth to 1), the draw of `count` splats (a peel
+    /// reads `previous`, the previous layer's sample target of the same
+    /// pass), and the barrier that hands the sample to the resolve's
+    /// compute reads.
     #[allow(clippy::too_many_arguments)]
     pub fn record<'r>(
         &'r self,
         frame: &mut Frame<'r>,
         name: &str,
-        targets: &'r SampleTargets,
+        sample: &'r Image,
+        depth: &'r Image,
+        previous: Option<&'r Image>,
+        before: TargetsBefore,
         splats: &'r Buffer,
         count: u32,
         background: [f32; 3],
         push: &SplatPush,
-        first: bool,
     ) {
+        assert_eq!(
+            previous.is_some(),
+            self.peel,
+            "a peel reads the previous layer"
+        );
         frame.pass(name, |rec| {
-            let (color_src, depth_src) = if first {
-                (Access::NONE, Access::NONE)
-            } else {
-                (Access::COMPUTE_READ, Access::DEPTH_WRITE)
-            };
-            rec.barriers(&[
-                (&targets.sample, color_src, Access::COLOR_WRITE),
-                (&targets.depth, depth_src, Access::DEPTH_WRITE),
-            ]);
+            let mut list = vec![
+                (sample, before.sample, Access::COLOR_WRITE),
+                (depth, before.depth, Access::DEPTH_WRITE),
+            ];
+            if let Some(p) = previous {
+                list.push((p, before.previous, Access::FRAGMENT_READ));
+            }
+            rec.barriers(&list);
+            let binds: Vec<Bind<'r>> = previous.map(Bind::StorageImage).into_iter().collect();
             let [r, g, b] = background;
             rec.draw_points(
                 &self.pipeline,
-                &[(&targets.sample, [r, g, b, f32::INFINITY])],
-                &targets.depth,
+                &[(sample, [r, g, b, f32::INFINITY])],
+                depth,
+                &binds,
                 splats,
                 count,
                 push,
             );
-            rec.barriers(&[(&targets.sample, Access::COLOR_WRITE, Access::COMPUTE_READ)]);
+            rec.barriers(&[(sample, Access::COLOR_WRITE, Access::COMPUTE_READ)]);
         });
     }
 }
@@ -170,6 +206,12 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatPush>("splat_raster.vert", VERT).unwrap();
+        let peel = include_str!("../../glsl/splat_peel.glsl");
+        let thickness = format!("const float PEEL_THICKNESS = {PEEL_THICKNESS_DIAMETERS:?};");
+        assert!(
+            peel.contains(&thickness),
+            "glsl/splat_peel.glsl: {thickness}"
+        );
         assert_eq!(std::mem::size_of::<SplatPush>(), 128);
     }
 }

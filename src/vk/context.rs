@@ -93,6 +93,10 @@ pub struct DeviceInfo {
     pub buffer_int64_atomics: bool,
     /// The largest storage-buffer binding, bytes.
     pub max_storage_buffer_range: u64,
+    /// Per-sample fragment shading (`sampleRateShading`), enabled when
+    /// present: the depth peel of a multisampled G-buffer reads the
+    /// previous layer's sample of the fragment's own sample index.
+    pub sample_rate_shading: bool,
 }
 
 impl DeviceInfo {
@@ -274,11 +278,15 @@ impl Context {
         let features = vk::PhysicalDeviceFeatures::default()
             .large_points(true)
             .shader_storage_image_multisample(multisampled_storage)
-            .shader_int64(info.buffer_int64_atomics);
+            .shader_int64(info.buffer_int64_atomics)
+            .sample_rate_shading(info.sample_rate_shading);
         let mut features12 = vk::PhysicalDeviceVulkan12Features::default()
             .shader_buffer_int64_atomics(info.buffer_int64_atomics);
         let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
+            // Required of every Vulkan 1.3 device; `discard` in the depth
+            // peel compiles to OpDemoteToHelperInvocation for SPIR-V 1.6.
+            .shader_demote_to_helper_invocation(true)
             .synchronization2(true)
             .maintenance4(true);
         let device_info = vk::DeviceCreateInfo::default()
@@ -619,8 +627,9 @@ fn pick_device(
         // SAFETY: as above; `features2` chains only the Vulkan 1.2 features,
         // core in the 1.3 devices kept here.
         unsafe { instance.get_physical_device_features2(pd, &mut features2) };
-        let buffer_int64_atomics = features2.features.shader_int64 == vk::TRUE
-            && features12.shader_buffer_int64_atomics == vk::TRUE;
+        let core = features2.features;
+        let buffer_int64_atomics =
+            core.shader_int64 == vk::TRUE && features12.shader_buffer_int64_atomics == vk::TRUE;
         let info = DeviceInfo {
             name,
             driver_name,
@@ -638,6 +647,7 @@ fn pick_device(
             gbuffer_sample_counts,
             buffer_int64_atomics,
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
+            sample_rate_shading: core.sample_rate_shading == vk::TRUE,
         };
         candidates.push((pd, family as u32, info));
     }

@@ -483,17 +483,33 @@ impl<'r> Recorder<'_, 'r> {
     /// [`Access::DEPTH_WRITE`]): clears each color target to its value and
     /// the depth to 1, draws the first `count` vertices of `vertices` as
     /// point sprites with `pipeline` and `push`, stores the colors and
-    /// discards the depth.
+    /// discards the depth. `binds` are the fragment shader's resources
+    /// (images in `GENERAL` layout, none of them a target).
+    #[allow(clippy::too_many_arguments)]
     pub fn draw_points<P: PushConstants>(
         &mut self,
         pipeline: &'r PointPipeline<P>,
         colors: &[(&'r Image, [f32; 4])],
         depth: &'r Image,
+        binds: &[Bind<'r>],
         vertices: &'r Buffer,
         count: u32,
         push: &P,
     ) {
         assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
+        for bind in binds {
+            match bind {
+                Bind::StorageImage(image) => {
+                    self.own_image(image);
+                    assert!(
+                        colors.iter().all(|c| !std::ptr::eq(c.0, *image))
+                            && !std::ptr::eq(depth, *image),
+                        "a render target bound as a fragment resource"
+                    );
+                }
+                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
+            }
+        }
         for (image, _) in colors {
             self.own_image(image);
         }
@@ -573,12 +589,15 @@ impl<'r> Recorder<'_, 'r> {
         // pipeline's formats and size (asserted) and are in the layouts
         // named above (the caller's barriers); `vertices` holds `count`
         // vertices (asserted), made visible to vertex input by the caller
-        // (the upload's barrier); all live for the frame (`'r`).
+        // (the upload's barrier); the fragment descriptors are checked
+        // against the pipeline's set by `push_fragment_descriptors` and are
+        // no render target (asserted); all live for the frame (`'r`).
         unsafe {
             device.cmd_begin_rendering(self.cmd, &rendering);
             device.cmd_set_viewport(self.cmd, 0, &[viewport]);
             device.cmd_set_scissor(self.cmd, 0, &[area]);
             device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::GRAPHICS, raw_pipeline);
+            pipeline.push_fragment_descriptors(self.cmd, binds);
             device.cmd_bind_vertex_buffers(self.cmd, 0, &[vertices.raw], &[0]);
             device.cmd_push_constants(
                 self.cmd,

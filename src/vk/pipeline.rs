@@ -117,7 +117,8 @@ impl Layout {
         ctx: &Arc<Context>,
         name: &str,
         bindings: &[vk::DescriptorType],
-        stages: vk::ShaderStageFlags,
+        binding_stages: vk::ShaderStageFlags,
+        push_stages: vk::ShaderStageFlags,
         push_size: u32,
     ) -> Result<Layout> {
         let mut l = Layout {
@@ -136,7 +137,7 @@ impl Layout {
                         .binding(i as u32)
                         .descriptor_type(*t)
                         .descriptor_count(1)
-                        .stage_flags(stages)
+                        .stage_flags(binding_stages)
                 })
                 .collect();
             let set_info = vk::DescriptorSetLayoutCreateInfo::default()
@@ -150,7 +151,7 @@ impl Layout {
             set_layouts.push(l.set_layout);
         }
         let ranges = [vk::PushConstantRange {
-            stage_flags: stages,
+            stage_flags: push_stages,
             offset: 0,
             size: push_size,
         }];
@@ -203,11 +204,89 @@ impl Bind<'_> {
     }
 }
 
-/// What a compute binding holds, for [`ComputePipeline::new`].
+/// What a binding holds, for [`ComputePipeline::new`] and a
+/// [`PointPipelineDesc`]'s fragment bindings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Binding {
     StorageImage,
     StorageBuffer,
+}
+
+impl Binding {
+    fn descriptor_type(self) -> vk::DescriptorType {
+        match self {
+            Binding::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+            Binding::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
+        }
+    }
+}
+
+/// Records `binds` as the push descriptors of set 0 of `layout` at
+/// `bind_point`, after checking them against the layout's `expected` types.
+///
+/// # Safety
+/// `cmd` is recording; `layout` was made with a push-descriptor set of the
+/// `expected` types; the bound resources outlive the command buffer's
+/// execution.
+unsafe fn push_descriptors(
+    ctx: &Context,
+    cmd: vk::CommandBuffer,
+    bind_point: vk::PipelineBindPoint,
+    layout: vk::PipelineLayout,
+    name: &str,
+    expected: &[vk::DescriptorType],
+    binds: &[Bind<'_>],
+) {
+    assert_eq!(
+        binds.len(),
+        expected.len(),
+        "{name}: wrong number of bindings"
+    );
+    if binds.is_empty() {
+        return;
+    }
+    let image_infos: Vec<[vk::DescriptorImageInfo; 1]> = binds
+        .iter()
+        .map(|b| match b {
+            Bind::StorageImage(img) => [vk::DescriptorImageInfo {
+                sampler: vk::Sampler::null(),
+                image_view: img.view,
+                image_layout: vk::ImageLayout::GENERAL,
+            }],
+            Bind::StorageBuffer(_) => [vk::DescriptorImageInfo::default()],
+        })
+        .collect();
+    let buffer_infos: Vec<[vk::DescriptorBufferInfo; 1]> = binds
+        .iter()
+        .map(|b| match b {
+            Bind::StorageBuffer(buf) => [vk::DescriptorBufferInfo {
+                buffer: buf.raw,
+                offset: 0,
+                range: vk::WHOLE_SIZE,
+            }],
+            Bind::StorageImage(_) => [vk::DescriptorBufferInfo::default()],
+        })
+        .collect();
+    let writes: Vec<_> = binds
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            assert_eq!(b.descriptor_type(), expected[i], "{name}: binding {i}");
+            let w = vk::WriteDescriptorSet::default()
+                .dst_binding(i as u32)
+                .descriptor_type(b.descriptor_type());
+            match b {
+                Bind::StorageImage(_) => w.image_info(&image_infos[i]),
+                Bind::StorageBuffer(_) => w.buffer_info(&buffer_infos[i]),
+            }
+        })
+        .collect();
+    // SAFETY: the caller's contract; the writes match the set layout
+    // (checked above) and point at locals alive for the call.
+    unsafe {
+        ctx.push_descriptor
+            .cmd_push_descriptor_set(cmd, bind_point, layout, 0, &writes)
+    };
 }
 
 /// A compute pipeline with a push-descriptor set layout and push constants
@@ -229,17 +308,12 @@ impl<P: PushConstants> ComputePipeline<P> {
         bindings: &[Binding],
     ) -> Result<ComputePipeline<P>> {
         check_push_layout::<P>(name, spirv)?;
-        let types: Vec<vk::DescriptorType> = bindings
-            .iter()
-            .map(|b| match b {
-                Binding::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
-                Binding::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
-            })
-            .collect();
+        let types: Vec<vk::DescriptorType> = bindings.iter().map(|b| b.descriptor_type()).collect();
         let mut layout = Layout::new(
             ctx,
             name,
             &types,
+            vk::ShaderStageFlags::COMPUTE,
             vk::ShaderStageFlags::COMPUTE,
             std::mem::size_of::<P>() as u32,
         )?;
@@ -279,53 +353,6 @@ impl<P: PushConstants> ComputePipeline<P> {
         push: &P,
         groups: [u32; 3],
     ) {
-        assert_eq!(
-            binds.len(),
-            self.bindings.len(),
-            "{}: wrong number of bindings",
-            self.name
-        );
-        let image_infos: Vec<[vk::DescriptorImageInfo; 1]> = binds
-            .iter()
-            .map(|b| match b {
-                Bind::StorageImage(img) => [vk::DescriptorImageInfo {
-                    sampler: vk::Sampler::null(),
-                    image_view: img.view,
-                    image_layout: vk::ImageLayout::GENERAL,
-                }],
-                Bind::StorageBuffer(_) => [vk::DescriptorImageInfo::default()],
-            })
-            .collect();
-        let buffer_infos: Vec<[vk::DescriptorBufferInfo; 1]> = binds
-            .iter()
-            .map(|b| match b {
-                Bind::StorageBuffer(buf) => [vk::DescriptorBufferInfo {
-                    buffer: buf.raw,
-                    offset: 0,
-                    range: vk::WHOLE_SIZE,
-                }],
-                Bind::StorageImage(_) => [vk::DescriptorBufferInfo::default()],
-            })
-            .collect();
-        let writes: Vec<_> = binds
-            .iter()
-            .enumerate()
-            .map(|(i, b)| {
-                assert_eq!(
-                    b.descriptor_type(),
-                    self.bindings[i],
-                    "{}: binding {i}",
-                    self.name
-                );
-                let w = vk::WriteDescriptorSet::default()
-                    .dst_binding(i as u32)
-                    .descriptor_type(b.descriptor_type());
-                match b {
-                    Bind::StorageImage(_) => w.image_info(&image_infos[i]),
-                    Bind::StorageBuffer(_) => w.buffer_info(&buffer_infos[i]),
-                }
-            })
-            .collect();
         let ctx = &self.layout.ctx;
         // SAFETY: `cmd` is recording outside a render pass (the recorder's
         // contract); the writes match the set layout (checked above), the
@@ -334,12 +361,14 @@ impl<P: PushConstants> ComputePipeline<P> {
         unsafe {
             ctx.device
                 .cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.layout.pipeline);
-            ctx.push_descriptor.cmd_push_descriptor_set(
+            push_descriptors(
+                ctx,
                 cmd,
                 vk::PipelineBindPoint::COMPUTE,
                 self.layout.layout,
-                0,
-                &writes,
+                &self.name,
+                &self.bindings,
+                binds,
             );
             ctx.device.cmd_push_constants(
                 cmd,
@@ -373,6 +402,8 @@ pub struct PointPipelineDesc<'a> {
     pub depth_format: vk::Format,
     /// Rasterization samples per pixel: the targets' sample count.
     pub samples: u32,
+    /// What the fragment shader's bindings 0, 1, … hold (push descriptors).
+    pub fragment_bindings: &'a [Binding],
 }
 
 /// A graphics pipeline that draws a vertex buffer as hardware point sprites
@@ -380,7 +411,9 @@ pub struct PointPipelineDesc<'a> {
 /// depth test and no blending, for dynamic rendering; push constants of
 /// type `P` go to the vertex stage.
 pub struct PointPipeline<P: PushConstants> {
+    name: String,
     layout: Layout,
+    bindings: Vec<vk::DescriptorType>,
     pub(super) color_formats: Vec<vk::Format>,
     pub(super) depth_format: vk::Format,
     pub(super) samples: u32,
@@ -397,10 +430,16 @@ impl<P: PushConstants> PointPipeline<P> {
             desc.samples
         );
         check_push_layout::<P>(desc.name, desc.vertex_spirv)?;
+        let types: Vec<vk::DescriptorType> = desc
+            .fragment_bindings
+            .iter()
+            .map(|b| b.descriptor_type())
+            .collect();
         let mut layout = Layout::new(
             ctx,
             desc.name,
-            &[],
+            &types,
+            vk::ShaderStageFlags::FRAGMENT,
             vk::ShaderStageFlags::VERTEX,
             std::mem::size_of::<P>() as u32,
         )?;
@@ -488,7 +527,9 @@ impl<P: PushConstants> PointPipeline<P> {
             .vk("vkCreateGraphicsPipelines")?[0];
         ctx.set_name(layout.pipeline, desc.name);
         Ok(PointPipeline {
+            name: desc.name.to_string(),
             layout,
+            bindings: types,
             color_formats: desc.color_formats.to_vec(),
             depth_format: desc.depth_format,
             samples: desc.samples,
@@ -503,6 +544,31 @@ impl<P: PushConstants> PointPipeline<P> {
 
     pub(super) fn raw(&self) -> (vk::Pipeline, vk::PipelineLayout) {
         (self.layout.pipeline, self.layout.layout)
+    }
+
+    /// Records `binds` as the fragment shader's descriptors.
+    ///
+    /// # Safety
+    /// `cmd` is recording with this pipeline bound; the bound resources
+    /// outlive the command buffer's execution.
+    pub(super) unsafe fn push_fragment_descriptors(
+        &self,
+        cmd: vk::CommandBuffer,
+        binds: &[Bind<'_>],
+    ) {
+        // SAFETY: the caller's contract; the layout has a push-descriptor
+        // set of `self.bindings`.
+        unsafe {
+            push_descriptors(
+                &self.layout.ctx,
+                cmd,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.layout.layout,
+                &self.name,
+                &self.bindings,
+                binds,
+            )
+        }
     }
 }
 

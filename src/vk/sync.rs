@@ -44,6 +44,12 @@ impl Access {
         access: vk::AccessFlags2::SHADER_STORAGE_READ,
         layout: vk::ImageLayout::GENERAL,
     };
+    /// An image read as a storage image by fragment shaders.
+    pub const FRAGMENT_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::FRAGMENT_SHADER,
+        access: vk::AccessFlags2::SHADER_STORAGE_READ,
+        layout: vk::ImageLayout::GENERAL,
+    };
     pub const COMPUTE_WRITE: Access = Access {
         stage: vk::PipelineStageFlags2::COMPUTE_SHADER,
         access: vk::AccessFlags2::SHADER_STORAGE_WRITE,

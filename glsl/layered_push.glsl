@@ -1,0 +1,28 @@
+// Push constants of the layered method's passes (src/passes/layered.rs,
+// LayeredPush): one block for all of them.
+layout(push_constant, std430) uniform LayeredPush {
+    vec4 background;      // linear RGB of the background, w unused
+    ivec2 extent;         // G-buffer size (guard band included)
+    ivec2 tiles;          // tile grid of the occluder tiles
+    int tile;             // tile edge, pixels
+    int layer;            // the peeled layer a prepare pass reads
+    int layers;           // K
+    int slice;            // the depth slice a spread or composite pass takes
+    int slices;           // M
+    int band_y0;          // first G-buffer row of the band the differences hold
+    int band_rows;        // rows of the band
+    uint keep_occluded;   // 1: the plain peel (every occluded pixel kept)
+    float f_px;
+    float aperture_radius;
+    float focus_distance;
+    float max_coc_px;     // the largest CoC of a point in the view
+    float slice_lo;       // signed CoC of the near edge of slice 0
+    float slice_width;    // signed CoC per slice
+} pc;
+
+// Signed CoC (px): negative in front of the focus plane, positive behind;
+// increasing with depth, so it orders fragments by depth.
+float signed_coc(float z) {
+    float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    return z >= pc.focus_distance ? c : -c;
+}

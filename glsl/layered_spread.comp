@@ -1,0 +1,135 @@
+#version 460
+// Layered DOF, pass 3, once per depth slice (DESIGN §6, after Kosloff, Tao
+// and Barsky 2009): every kept fragment of the slice spreads its
+// premultiplied color and coverage, divided by its CoC disk's area, over
+// that disk, by writing signed differences where each row span of the
+// disk starts and ends (two at each end, for the pixels the end cuts)
+// into a buffer of row differences (cost: the disk's height, not its
+// area). The composite
+// pass turns the differences into the filled disks with a prefix sum along
+// each row. A fragment belongs to the slice of its signed CoC, and, in
+// the first RAMP of that slice, also to the next nearer slice with a
+// weight falling from 1 to 0, so that a surface crossing a slice boundary
+// leaves no seam (its far slice holds it whole beneath the nearer).
+// Within a slice the fragments are normalised together, as one surface:
+// a fragment whose pixel has a nearer layer's surface in the same slice
+// is hidden by it and left out (a surface cut by the peel into two layers
+// at an occluder in another slice keeps both parts, and shows no seam).
+#include "lens.glsl"
+#include "layered_push.glsl"
+#include "layered_fixed.glsl"
+
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
+
+layout(binding = 0, rgba32f) uniform readonly image2DArray fragment_color;
+layout(binding = 1, rg32f) uniform readonly image2DArray fragment_coc; // signed CoC, covered
+layout(binding = 2, std430) buffer Differences { uint64_t differences[]; }; // 2 words per pixel
+
+// Mirrors RAMP in src/passes/layered.rs.
+const float RAMP = 0.5;
+
+// Adds fixed-point v at G-buffer pixel (x, y) of the band; a difference
+// left of the image adds at x = 0 (the prefix sums right of it are the
+// same), one right of it is dropped.
+void add(int x, int y, ivec4 v) {
+    if (x >= pc.extent.x) {
+        return;
+    }
+    uint at = 2u * uint((y - pc.band_y0) * pc.extent.x + max(x, 0));
+    atomicAdd(differences[at], pack(v.r, v.g));
+    atomicAdd(differences[at + 1u], pack(v.b, v.a));
+}
+
+// Row dy (vertical offset from the disk's centre, px) of a disk of radius
+// r: the part of the row's height inside the disk's vertical extent, and
+// the half-width of the disk there (its chord halfway through that part),
+// at least half a pixel, so that a disk under a pixel wide is one pixel.
+vec2 disk_row(float r, int dy) {
+    float ady = abs(float(dy));
+    float height = clamp(r + 0.5 - ady, 0.0, 1.0);
+    float y = height < 1.0 ? 0.5 * (ady - 0.5 + r) : ady;
+    return vec2(height, max(sqrt(max(r * r - y * y, 0.0)), 0.5));
+}
+
+// The weight of a fragment of signed CoC c in slice pc.slice: 1 in its own
+// slice, falling from 1 to 0 over the first RAMP of it in the next nearer
+// one, 0 elsewhere.
+float slice_weight(float c) {
+    float t = (c - pc.slice_lo) / pc.slice_width;
+    int slice = clamp(int(floor(t)), 0, pc.slices - 1);
+    float within = clamp(t - float(slice), 0.0, 1.0);
+    if (slice == pc.slice) {
+        return 1.0;
+    }
+    if (slice == pc.slice + 1 && within < RAMP) {
+        return 1.0 - within / RAMP;
+    }
+    return 0.0;
+}
+
+void main() {
+    ivec3 at = ivec3(gl_GlobalInvocationID);
+    if (any(greaterThanEqual(at.xy, pc.extent)) || at.z >= pc.layers) {
+        return;
+    }
+    vec4 v = imageLoad(fragment_color, at);
+    if (v.a <= 0.0) {
+        return;
+    }
+    float c_signed = imageLoad(fragment_coc, at).x;
+    float weight = slice_weight(c_signed);
+    if (weight <= 0.0) {
+        return;
+    }
+    for (int l = 0; l < at.z; ++l) {
+        vec2 nearer = imageLoad(fragment_coc, ivec3(at.xy, l)).xy;
+        if (nearer.y > 0.0 && slice_weight(nearer.x) > 0.0) {
+            return;
+        }
+    }
+    float c = abs(c_signed);
+    float r = 0.5 * c;
+    int rows = int(floor(r + 0.5));
+    ivec2 p = at.xy;
+    int y_lo = max(p.y - rows, pc.band_y0);
+    int y_hi = min(p.y + rows, min(pc.band_y0 + pc.band_rows, pc.extent.y) - 1);
+    if (y_lo > y_hi) {
+        return;
+    }
+    // The disk: per row, the interval [x - h, x + h] around the pixel's
+    // centre x, each pixel covered by its overlap with it, times the part
+    // of the row's height inside the disk (anti-aliased both ways); its
+    // area normalises the spread.
+    float area = 0.0;
+    for (int dy = -rows; dy <= rows; ++dy) {
+        vec2 row = disk_row(r, dy);
+        area += 2.0 * row.y * row.x;
+    }
+    vec4 unit = v * (weight / area);
+    float centre = float(p.x) + 0.5;
+    for (int y = y_lo; y <= y_hi; ++y) {
+        vec2 row = disk_row(r, y - p.y);
+        float h = row.y;
+        vec4 v = unit * row.x;
+        ivec4 whole = to_fixed(v);
+        float a = centre - h, b = centre + h;
+        int x0 = int(floor(a)), x1 = int(floor(b));
+        if (x1 < 0 || x0 >= pc.extent.x) {
+            continue;
+        }
+        if (x0 == x1) {
+            ivec4 part = to_fixed(v * (b - a));
+            add(x0, y, part);
+            add(x0 + 1, y, -part);
+        } else {
+            // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those
+            // between all of it; the four differences sum to exactly zero.
+            ivec4 first = to_fixed(v * (float(x0 + 1) - a));
+            ivec4 last = to_fixed(v * (b - float(x1)));
+            add(x0, y, first);
+            add(x0 + 1, y, whole - first);
+            add(x1, y, last - whole);
+            add(x1 + 1, y, -last);
+        }
+    }
+}

@@ -371,3 +371,46 @@ fn without_blur_layered_is_the_pinhole_image_and_runs_repeat_bitwise() {
         assert!(bits(&a) == bits(&b), "two runs differ");
     });
 }
+
+#[test]
+fn a_sharp_surface_and_a_blurred_one_do_not_leak_into_each_other() {
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        // In focus: a red half-plane (x < 0) at z = 1; behind it a blue
+        // plane at z = 4, blurred (CoC 9.9 px). The red edge is at pixel
+        // column 32.
+        let (red, blue) = (Vec3::new(0.8, 0.0, 0.0), Vec3::new(0.0, 0.1, 0.7));
+        let mut points = Vec::new();
+        for j in -150..=150 {
+            for i in -250..0 {
+                points.push((Vec3::new(i as f32 * 0.004, j as f32 * 0.004, -1.0), red));
+            }
+        }
+        for j in -100..=100 {
+            for i in -150..=150 {
+                points.push((Vec3::new(i as f32 * 0.04, j as f32 * 0.04, -4.0), blue));
+            }
+        }
+        let scene = upload(&renderer, &points);
+        let mut cam = camera(W, H);
+        cam.focus_distance = 1.0;
+        cam.aperture_radius = 0.1;
+        assert!(cam.coc_px(4.0) > 9.0);
+        for method in [Method::accum(64), Method::layered(4)] {
+            let img = render(&renderer, &scene, cam, method);
+            for y in 0..H {
+                for x in 0..W {
+                    let p = img.pixels[(y * W + x) as usize];
+                    // The sharp red does not spread beyond its edge...
+                    if x >= 34 {
+                        assert!(p[0] < 0.01, "{method:?}: red {} at ({x}, {y})", p[0]);
+                    }
+                    // ...and the blurred blue does not spread over it.
+                    if x <= 29 {
+                        assert!(p[2] < 0.01, "{method:?}: blue {} at ({x}, {y})", p[2]);
+                    }
+                }
+            }
+        }
+    });
+}

@@ -97,5 +97,5 @@ void prepare(ivec2 p) {
     vec3 premultiplied = max(mean - (1.0 - coverage) * pc.background.rgb, vec3(0.0));
     imageStore(fragment_color, at, keep ? vec4(premultiplied, coverage) : vec4(0.0));
     // Kept or not, the pixel's surface occludes the layers behind it.
-    imageStore(fragment_coc, at, vec4(signed_coc(z), 1.0, 0.0, 0.0));
+    imageStore(fragment_coc, at, vec4(signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance), 1.0, 0.0, 0.0));
 }

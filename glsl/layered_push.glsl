@@ -19,10 +19,3 @@ layout(push_constant, std430) uniform LayeredPush {
     float slice_lo;       // signed CoC of the near edge of slice 0
     float slice_width;    // signed CoC per slice
 } pc;
-
-// Signed CoC (px): negative in front of the focus plane, positive behind;
-// increasing with depth, so it orders fragments by depth.
-float signed_coc(float z) {
-    float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
-    return z >= pc.focus_distance ? c : -c;
-}

@@ -10,7 +10,8 @@ layout(local_size_x = 64) in;
 
 // Per case: (z, u.x, u.y, unused), (square point a.x, a.y, disk point u.x, u.y).
 layout(binding = 0, std430) readonly buffer Inputs { vec4 inputs[]; };
-// Per case: (coc_px(z), lens_offset_px(z, u)), (concentric_disk(a), concentric_square(u)).
+// Per case: (coc_px(z), lens_offset_px(z, u), signed_coc_px(z)),
+// (concentric_disk(a), concentric_square(u)).
 layout(binding = 1, std430) writeonly buffer Outputs { vec4 outputs[]; };
 
 layout(push_constant, std430) uniform Push {
@@ -30,6 +31,7 @@ void main() {
     float z = lens_in.x;
     float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
     vec2 offset = lens_offset_px(z, lens_in.yz, pc.f_px, pc.aperture_radius, pc.focus_distance);
-    outputs[2 * i] = vec4(c, offset, 0.0);
+    float signed_c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    outputs[2 * i] = vec4(c, offset, signed_c);
     outputs[2 * i + 1] = vec4(concentric_disk(map_in.xy), concentric_square(map_in.zw));
 }

@@ -131,14 +131,18 @@ fn lens_and_concentric_includes_agree_with_the_cpu() {
     // The maps go through sin, cos and atan, which Vulkan does not require
     // to be correctly rounded (lavapipe measures 3.3e-6 here): 1e-5.
     let (mut worst_coc, mut worst_offset, mut worst_map) = (0.0f32, 0.0f32, 0.0f32);
+    let mut signs_differ = 0;
     let mut bins_differ = 0;
     for case in 0..n {
         let [z, ux, uy, _] = inputs[2 * case];
         let [ax, ay, dx, dy] = inputs[2 * case + 1];
-        let [c, ox, oy, _] = outputs[2 * case];
+        let [c, ox, oy, signed_c] = outputs[2 * case];
         let [disk_x, disk_y, square_x, square_y] = outputs[2 * case + 1];
         let cpu_c = camera.coc_px(z);
         worst_coc = worst_coc.max((c - cpu_c).abs() / cpu_c.max(1.0));
+        let cpu_signed = camera.signed_coc_px(z);
+        worst_coc = worst_coc.max((signed_c - cpu_signed).abs() / cpu_c.max(1.0));
+        signs_differ += (signed_c.is_sign_negative() != cpu_signed.is_sign_negative()) as u32;
         let cpu_offset = camera.lens_offset_px(z, Vec2::new(ux, uy));
         worst_offset = worst_offset.max((Vec2::new(ox, oy) - cpu_offset).length() / cpu_c.max(1.0));
         let cpu_disk = concentric_disk(Vec2::new(ax, ay));
@@ -157,6 +161,7 @@ fn lens_and_concentric_includes_agree_with_the_cpu() {
         worst_coc <= 1e-6,
         "coc_px: worst relative difference {worst_coc}"
     );
+    assert_eq!(signs_differ, 0, "signed_coc_px: signs differ");
     assert!(
         worst_offset <= 1e-6,
         "lens_offset_px: worst difference {worst_offset} (relative to the CoC)"

@@ -113,6 +113,13 @@ impl Camera {
         }
     }
 
+    /// The signed CoC diameter (pixels) at eye depth `z`: `lens_sign(z) ·
+    /// coc_px(z)`, negative in front of the focus plane; it increases with
+    /// depth, so it orders points by depth.
+    pub fn signed_coc_px(&self, z: f32) -> f32 {
+        self.lens_sign(z) * self.coc_px(z)
+    }
+
     /// THE lens-position ↔ image-offset relation of DESIGN §2, the one
     /// function the accumulation reference (sheared projection) and the ray
     /// distribution buffer (bin of a pair) are built on.
@@ -124,7 +131,7 @@ impl Camera {
     /// A point behind the focus plane moves with u, one in front of it against
     /// u, one on it not at all (the focus plane stays fixed).
     pub fn lens_offset_px(&self, z: f32, u: Vec2) -> Vec2 {
-        self.lens_sign(z) * (self.coc_px(z) / 2.0) * u
+        (self.signed_coc_px(z) / 2.0) * u
     }
 
     /// The largest CoC diameter (pixels) over the eye-depth range

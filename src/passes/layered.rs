@@ -117,7 +117,8 @@ impl Layered {
 }
 
 /// The depth slices of a view: M slices of equal signed-CoC width over the
-/// points' signed-CoC range, nearest first.
+/// points' signed-CoC range, nearest first (`glsl/layered_spread.comp`
+/// places the fragments in them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slices {
     pub count: u32,
@@ -137,31 +138,12 @@ impl Slices {
                 width: 1.0,
             };
         };
-        let (lo, hi) = (signed_coc(camera, near), signed_coc(camera, far));
+        let (lo, hi) = (camera.signed_coc_px(near), camera.signed_coc_px(far));
         let count = (((hi - lo) / SLICE_COC_PX).ceil() as u32).clamp(1, MAX_SLICES);
         // A little wider than the range, so that its far end falls inside
         // the last slice.
         let width = ((hi - lo) / count as f32 * (1.0 + 1e-4)).max(1e-3);
         Slices { count, lo, width }
-    }
-
-    /// The slice of a fragment of signed CoC `c` and its place in it, in
-    /// [0, 1] from the near edge (as `glsl/layered_spread.comp`).
-    pub fn locate(&self, c: f32) -> (u32, f32) {
-        let t = (c - self.lo) / self.width;
-        let slice = (t.floor().max(0.0) as u32).min(self.count - 1);
-        (slice, (t - slice as f32).clamp(0.0, 1.0))
-    }
-}
-
-/// Signed CoC (px): negative in front of the focus plane (mirrors
-/// `signed_coc` in `glsl/layered_push.glsl`).
-pub fn signed_coc(camera: &Camera, z: f32) -> f32 {
-    let c = camera.coc_px(z);
-    if z >= camera.focus_distance {
-        c
-    } else {
-        -c
     }
 }
 

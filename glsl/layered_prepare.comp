@@ -8,9 +8,11 @@
 // pixel and its occluder) within the pixel's CoC radius plus the
 // occluders' (a ray from depth z through lens point u crosses depth z'
 // |c_s(z) - c_s(z')| |u| / 2 px from where it started). Counts the kept and
-// discarded pixels.
+// discarded pixels, and per layer and workgroup tile of pixels the slices
+// its kept fragments spread in (the spread pass skips the other tiles).
 #include "lens.glsl"
 #include "layered_push.glsl"
+#include "layered_slices.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -21,9 +23,12 @@ layout(binding = 3, rg32f) uniform readonly image2D occluder_tiles;
 layout(binding = 4, rgba32f) uniform writeonly image2DArray fragment_color; // premultiplied rgb, coverage
 layout(binding = 5, rg32f) uniform writeonly image2DArray fragment_coc;     // signed CoC (px), covered
 layout(binding = 6, std430) buffer Counts { uint counts[]; };             // kept, discarded per layer
+layout(binding = 7, std430) buffer SliceMasks { uint slice_masks[]; };    // per layer and workgroup: slice bits
 
-// This workgroup's kept and discarded pixels, added to the totals once.
+// This workgroup's kept and discarded pixels, added to the totals once,
+// and the slices of its kept fragments.
 shared uint group_counts[2];
+shared uint group_slices;
 
 // Distance from pixel centre p + 0.5 to tile t's pixel rectangle.
 float tile_distance(vec2 p, ivec2 t) {
@@ -69,6 +74,9 @@ void main() {
     if (gl_LocalInvocationIndex < 2u) {
         group_counts[gl_LocalInvocationIndex] = 0u;
     }
+    if (gl_LocalInvocationIndex == 0u) {
+        group_slices = 0u;
+    }
     barrier();
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (all(lessThan(p, pc.extent))) {
@@ -77,6 +85,11 @@ void main() {
     barrier();
     if (gl_LocalInvocationIndex < 2u && group_counts[gl_LocalInvocationIndex] != 0u) {
         atomicAdd(counts[2 * pc.layer + int(gl_LocalInvocationIndex)], group_counts[gl_LocalInvocationIndex]);
+    }
+    if (gl_LocalInvocationIndex == 0u && group_slices != 0u) {
+        uint tiles = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
+        uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        atomicOr(slice_masks[uint(pc.layer) * tiles + tile], group_slices);
     }
 }
 
@@ -97,5 +110,9 @@ void prepare(ivec2 p) {
     vec3 premultiplied = max(mean - (1.0 - coverage) * pc.background.rgb, vec3(0.0));
     imageStore(fragment_color, at, keep ? vec4(premultiplied, coverage) : vec4(0.0));
     // Kept or not, the pixel's surface occludes the layers behind it.
-    imageStore(fragment_coc, at, vec4(signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance), 1.0, 0.0, 0.0));
+    float c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    imageStore(fragment_coc, at, vec4(c, 1.0, 0.0, 0.0));
+    if (keep) {
+        atomicOr(group_slices, slice_bits(c));
+    }
 }

@@ -18,15 +18,16 @@
 #include "lens.glsl"
 #include "layered_push.glsl"
 #include "layered_fixed.glsl"
+#include "layered_slices.glsl"
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(binding = 0, rgba32f) uniform readonly image2DArray fragment_color;
 layout(binding = 1, rg32f) uniform readonly image2DArray fragment_coc; // signed CoC, covered
 layout(binding = 2, std430) buffer Differences { uint64_t differences[]; }; // 2 words per pixel
-
-// Mirrors RAMP in src/passes/layered.rs.
-const float RAMP = 0.5;
+// Per layer and workgroup tile of pixels (layered_prepare.comp): the
+// slices its kept fragments spread in, as bits.
+layout(binding = 3, std430) readonly buffer SliceMasks { uint slice_masks[]; };
 
 // Adds fixed-point v at G-buffer pixel (x, y) of the band; a difference
 // left of the image adds at x = 0 (the prefix sums right of it are the
@@ -51,23 +52,14 @@ vec2 disk_row(float r, int dy) {
     return vec2(height, max(sqrt(max(r * r - y * y, 0.0)), 0.5));
 }
 
-// The weight of a fragment of signed CoC c in slice pc.slice: 1 in its own
-// slice, falling from 1 to 0 over the first RAMP of it in the next nearer
-// one, 0 elsewhere.
-float slice_weight(float c) {
-    float t = (c - pc.slice_lo) / pc.slice_width;
-    int slice = clamp(int(floor(t)), 0, pc.slices - 1);
-    float within = clamp(t - float(slice), 0.0, 1.0);
-    if (slice == pc.slice) {
-        return 1.0;
-    }
-    if (slice == pc.slice + 1 && within < RAMP) {
-        return 1.0 - within / RAMP;
-    }
-    return 0.0;
-}
-
 void main() {
+    // A tile without fragments in this slice has nothing to do (most
+    // tiles of most slices).
+    uint tiles = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
+    uint tile = gl_WorkGroupID.z * tiles + gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    if ((slice_masks[tile] & (1u << uint(pc.slice))) == 0u) {
+        return;
+    }
     ivec3 at = ivec3(gl_GlobalInvocationID);
     if (any(greaterThanEqual(at.xy, pc.extent)) || at.z >= pc.layers) {
         return;
@@ -77,13 +69,13 @@ void main() {
         return;
     }
     float c_signed = imageLoad(fragment_coc, at).x;
-    float weight = slice_weight(c_signed);
+    float weight = slice_weight(c_signed, pc.slice);
     if (weight <= 0.0) {
         return;
     }
     for (int l = 0; l < at.z; ++l) {
         vec2 nearer = imageLoad(fragment_coc, ivec3(at.xy, l)).xy;
-        if (nearer.y > 0.0 && slice_weight(nearer.x) > 0.0) {
+        if (nearer.y > 0.0 && slice_weight(nearer.x, pc.slice) > 0.0) {
             return;
         }
     }

@@ -16,9 +16,9 @@ use glam::{Vec2, Vec3};
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
 use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass};
-use crate::passes::sample_plan::SamplePlan;
+use crate::passes::sample_plan::{PlannedPass, SamplePlan};
 use crate::passes::splat_raster::{
-    SampleTargets, SplatPush, SplatRaster, TargetsBefore, COLOR_FORMAT, EYE_FORMAT, SAMPLE_FORMAT,
+    SampleTargets, SplatPush, SplatRaster, TargetsBefore, COLOR_FORMAT, EYE_FORMAT,
 };
 use crate::passes::{DofInput, FrameView, GBufferLayer};
 use crate::vk::{Access, Buffer, Context, Frame, Image};
@@ -105,8 +105,7 @@ pub fn clip_range(range: Option<(f32, f32)>) -> (f32, f32) {
 pub struct GBufferPasses {
     /// By samples per pixel: 1, then the device's multisampled counts.
     rasters: Vec<(u32, SplatRaster)>,
-    /// The depth peel of layers after the first, by samples per pixel: 1,
-    /// and the multisampled counts where the device shades per sample.
+    /// The depth peel of layers after the first, by samples per pixel.
     peels: Vec<(u32, SplatRaster)>,
     resolve: GBufferResolve,
 }
@@ -125,9 +124,7 @@ impl GBufferPasses {
             .collect::<Result<Vec<_>>>()?;
         let peels = rasters
             .iter()
-            .map(|(s, _)| *s)
-            .filter(|&s| s == 1 || ctx.info.sample_rate_shading)
-            .map(|s| SplatRaster::new(ctx, s, true).map(|r| (s, r)))
+            .map(|(s, _)| SplatRaster::new(ctx, *s, true).map(|r| (*s, r)))
             .collect::<Result<Vec<_>>>()?;
         Ok(GBufferPasses {
             resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
@@ -136,40 +133,54 @@ impl GBufferPasses {
         })
     }
 
-    /// The plan for K×K samples of `layers` depth-peeled layers with at
-    /// most `max_samples_per_pass` samples per pass (None: no limit) whose
-    /// sample targets for `pixels` pixels take at most `budget_bytes`: the
-    /// fewest passes the device's sample counts (those it can peel, for
-    /// more than one layer) allow ([`SamplePlan::best`]).
+    /// The plan for K×K samples with at most `max_samples_per_pass`
+    /// samples per pass (None: no limit) whose sample targets for `pixels`
+    /// pixels take at most `budget_bytes`: the fewest passes the device's
+    /// sample counts allow ([`SamplePlan::best`]).
     pub fn plan(
         &self,
         ssaa: u32,
-        layers: u32,
         max_samples_per_pass: Option<u32>,
         pixels: u64,
         budget_bytes: u64,
     ) -> SamplePlan {
         let max = max_samples_per_pass.unwrap_or(u32::MAX);
-        let usable = if layers > 1 {
-            &self.peels
-        } else {
-            &self.rasters
-        };
-        let mut counts: Vec<u32> = usable
+        let mut counts: Vec<u32> = self
+            .rasters
             .iter()
             .map(|(s, _)| *s)
             .filter(|&s| s <= max)
             .collect();
-        // A peel keeps the previous layer's sample target beside its own.
-        let targets = if layers > 1 { 2 } else { 1 };
         loop {
             let plan = SamplePlan::best(ssaa, counts.iter().fold(0, |m, s| m | s));
             let s = plan.samples_per_pass;
-            if s == 1 || targets * pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes {
+            if s == 1 || pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes {
                 return plan;
             }
             counts.retain(|&c| c < s);
         }
+    }
+
+    /// Samples per pixel of each depth-peel pass (one per later layer):
+    /// the device's largest count up to the first layer's K² samples and
+    /// `max_samples_per_pass` whose targets for `pixels` pixels take at
+    /// most `budget_bytes`, taken in one pass at the standard locations.
+    pub fn peel_samples(
+        &self,
+        ssaa: u32,
+        max_samples_per_pass: Option<u32>,
+        pixels: u64,
+        budget_bytes: u64,
+    ) -> u32 {
+        let max = max_samples_per_pass.unwrap_or(u32::MAX).min(ssaa * ssaa);
+        self.peels
+            .iter()
+            .map(|(s, _)| *s)
+            .filter(|&s| {
+                s <= max && (s == 1 || pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes)
+            })
+            .max()
+            .unwrap_or(1)
     }
 
     fn raster(&self, samples: u32, peel: bool) -> &SplatRaster {
@@ -186,9 +197,9 @@ pub struct GBuffer {
     /// Each layer's running color sum.
     color_sums: Vec<Image>,
     targets: SampleTargets,
-    /// The second sample target of a depth peel: layer l draws into
-    /// `targets.sample` for even l and here for odd l, reading the other.
-    peel_sample: Option<Image>,
+    /// The depth peel's targets where its samples per pixel differ from
+    /// the plan's (else it draws into `targets`).
+    peel_targets: Option<SampleTargets>,
     view: RasterView,
     plan: SamplePlan,
     background: Vec3,
@@ -196,12 +207,15 @@ pub struct GBuffer {
 
 impl GBuffer {
     /// Allocates `layers` G-buffer layers for `view` (1: the pinhole
-    /// G-buffer), and the sample targets for the passes of `plan`.
+    /// G-buffer), the sample targets for the passes of `plan` and, for
+    /// more than one layer, those of the depth peel's passes of
+    /// `peel_samples` samples ([`GBufferPasses::peel_samples`]).
     pub fn new(
         ctx: &Arc<Context>,
         view: &RasterView,
         plan: &SamplePlan,
         layers: u32,
+        peel_samples: u32,
         background: Vec3,
     ) -> Result<GBuffer> {
         let frame = &view.frame;
@@ -239,40 +253,34 @@ impl GBuffer {
                 storage,
             )?);
         }
-        let (tw, th, s) = (w + margin, h + margin, plan.samples_per_pass);
-        let attach = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::STORAGE;
-        let peel_sample = match layers {
-            1 => None,
-            _ => Some(Image::new_multisampled(
-                ctx,
-                "peel sample",
-                SAMPLE_FORMAT,
-                tw,
-                th,
-                s,
-                attach,
-            )?),
-        };
         Ok(GBuffer {
             layers: images,
             color_sums,
-            targets: SampleTargets::new(ctx, tw, th, s)?,
-            peel_sample,
+            targets: SampleTargets::new(ctx, w + margin, h + margin, plan.samples_per_pass)?,
+            // The peel reads in place: its targets need no margin.
+            peel_targets: match layers > 1 && peel_samples != plan.samples_per_pass {
+                true => Some(SampleTargets::new(ctx, w, h, peel_samples)?),
+                false => None,
+            },
             view: *view,
             plan: plan.clone(),
             background,
         })
     }
 
-    /// Records the plan's passes through every lens position of `lens`
-    /// (lens outer, passes, then layers inner), each raster followed by
-    /// its resolve, as passes `{label}.raster` and `{label}.resolve` (the
-    /// first layer) and `peel.raster` and `peel.resolve` (the depth peel
-    /// of the others: the layered method's work, which `bench` counts as
-    /// depth of field). Per layer, the color is the mean over
-    /// all samples; the eye depth is the nearest sample's, ties to the
-    /// lowest index in the one-sample form (lens position, then sample),
-    /// whatever the plan.
+    /// Records the first layer: the plan's passes through every lens
+    /// position of `lens` (lens outer), each raster followed by its
+    /// resolve, as passes `{label}.raster` and `{label}.resolve`; the color
+    /// is the mean over all samples, the eye depth the nearest sample's,
+    /// ties to the lowest index in the one-sample form (lens position, then
+    /// sample), whatever the plan. Then every later layer (of a pinhole
+    /// view: one lens position) as one depth peel of the plan's samples per
+    /// pass at their standard locations (unjittered), against the previous
+    /// layer's resolved depth, and its resolve: passes `peel.raster` and
+    /// `peel.resolve`, the layered method's work, which `bench` counts as
+    /// depth of field. A hidden layer is seen only through a blurred
+    /// occluder's edge, so it takes fewer samples than the first
+    /// (docs/ARCHITECTURE.md, "Layered DOF").
     pub fn record<'r>(
         &'r self,
         frame: &mut Frame<'r>,
@@ -282,64 +290,104 @@ impl GBuffer {
         lens: &[Vec2],
         label: &str,
     ) {
-        let names = [
-            (format!("{label}.raster"), format!("{label}.resolve")),
-            ("peel.raster".to_string(), "peel.resolve".to_string()),
-        ];
+        assert!(
+            self.layers.len() == 1 || lens.len() == 1,
+            "depth-peeled layers are of one lens position"
+        );
+        let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let t = &self.targets;
         let samples = self.plan.samples_per_pass;
         let per_lens = self.plan.passes.len() as u32 * samples;
         let sample_count = lens.len() as u32 * per_lens;
         let extent = [t.sample.width(), t.sample.height()];
-        // The sample targets a layer draws into and reads, and where each
-        // was last used.
-        let buffers: [&'r Image; 2] = [&t.sample, self.peel_sample.as_ref().unwrap_or(&t.sample)];
-        let mut last = [Access::NONE; 2];
-        let mut depth_last = Access::NONE;
+        let background = self.background.to_array();
+        let mut before = TargetsBefore {
+            sample: Access::NONE,
+            depth: Access::NONE,
+            previous: Access::NONE,
+        };
         for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
             let push = self.view.push(planned.jitter, lens_u, extent);
-            for (layer, images) in self.layers.iter().enumerate() {
-                let (target, previous) = (layer % 2, (layer + 1) % 2);
-                let peel = layer > 0;
-                let (raster_name, resolve_name) = &names[usize::from(peel)];
-                passes.raster(samples, peel).record(
-                    frame,
-                    raster_name,
-                    buffers[target],
-                    &t.depth,
-                    peel.then_some(buffers[previous]),
-                    TargetsBefore {
-                        sample: last[target],
-                        depth: depth_last,
-                        previous: last[previous],
-                    },
-                    splats,
-                    count,
-                    self.background.to_array(),
-                    &push,
-                );
-                if peel {
-                    last[previous] = Access::FRAGMENT_READ;
-                }
-                last[target] = Access::COMPUTE_READ;
-                depth_last = Access::DEPTH_WRITE;
-                let pass = ResolvePass {
-                    first_sample: i as u32 * samples,
-                    sample_count,
-                    read_offsets: planned.read_offsets,
-                    index_base: l * per_lens,
-                    indices: planned.packed_indices(),
-                };
-                let resolve_images = ResolveImages {
-                    sample: buffers[target],
-                    color_sum: &self.color_sums[layer],
-                    gbuffer_eye: &images.eye,
-                    gbuffer_color: &images.color,
-                };
-                passes
-                    .resolve
-                    .record(frame, resolve_name, &resolve_images, &pass);
-            }
+            passes.raster(samples, false).record(
+                frame,
+                &raster_name,
+                &t.sample,
+                &t.depth,
+                None,
+                before,
+                splats,
+                count,
+                background,
+                &push,
+            );
+            before.sample = Access::COMPUTE_READ;
+            before.depth = Access::DEPTH_WRITE;
+            let pass = ResolvePass {
+                first_sample: i as u32 * samples,
+                sample_count,
+                read_offsets: planned.read_offsets,
+                index_base: l * per_lens,
+                indices: planned.packed_indices(),
+            };
+            passes
+                .resolve
+                .record(frame, &resolve_name, &self.resolve_images(t, 0), &pass);
+        }
+        let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
+        let peel = self.peel_targets.as_ref().unwrap_or(t);
+        if self.peel_targets.is_some() {
+            before.sample = Access::NONE;
+            before.depth = Access::NONE;
+        }
+        let samples = peel.sample.samples();
+        let push = self.view.push(
+            Vec2::ZERO,
+            lens_u,
+            [peel.sample.width(), peel.sample.height()],
+        );
+        let mut indices = [0u8; 8];
+        for (s, index) in indices.iter_mut().enumerate().take(samples as usize) {
+            *index = s as u8;
+        }
+        for layer in 1..self.layers.len() {
+            // The previous layer's depth was last written by its resolve.
+            before.previous = Access::COMPUTE_READ_WRITE;
+            passes.raster(samples, true).record(
+                frame,
+                "peel.raster",
+                &peel.sample,
+                &peel.depth,
+                Some(&self.layers[layer - 1].eye),
+                before,
+                splats,
+                count,
+                background,
+                &push,
+            );
+            let pass = ResolvePass {
+                first_sample: 0,
+                sample_count: samples,
+                read_offsets: 0,
+                index_base: 0,
+                indices: PlannedPass::pack_indices(indices),
+            };
+            passes.resolve.record(
+                frame,
+                "peel.resolve",
+                &self.resolve_images(peel, layer),
+                &pass,
+            );
+            before.sample = Access::COMPUTE_READ;
+            before.depth = Access::DEPTH_WRITE;
+        }
+    }
+
+    fn resolve_images<'a>(&'a self, targets: &'a SampleTargets, layer: usize) -> ResolveImages<'a> {
+        ResolveImages {
+            sample: &targets.sample,
+            color_sum: &self.color_sums[layer],
+            gbuffer_eye: &self.layers[layer].eye,
+            gbuffer_color: &self.layers[layer].color,
         }
     }
 

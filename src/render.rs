@@ -381,12 +381,24 @@ impl Renderer {
         let layers = method.gbuffer_layers();
         let plan = self.gbuffer.plan(
             options.ssaa,
-            layers,
             options.samples_per_pass,
             pixels,
             self.ctx.info.device_local_heap_bytes / 4,
         );
-        let gbuffer = GBuffer::new(&self.ctx, &view, &plan, layers, options.background)?;
+        let peel_samples = self.gbuffer.peel_samples(
+            options.ssaa,
+            options.samples_per_pass,
+            pixels,
+            self.ctx.info.device_local_heap_bytes / 4,
+        );
+        let gbuffer = GBuffer::new(
+            &self.ctx,
+            &view,
+            &plan,
+            layers,
+            peel_samples,
+            options.background,
+        )?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
         let readback = Readback::new(&self.ctx, &view.frame, format, keep_gbuffer)?;
         let lens = method.gbuffer_lens();

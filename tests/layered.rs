@@ -220,6 +220,18 @@ fn more_layers_are_never_worse_and_the_modified_peel_only_drops_what_is_unseen()
                 .map(|c| c.1)
                 .unwrap()
         };
+        // Each later layer is one peel pass and its resolve, whatever the
+        // first layer's plan (SSAA 2 here: four one-sample passes).
+        let passes = |r: &pointlens::render::Rendered, name: &str| {
+            r.timings
+                .passes
+                .iter()
+                .find(|p| p.name == name)
+                .map_or(0, |p| p.count)
+        };
+        assert_eq!(passes(&modified, "peel.raster"), 3);
+        assert_eq!(passes(&modified, "peel.resolve"), 3);
+        assert_eq!(passes(&modified, "gbuffer.raster"), 4);
         let discarded: u64 = (1..4)
             .map(|l| count(&modified, &format!("layered.layer{l}.discarded_px")))
             .sum();

@@ -1,6 +1,6 @@
 //! Yu et al.'s layered depth of field (DESIGN §6) as four compute passes
 //! after a depth-peeled G-buffer (`GBuffer` with K layers; the peel is
-//! `glsl/splat_peel*.frag`):
+//! `glsl/splat_peel.frag`):
 //!
 //! 1. `layered.tiles`: per tile of the first layer, the farthest depth and
 //!    the largest CoC of its points (the occluders);
@@ -46,7 +46,7 @@ pub const MAX_SLICES: u32 = 16;
 pub const FRACTION_BITS: u32 = 22;
 /// The part of a slice, from its near edge, whose fragments also go to
 /// the next nearer slice with a falling weight (mirrors
-/// `glsl/layered_spread.comp`).
+/// `glsl/layered_slices.glsl`).
 pub const RAMP: f32 = 0.5;
 
 static TILES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/layered_tiles.comp.spv"));
@@ -93,13 +93,18 @@ impl Layered {
         let int64 = ctx.info.buffer_int64_atomics;
         Ok(Layered {
             tiles: ComputePipeline::new(ctx, "layered_tiles", TILES, &[I, I])?,
-            prepare: ComputePipeline::new(ctx, "layered_prepare", PREPARE, &[I, I, I, I, I, I, B])?,
+            prepare: ComputePipeline::new(
+                ctx,
+                "layered_prepare",
+                PREPARE,
+                &[I, I, I, I, I, I, B, B],
+            )?,
             spread: match int64 {
                 true => Some(ComputePipeline::new(
                     ctx,
                     "layered_spread",
                     SPREAD,
-                    &[I, I, B],
+                    &[I, I, B, B],
                 )?),
                 false => None,
             },
@@ -199,6 +204,9 @@ struct LayeredImages {
     result: Image,
     /// Kept and discarded pixels per layer (host-visible).
     counts: Buffer,
+    /// Per layer and 8×8 tile of pixels (a workgroup of prepare and
+    /// spread), the slices its kept fragments spread in, as bits.
+    slice_masks: Buffer,
 }
 
 /// Bytes of the row differences per pixel.
@@ -264,6 +272,13 @@ impl LayeredImages {
                 2 * 4 * layers as u64,
                 usage,
                 MemoryLocation::GpuToCpu,
+            )?,
+            slice_masks: Buffer::new(
+                ctx,
+                "layered slice masks",
+                4 * groups(w, 8) as u64 * groups(h, 8) as u64 * layers as u64,
+                usage,
+                MemoryLocation::GpuOnly,
             )?,
         })
     }
@@ -332,6 +347,7 @@ impl DofFrame for LayeredFrame<'_> {
         });
         frame.pass("layered.prepare", |rec| {
             rec.fill_u32(&images.counts, 0);
+            rec.fill_u32(&images.slice_masks, 0);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             rec.barriers(&[
                 (
@@ -353,6 +369,7 @@ impl DofFrame for LayeredFrame<'_> {
                         Bind::StorageImage(&images.fragment_color),
                         Bind::StorageImage(&images.fragment_coc),
                         Bind::StorageBuffer(&images.counts),
+                        Bind::StorageBuffer(&images.slice_masks),
                     ],
                     &LayeredPush {
                         layer: l as i32,
@@ -391,20 +408,27 @@ impl DofFrame for LayeredFrame<'_> {
                     band_y0: band_y0 as i32,
                     ..base
                 };
+                // Each pass starts with the barrier on what it reads: the
+                // slice masks and the cleared differences (prepare, clear,
+                // the last composite), then the spread's differences.
+                // (On lavapipe, a timestamp at a pass's start is also only
+                // taken after the work before it when a barrier follows.)
                 frame.pass("layered.spread", |rec| {
+                    rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
                     rec.dispatch(
                         self.spread,
                         &[
                             Bind::StorageImage(&images.fragment_color),
                             Bind::StorageImage(&images.fragment_coc),
                             Bind::StorageBuffer(&images.differences),
+                            Bind::StorageBuffer(&images.slice_masks),
                         ],
                         &push,
                         spread_groups,
                     );
-                    rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
                 });
                 frame.pass("layered.composite", |rec| {
+                    rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
                     rec.dispatch(
                         self.composite,
                         &[
@@ -415,9 +439,6 @@ impl DofFrame for LayeredFrame<'_> {
                         &push,
                         [groups(images.band_rows.min(h - band_y0), 64), 1, 1],
                     );
-                    // The differences are cleared for the next slice and
-                    // `behind` holds this one (images: global barrier).
-                    rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
                 });
             }
         }
@@ -465,7 +486,7 @@ mod tests {
     fn constants_match_the_glsl() {
         let fixed = include_str!("../../glsl/layered_fixed.glsl");
         assert!(fixed.contains(&format!("const int FRACTION_BITS = {FRACTION_BITS};")));
-        let spread = include_str!("../../glsl/layered_spread.comp");
-        assert!(spread.contains(&format!("const float RAMP = {RAMP:?};")));
+        let slices = include_str!("../../glsl/layered_slices.glsl");
+        assert!(slices.contains(&format!("const float RAMP = {RAMP:?};")));
     }
 }

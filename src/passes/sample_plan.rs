@@ -61,7 +61,11 @@ pub struct PlannedPass {
 impl PlannedPass {
     /// `indices` as the resolve reads them: byte s of the 8 is sample s's.
     pub fn packed_indices(&self) -> [u32; 2] {
-        let i = self.indices;
+        PlannedPass::pack_indices(self.indices)
+    }
+
+    /// Per-sample indices as the resolve reads them.
+    pub fn pack_indices(i: [u8; 8]) -> [u32; 2] {
         [
             u32::from_le_bytes([i[0], i[1], i[2], i[3]]),
             u32::from_le_bytes([i[4], i[5], i[6], i[7]]),

@@ -88,7 +88,7 @@ impl SampleTargets {
 
 /// The graphics pipeline of the pass, for targets of one sample count:
 /// the plain raster, or the depth peel of a layer after the first, which
-/// reads the previous layer's sample target (`glsl/splat_peel*.frag`).
+/// reads the previous layer's resolved eye depth (`glsl/splat_peel.frag`).
 pub struct SplatRaster {
     pipeline: PointPipeline<SplatPush>,
     peel: bool,
@@ -97,11 +97,10 @@ pub struct SplatRaster {
 static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.vert.spv"));
 static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.frag.spv"));
 static PEEL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel.frag.spv"));
-static PEEL_MS_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel_ms.frag.spv"));
 
 /// How thick a surface is for the depth peel, in splat diameters: a layer
 /// keeps only splats beyond the previous layer's sample by more than this
-/// (mirrors `PEEL_THICKNESS` in `glsl/splat_peel.glsl`).
+/// (mirrors `PEEL_THICKNESS` in `glsl/splat_peel.frag`).
 pub const PEEL_THICKNESS_DIAMETERS: f32 = 1.0;
 
 /// Where a raster pass's targets were last used, for its barriers.
@@ -109,18 +108,17 @@ pub const PEEL_THICKNESS_DIAMETERS: f32 = 1.0;
 pub struct TargetsBefore {
     pub sample: Access,
     pub depth: Access,
-    /// The previous layer's sample target, read by a peel.
+    /// The previous layer's G-buffer eye image, read by a peel.
     pub previous: Access,
 }
 
 impl SplatRaster {
     /// The pipeline for targets of `samples` samples per pixel; the depth
-    /// peel's when `peel` (multisampled peels need `sampleRateShading`).
+    /// peel's when `peel` (shaded once per pixel, whatever the samples).
     pub fn new(ctx: &Arc<Context>, samples: u32, peel: bool) -> Result<SplatRaster> {
-        let (name, fragment_spirv, fragment_bindings): (_, _, &[Binding]) = match (peel, samples) {
-            (false, _) => ("splat_raster", FRAG, &[]),
-            (true, 1) => ("splat_peel", PEEL_FRAG, &[Binding::StorageImage]),
-            (true, _) => ("splat_peel_ms", PEEL_MS_FRAG, &[Binding::StorageImage]),
+        let (name, fragment_spirv, fragment_bindings): (_, _, &[Binding]) = match peel {
+            false => ("splat_raster", FRAG, &[]),
+            true => ("splat_peel", PEEL_FRAG, &[Binding::StorageImage]),
         };
         let pipeline = PointPipeline::new(
             ctx,
@@ -151,8 +149,8 @@ impl SplatRaster {
     /// Records one raster pass as pass `name` into `sample` and `depth`:
     /// the barriers from their last uses (`before`), a clear (the sample to
     /// (`background`, +∞), depth to 1), the draw of `count` splats (a peel
-    /// reads `previous`, the previous layer's sample target of the same
-    /// pass), and the barrier that hands the sample to the resolve's
+    /// reads `previous`, the previous layer's G-buffer eye image), and the
+    /// barrier that hands the sample to the resolve's
     /// compute reads.
     #[allow(clippy::too_many_arguments)]
     pub fn record<'r>(
@@ -206,11 +204,11 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatPush>("splat_raster.vert", VERT).unwrap();
-        let peel = include_str!("../../glsl/splat_peel.glsl");
+        let peel = include_str!("../../glsl/splat_peel.frag");
         let thickness = format!("const float PEEL_THICKNESS = {PEEL_THICKNESS_DIAMETERS:?};");
         assert!(
             peel.contains(&thickness),
-            "glsl/splat_peel.glsl: {thickness}"
+            "glsl/splat_peel.frag: {thickness}"
         );
         assert_eq!(std::mem::size_of::<SplatPush>(), 128);
     }

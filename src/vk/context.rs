@@ -93,10 +93,6 @@ pub struct DeviceInfo {
     pub buffer_int64_atomics: bool,
     /// The largest storage-buffer binding, bytes.
     pub max_storage_buffer_range: u64,
-    /// Per-sample fragment shading (`sampleRateShading`), enabled when
-    /// present: the depth peel of a multisampled G-buffer reads the
-    /// previous layer's sample of the fragment's own sample index.
-    pub sample_rate_shading: bool,
 }
 
 impl DeviceInfo {
@@ -278,8 +274,7 @@ impl Context {
         let features = vk::PhysicalDeviceFeatures::default()
             .large_points(true)
             .shader_storage_image_multisample(multisampled_storage)
-            .shader_int64(info.buffer_int64_atomics)
-            .sample_rate_shading(info.sample_rate_shading);
+            .shader_int64(info.buffer_int64_atomics);
         let mut features12 = vk::PhysicalDeviceVulkan12Features::default()
             .shader_buffer_int64_atomics(info.buffer_int64_atomics);
         let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
@@ -647,7 +642,6 @@ fn pick_device(
             gbuffer_sample_counts,
             buffer_int64_atomics,
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
-            sample_rate_shading: core.sample_rate_shading == vk::TRUE,
         };
         candidates.push((pd, family as u32, info));
     }

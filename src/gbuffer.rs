@@ -154,7 +154,7 @@ impl GBufferPasses {
         loop {
             let plan = SamplePlan::best(ssaa, counts.iter().fold(0, |m, s| m | s));
             let s = plan.samples_per_pass;
-            if s == 1 || pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes {
+            if SampleTargets::fit(s, pixels, budget_bytes) {
                 return plan;
             }
             counts.retain(|&c| c < s);
@@ -176,9 +176,7 @@ impl GBufferPasses {
         self.peels
             .iter()
             .map(|(s, _)| *s)
-            .filter(|&s| {
-                s <= max && (s == 1 || pixels * SampleTargets::bytes_per_pixel(s) <= budget_bytes)
-            })
+            .filter(|&s| s <= max && SampleTargets::fit(s, pixels, budget_bytes))
             .max()
             .unwrap_or(1)
     }
@@ -194,7 +192,9 @@ impl GBufferPasses {
 /// layout after the last compute write once `record` has run.
 pub struct GBuffer {
     layers: Vec<GBufferLayer>,
-    /// Each layer's running color sum.
+    /// Each layer's running color sum, for a layer resolved over several
+    /// passes; a peeled layer is resolved in one pass, which neither reads
+    /// nor writes it, so its image only fills the resolve's binding (1×1).
     color_sums: Vec<Image>,
     targets: SampleTargets,
     /// The depth peel's targets where its samples per pixel differ from
@@ -243,12 +243,13 @@ impl GBuffer {
                 color: Image::new_2d(ctx, &name("color"), COLOR_FORMAT, w, h, 1, readable)?,
                 eye: Image::new_2d(ctx, &name("eye"), EYE_FORMAT, w, h, 1, readable)?,
             });
+            let (sw, sh) = if l == 0 { (w, h) } else { (1, 1) };
             color_sums.push(Image::new_2d(
                 ctx,
                 &name("color sum"),
                 EYE_FORMAT,
-                w,
-                h,
+                sw,
+                sh,
                 1,
                 storage,
             )?);

@@ -84,6 +84,12 @@ impl SampleTargets {
         use crate::vk::texel_bytes;
         samples as u64 * (texel_bytes(SAMPLE_FORMAT) + texel_bytes(DEPTH_FORMAT))
     }
+
+    /// Whether targets of `samples` samples for `pixels` pixels may be
+    /// made within `budget_bytes` (one sample always may: the fallback).
+    pub fn fit(samples: u32, pixels: u64, budget_bytes: u64) -> bool {
+        samples == 1 || pixels * SampleTargets::bytes_per_pixel(samples) <= budget_bytes
+    }
 }
 
 /// The graphics pipeline of the pass, for targets of one sample count:

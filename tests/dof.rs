@@ -2,11 +2,11 @@
 
 mod common;
 
-use common::{camera, cloud, with_gpu};
+use common::{camera, cloud, options, with_gpu};
 use glam::Vec3;
 use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow, RdbMode};
-use pointlens::render::{RenderOptions, Renderer, SplatSize};
+use pointlens::render::{Renderer, SplatSize};
 
 const METHODS: [Method; 7] = [
     Method::fast(FastWeights::Area, GatherWindow::Tiles),
@@ -48,14 +48,10 @@ fn a_constant_plane_keeps_its_color_at_every_coc() {
                 let mut cam = camera(40, 30);
                 cam.focus_distance = focus;
                 cam.aperture_radius = radius;
-                let options = RenderOptions {
-                    camera: cam,
-                    method,
-                    ssaa: 2,
-                    samples_per_pass: None,
-                    background: Vec3::ZERO,
-                };
-                let img = renderer.render(&scene, &options).unwrap().image;
+                let img = renderer
+                    .render(&scene, &options(cam, method))
+                    .unwrap()
+                    .image;
                 for (i, px) in img.pixels.iter().enumerate() {
                     let got = Vec3::from_slice(&px[..3]);
                     // fp16 storage: within 2e-3 of the plane's color.

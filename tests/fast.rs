@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{camera, cloud, root, with_gpu};
+use common::{camera, cloud, options, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
@@ -12,16 +12,6 @@ use pointlens::ply::load_ply;
 use pointlens::reference;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::PointCloud;
-
-fn options(cam: Camera, method: Method) -> RenderOptions {
-    RenderOptions {
-        camera: cam,
-        method,
-        ssaa: 2,
-        samples_per_pass: None,
-        background: Vec3::ZERO,
-    }
-}
 
 fn render(
     renderer: &Renderer,

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{camera, cloud, scratch, with_gpu};
+use common::{camera, cloud, options, scratch, with_gpu};
 use glam::Vec3;
 use pointlens::camera::Camera;
 use pointlens::image_io::{write_image, LinearImage};
@@ -68,14 +68,7 @@ fn upload(renderer: &Renderer, points: &[(Vec3, Vec3)]) -> Scene {
 }
 
 fn render(renderer: &Renderer, scene: &Scene, cam: Camera, method: Method) -> LinearImage {
-    let options = RenderOptions {
-        camera: cam,
-        method,
-        ssaa: 2,
-        samples_per_pass: None,
-        background: Vec3::ZERO,
-    };
-    renderer.render(scene, &options).unwrap().image
+    renderer.render(scene, &options(cam, method)).unwrap().image
 }
 
 fn psnr(a: &LinearImage, b: &LinearImage) -> f64 {
@@ -201,18 +194,15 @@ fn more_layers_are_never_worse_and_the_modified_peel_only_drops_what_is_unseen()
         }
         // The plain peel (every occluded pixel kept) against the modified
         // one: the same image within rounding, with pixels discarded.
-        let options = |keep_occluded| RenderOptions {
-            camera: cam,
-            method: Method::Layered(LayeredOptions {
+        let layered = |keep_occluded| {
+            let method = Method::Layered(LayeredOptions {
                 layers: 4,
                 keep_occluded,
-            }),
-            ssaa: 2,
-            samples_per_pass: None,
-            background: Vec3::ZERO,
+            });
+            options(cam, method)
         };
-        let modified = renderer.render(&scene, &options(false)).unwrap();
-        let plain = renderer.render(&scene, &options(true)).unwrap();
+        let modified = renderer.render(&scene, &layered(false)).unwrap();
+        let plain = renderer.render(&scene, &layered(true)).unwrap();
         let count = |r: &pointlens::render::Rendered, name: &str| {
             r.counts
                 .iter()
@@ -306,14 +296,11 @@ fn a_single_pixel_spreads_over_its_disk_with_its_energy() {
             cam.focus_distance = 2.0;
             cam.aperture_radius = radius;
             let c = cam.coc_px(1.0);
-            let options = RenderOptions {
-                camera: cam,
-                method: Method::layered(2),
+            let one_sample = RenderOptions {
                 ssaa: 1,
-                samples_per_pass: None,
-                background: Vec3::ZERO,
+                ..options(cam, Method::layered(2))
             };
-            let img = renderer.render(&scene, &options).unwrap().image;
+            let img = renderer.render(&scene, &one_sample).unwrap().image;
             // The point lands on pixel (32, 24)'s centre.
             let centre = (W as f32 / 2.0, H as f32 / 2.0);
             let mut energy = Vec3::ZERO;

@@ -13,6 +13,8 @@ use glam::Vec3;
 use pointlens::camera::Camera;
 use pointlens::image_io::{read_image, write_image, LinearImage};
 use pointlens::metrics;
+use pointlens::options::Method;
+use pointlens::render::RenderOptions;
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
 
@@ -199,4 +201,16 @@ pub fn assert_fails(args: &[&str], phrase: &str, output: &Path) {
     assert!(err.contains(phrase), "{args:?}: '{phrase}' not in: {err}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(!output.exists(), "{args:?} left {}", output.display());
+}
+
+/// The options of most test renders: `method` through `camera` at SSAA 2
+/// with the device's sample plan, over a black background.
+pub fn options(camera: Camera, method: Method) -> RenderOptions {
+    RenderOptions {
+        camera,
+        method,
+        ssaa: 2,
+        samples_per_pass: None,
+        background: Vec3::ZERO,
+    }
 }

@@ -21,9 +21,18 @@ layout(binding = 1, rgba32f) uniform readonly image2D layer_eye;
 layout(binding = 2, rgba32f) uniform readonly image2D first_eye;
 layout(binding = 3, rg32f) uniform readonly image2D occluder_tiles;
 layout(binding = 4, rgba32f) uniform writeonly image2DArray fragment_color; // premultiplied rgb, coverage
-layout(binding = 5, rg32f) uniform writeonly image2DArray fragment_coc;     // signed CoC (px), covered
+layout(binding = 5, rg32f) uniform writeonly image2DArray fragment_coc;     // signed CoC (px), spread radius (px; 0: no surface)
 layout(binding = 6, std430) buffer Counts { uint counts[]; };             // kept, discarded per layer
 layout(binding = 7, std430) buffer SliceMasks { uint slice_masks[]; };    // per layer and workgroup: slice bits
+// The spread radius per CoC radius (src/passes/spread_disk.rs,
+// radius_table_words).
+layout(binding = 8, std430) readonly buffer SpreadRadius {
+    uint entries;
+    float entries_per_px;
+    float excess;     // px², beyond the last entry
+    uint pad;
+    float radius[];
+} spread;
 
 // This workgroup's kept and discarded pixels, added to the totals once,
 // and the slices of its kept fragments.
@@ -66,6 +75,21 @@ bool visible_through_lens(ivec2 p, float z) {
         }
     }
     return false;
+}
+
+// The radius (px) the spread draws a CoC of diameter coc_px with: the disk
+// whose drawn form has the lens disk's variance (src/passes/spread_disk.rs,
+// whose spread_radius_px this mirrors). At least half a pixel: above zero
+// marks a surface.
+float spread_radius_px(float coc_px) {
+    float r = 0.5 * abs(coc_px);
+    float u = r * spread.entries_per_px;
+    if (u < float(spread.entries - 1u)) {
+        uint i = uint(u);
+        float f = u - float(i);
+        return spread.radius[i] + (spread.radius[i + 1u] - spread.radius[i]) * f;
+    }
+    return sqrt(r * r - spread.excess);
 }
 
 void prepare(ivec2 p);
@@ -111,7 +135,7 @@ void prepare(ivec2 p) {
     imageStore(fragment_color, at, keep ? vec4(premultiplied, coverage) : vec4(0.0));
     // Kept or not, the pixel's surface occludes the layers behind it.
     float c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
-    imageStore(fragment_coc, at, vec4(c, 1.0, 0.0, 0.0));
+    imageStore(fragment_coc, at, vec4(c, spread_radius_px(c), 0.0, 0.0));
     if (keep) {
         atomicOr(group_slices, slice_bits(c));
     }

@@ -1,11 +1,13 @@
 #version 460
 // Layered DOF, pass 3, once per depth slice (DESIGN §6, after Kosloff, Tao
 // and Barsky 2009): every kept fragment of the slice spreads its
-// premultiplied color and coverage, divided by its CoC disk's area, over
-// that disk, by writing signed differences where each row span of the
-// disk starts and ends (two at each end, for the pixels the end cuts)
-// into a buffer of row differences (cost: the disk's height, not its
-// area). The composite
+// premultiplied color and coverage, divided by its disk's area, over a
+// disk of its spread radius (layered_prepare.comp: the lens disk's blur,
+// less the pixel box the G-buffer and the disk's anti-aliasing already
+// add; src/passes/spread_disk.rs), by writing signed differences where
+// each row span of the disk starts and ends (two at each end, for the
+// pixels the end cuts; one where they meet) into a buffer of row
+// differences (cost: the disk's height, not its area). The composite
 // pass turns the differences into the filled disks with a prefix sum along
 // each row. A fragment belongs to the slice of its signed CoC, and, in
 // the first RAMP of that slice, also to the next nearer slice with a
@@ -23,7 +25,7 @@
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(binding = 0, rgba32f) uniform readonly image2DArray fragment_color;
-layout(binding = 1, rg32f) uniform readonly image2DArray fragment_coc; // signed CoC, covered
+layout(binding = 1, rg32f) uniform readonly image2DArray fragment_coc; // signed CoC, spread radius (0: none)
 layout(binding = 2, std430) buffer Differences { uint64_t differences[]; }; // 2 words per pixel
 // Per layer and workgroup tile of pixels (layered_prepare.comp): the
 // slices its kept fragments spread in, as bits.
@@ -31,9 +33,9 @@ layout(binding = 3, std430) readonly buffer SliceMasks { uint slice_masks[]; };
 
 // Adds fixed-point v at G-buffer pixel (x, y) of the band; a difference
 // left of the image adds at x = 0 (the prefix sums right of it are the
-// same), one right of it is dropped.
+// same), one right of it or of zero is dropped.
 void add(int x, int y, ivec4 v) {
-    if (x >= pc.extent.x) {
+    if (x >= pc.extent.x || v == ivec4(0)) {
         return;
     }
     uint at = 2u * uint((y - pc.band_y0) * pc.extent.x + max(x, 0));
@@ -45,6 +47,7 @@ void add(int x, int y, ivec4 v) {
 // r: the part of the row's height inside the disk's vertical extent, and
 // the half-width of the disk there (its chord halfway through that part),
 // at least half a pixel, so that a disk under a pixel wide is one pixel.
+// Mirrors disk_row in src/passes/spread_disk.rs.
 vec2 disk_row(float r, int dy) {
     float ady = abs(float(dy));
     float height = clamp(r + 0.5 - ady, 0.0, 1.0);
@@ -68,7 +71,8 @@ void main() {
     if (v.a <= 0.0) {
         return;
     }
-    float c_signed = imageLoad(fragment_coc, at).x;
+    vec2 coc = imageLoad(fragment_coc, at).xy; // signed CoC, spread radius
+    float c_signed = coc.x;
     float weight = slice_weight(c_signed, pc.slice);
     if (weight <= 0.0) {
         return;
@@ -79,9 +83,9 @@ void main() {
             return;
         }
     }
-    float c = abs(c_signed);
-    float r = 0.5 * c;
-    int rows = int(floor(r + 0.5));
+    float r = coc.y;
+    // The rows of a height above zero (mirrors disk_rows).
+    int rows = max(int(ceil(r - 0.5)), 0);
     ivec2 p = at.xy;
     int y_lo = max(p.y - rows, pc.band_y0);
     int y_hi = min(p.y + rows, min(pc.band_y0 + pc.band_rows, pc.extent.y) - 1);
@@ -113,6 +117,14 @@ void main() {
             ivec4 part = to_fixed(v * (b - a));
             add(x0, y, part);
             add(x0 + 1, y, -part);
+        } else if (x1 == x0 + 1) {
+            // As below, with the two differences at x1 added into one
+            // (the same integer sum).
+            ivec4 first = to_fixed(v * (float(x0 + 1) - a));
+            ivec4 last = to_fixed(v * (b - float(x1)));
+            add(x0, y, first);
+            add(x1, y, last - first);
+            add(x1 + 1, y, -last);
         } else {
             // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those
             // between all of it; the four differences sum to exactly zero.

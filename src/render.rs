@@ -220,17 +220,12 @@ impl Renderer {
             .collect();
         let bytes: &[u8] = bytemuck::cast_slice(&vertices);
         let size = bytes.len() as u64;
-        let mut staging = Buffer::new(
+        let staging = Buffer::with_bytes(
             &self.ctx,
             "splat staging",
-            size,
+            bytes,
             vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::CpuToGpu,
         )?;
-        staging
-            .mapped_mut()
-            .ok_or_else(|| Error::Allocation("splat staging buffer is not host-visible".into()))?
-            .copy_from_slice(bytes);
         let vertex_buffer = Buffer::new(
             &self.ctx,
             "splats",

@@ -1,7 +1,8 @@
 //! The layered method (DESIGN §6): partial occlusion against the
 //! accumulation reference, more layers never worse, no seam where the peel
-//! cuts a surface, the spreading filter's disk and energy, the degenerate
-//! cases, the modified peel, and bitwise reproducibility.
+//! cuts a surface, the spreading filter's disk (against its CPU form) and
+//! energy, the degenerate cases, the modified peel, and bitwise
+//! reproducibility.
 
 mod common;
 
@@ -11,6 +12,7 @@ use pointlens::camera::Camera;
 use pointlens::image_io::{write_image, LinearImage};
 use pointlens::metrics;
 use pointlens::options::{FastWeights, GatherWindow, LayeredOptions, Method, RdbMode};
+use pointlens::passes::spread_disk;
 use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
 
 const W: u32 = 64;
@@ -279,61 +281,71 @@ fn a_surface_cut_by_the_peel_shows_no_seam() {
 }
 
 #[test]
-fn a_single_pixel_spreads_over_its_disk_with_its_energy() {
+fn a_single_pixel_spreads_as_the_cpu_disk_says_with_its_energy() {
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         let color = Vec3::new(0.9, 0.5, 0.25);
-        // One point on the axis at z = 1, one pixel wide; focus at 2: CoC
-        // 2R f (2 − 1) / 2.
+        // One point on the axis at z = 1, one pixel wide; focus at 2.
         let scene = renderer
             .upload(
                 &cloud(&[(Vec3::new(0.0, 0.0, -1.0), color)]),
                 SplatSize::Pixels(1.0),
             )
             .unwrap();
-        for radius in [0.05f32, 0.12, 0.2] {
-            let mut cam = camera(W, H);
-            cam.focus_distance = 2.0;
-            cam.aperture_radius = radius;
-            let c = cam.coc_px(1.0);
-            let one_sample = RenderOptions {
-                ssaa: 1,
-                ..options(cam, Method::layered(2))
-            };
-            let img = renderer.render(&scene, &one_sample).unwrap().image;
-            // The point lands on pixel (32, 24)'s centre.
-            let centre = (W as f32 / 2.0, H as f32 / 2.0);
+        let mut cam = camera(W, H);
+        cam.focus_distance = 2.0;
+        let one_sample = |cam: Camera, method| RenderOptions {
+            ssaa: 1,
+            ..options(cam, method)
+        };
+        // The pixel the point lands on: the pinhole image's one lit pixel.
+        let pinhole = renderer
+            .render(&scene, &one_sample(cam, Method::Pinhole))
+            .unwrap()
+            .image;
+        let lit: Vec<usize> = (0..pinhole.pixels.len())
+            .filter(|&i| pinhole.pixels[i][0] > 0.0)
+            .collect();
+        assert_eq!(
+            lit.len(),
+            1,
+            "the pinhole image lights {} pixels",
+            lit.len()
+        );
+        let (sx, sy) = ((lit[0] as u32 % W) as i32, (lit[0] as u32 / W) as i32);
+        cam.aperture_radius = 1.0;
+        let coc_per_unit = cam.coc_px(1.0);
+        // From under a pixel (the spread radius's correction matters
+        // most there) to a disk 13 px wide.
+        for coc in [0.4f32, 1.3, 2.6, 5.5, 13.0] {
+            cam.aperture_radius = coc / coc_per_unit;
+            let img = renderer
+                .render(&scene, &one_sample(cam, Method::layered(2)))
+                .unwrap()
+                .image;
+            let mut expected = vec![Vec3::ZERO; (W * H) as usize];
+            for (dx, dy, w) in spread_disk::weights(spread_disk::spread_radius_px(coc)) {
+                let (x, y) = (sx + dx, sy + dy);
+                expected[(y as u32 * W + x as u32) as usize] += color * w as f32;
+            }
             let mut energy = Vec3::ZERO;
-            let inner_value = color / (std::f32::consts::PI * c * c / 4.0);
-            for y in 0..H {
-                for x in 0..W {
-                    let p = Vec3::from_slice(&img.pixels[(y * W + x) as usize][..3]);
-                    energy += p;
-                    let d = ((x as f32 + 0.5 - centre.0).powi(2)
-                        + (y as f32 + 0.5 - centre.1).powi(2))
-                    .sqrt();
-                    if d > c / 2.0 + 1.5 {
-                        assert!(
-                            p.max_element() < 1e-4,
-                            "CoC {c:.1}: ({x}, {y}) at {d:.1} px is {p}"
-                        );
-                    }
-                    if d < c / 2.0 - 1.5 {
-                        // Inside: the disk's uniform value (its area is the
-                        // anti-aliased rows', within a few percent of πr²).
-                        let rel = (p - inner_value).abs() / inner_value;
-                        assert!(
-                            rel.max_element() < 0.1,
-                            "CoC {c:.1}: ({x}, {y}) is {p}, not {inner_value}"
-                        );
-                    }
-                }
+            for (i, want) in expected.iter().enumerate() {
+                let got = Vec3::from_slice(&img.pixels[i][..3]);
+                energy += got;
+                // fp16 output (2^-11 relative) and 2^-22 fixed point.
+                let tolerance = 1e-3 * want.max_element() + 1e-5;
+                assert!(
+                    (got - *want).abs().max_element() <= tolerance,
+                    "CoC {coc} px: pixel ({}, {}) is {got}, the CPU disk gives {want}",
+                    i as u32 % W,
+                    i as u32 / W
+                );
             }
             let rel = (energy - color).abs() / color;
             // fp16 output of small values: 1 %.
             assert!(
                 rel.max_element() < 0.01,
-                "CoC {c:.1}: energy {energy}, not {color}"
+                "CoC {coc} px: energy {energy}, not {color}"
             );
         }
     });

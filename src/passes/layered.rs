@@ -5,7 +5,8 @@
 //! 1. `layered.tiles`: per tile of the first layer, the farthest depth and
 //!    the largest CoC of its points (the occluders);
 //! 2. `layered.prepare`, per layer: each covered pixel as a fragment
-//!    (premultiplied color, coverage, signed CoC); layers after the first
+//!    (premultiplied color, coverage, signed CoC, and the radius it
+//!    spreads with: `spread_disk`); layers after the first
 //!    keep only the pixels the modified peel finds visible through the
 //!    lens, and count kept and discarded pixels;
 //! 3. `layered.spread`, per depth slice: Kosloff et al.'s spreading, the
@@ -25,7 +26,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::options::{check_layers, LayeredOptions};
@@ -97,7 +98,7 @@ impl Layered {
                 ctx,
                 "layered_prepare",
                 PREPARE,
-                &[I, I, I, I, I, I, B, B],
+                &[I, I, I, I, I, I, B, B, B],
             )?,
             spread: match int64 {
                 true => Some(ComputePipeline::new(
@@ -193,9 +194,11 @@ struct LayeredImages {
     occluder_tiles: Image,
     /// Per layer (array layer): premultiplied color and coverage.
     fragment_color: Image,
-    /// Per layer: signed CoC and whether the pixel has a surface (1) or
-    /// not (0).
+    /// Per layer: signed CoC and the spread radius (`spread_disk`), both
+    /// px; a radius of 0 where the pixel has no surface.
     fragment_coc: Image,
+    /// The spread radius per CoC (`spread_disk::radius_table_words`).
+    spread_radius: Buffer,
     /// Two 64-bit words per pixel of one band of rows.
     differences: Buffer,
     band_rows: u32,
@@ -236,7 +239,15 @@ impl LayeredImages {
             )));
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+        let table: &[u8] = bytemuck::cast_slice(spread_disk::radius_table_words());
+        let spread_radius = Buffer::with_bytes(
+            ctx,
+            "layered spread radius",
+            table,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
         Ok(LayeredImages {
+            spread_radius,
             occluder_tiles: Image::new_2d(
                 ctx,
                 "layered occluder tiles",
@@ -370,6 +381,7 @@ impl DofFrame for LayeredFrame<'_> {
                         Bind::StorageImage(&images.fragment_coc),
                         Bind::StorageBuffer(&images.counts),
                         Bind::StorageBuffer(&images.slice_masks),
+                        Bind::StorageBuffer(&images.spread_radius),
                     ],
                     &LayeredPush {
                         layer: l as i32,

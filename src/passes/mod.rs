@@ -26,6 +26,7 @@ pub mod pinhole;
 pub mod rdb;
 pub mod sample_plan;
 pub mod splat_raster;
+pub mod spread_disk;
 
 /// What every pass of one frame may know about its view.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,10 +6,9 @@
 use std::sync::Arc;
 
 use ash::vk;
-use gpu_allocator::MemoryLocation;
 
 use super::FrameView;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::image_io::{f16_to_f32, linear_to_srgb8};
 use crate::push_constants;
 use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
@@ -67,17 +66,12 @@ impl OutputConvert {
         let codes: Vec<u8> = (0..=u16::MAX)
             .map(|h| linear_to_srgb8(f16_to_f32(h)))
             .collect();
-        let mut srgb8_lut = Buffer::new(
+        let srgb8_lut = Buffer::with_bytes(
             ctx,
             "srgb8 table",
-            codes.len() as u64,
+            &codes,
             vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::CpuToGpu,
         )?;
-        srgb8_lut
-            .mapped_mut()
-            .ok_or_else(|| Error::Allocation("the sRGB table is not host-visible".into()))?
-            .copy_from_slice(&codes);
         Ok(OutputConvert {
             pipeline: ComputePipeline::new(
                 ctx,

@@ -256,16 +256,12 @@ impl<'m> RdbImages<'m> {
         };
         let table = rdb_lens_table(bins);
         let bytes: &[u8] = bytemuck::cast_slice(&table);
-        let mut lens = Buffer::new(
+        let lens = Buffer::with_bytes(
             ctx,
             "rdb lens table",
-            bytes.len() as u64,
+            bytes,
             vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::CpuToGpu,
         )?;
-        lens.mapped_mut()
-            .ok_or_else(|| Error::Allocation("rdb lens table is not host-visible".into()))?
-            .copy_from_slice(bytes);
         Ok(RdbImages {
             bins_of,
             lens,

@@ -68,6 +68,28 @@ impl Buffer {
         Ok(buffer)
     }
 
+    /// Creates a host-visible (`CpuToGpu`) buffer holding `bytes`: a table
+    /// a shader reads, or a staging buffer.
+    pub fn with_bytes(
+        ctx: &Arc<Context>,
+        name: &str,
+        bytes: &[u8],
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Buffer> {
+        let mut buffer = Buffer::new(
+            ctx,
+            name,
+            bytes.len() as u64,
+            usage,
+            MemoryLocation::CpuToGpu,
+        )?;
+        buffer
+            .mapped_mut()
+            .ok_or_else(|| Error::Allocation(format!("{name} is not host-visible")))?
+            .copy_from_slice(bytes);
+        Ok(buffer)
+    }
+
     /// Size in bytes.
     pub fn size(&self) -> u64 {
         self.size

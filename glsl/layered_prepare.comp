@@ -8,8 +8,10 @@
 // pixel and its occluder) within the pixel's CoC radius plus the
 // occluders' (a ray from depth z through lens point u crosses depth z'
 // |c_s(z) - c_s(z')| |u| / 2 px from where it started). Counts the kept and
-// discarded pixels, and per layer and workgroup tile of pixels the slices
-// its kept fragments spread in (the spread pass skips the other tiles).
+// discarded pixels, and appends each workgroup's tile of pixels, as
+// (layer, tile), to the list of every slice its kept fragments spread in:
+// the spread of a slice runs one workgroup per entry of its list
+// (an indirect dispatch), not one per tile and layer.
 #include "lens.glsl"
 #include "layered_push.glsl"
 #include "layered_slices.glsl"
@@ -23,7 +25,8 @@ layout(binding = 3, rg32f) uniform readonly image2D occluder_tiles;
 layout(binding = 4, rgba32f) uniform writeonly image2DArray fragment_color; // premultiplied rgb, coverage
 layout(binding = 5, rg32f) uniform writeonly image2DArray fragment_coc;     // signed CoC (px), spread radius (px; 0: no surface)
 layout(binding = 6, std430) buffer Counts { uint counts[]; };             // kept, discarded per layer
-layout(binding = 7, std430) buffer SliceMasks { uint slice_masks[]; };    // per layer and workgroup: slice bits
+// Per slice, tiles × layers entries: layer * tiles + tile.
+layout(binding = 7, std430) writeonly buffer SliceLists { uint slice_lists[]; };
 // The spread radius per CoC radius (src/passes/spread_disk.rs,
 // radius_table_words).
 layout(binding = 8, std430) readonly buffer SpreadRadius {
@@ -33,6 +36,9 @@ layout(binding = 8, std430) readonly buffer SpreadRadius {
     uint pad;
     float radius[];
 } spread;
+// Per slice a VkDispatchIndirectCommand (x, y, z): x counts the entries of
+// its list (y and z are 1, written by the host's update).
+layout(binding = 9, std430) buffer SliceDispatch { uint slice_dispatch[]; };
 
 // This workgroup's kept and discarded pixels, added to the totals once,
 // and the slices of its kept fragments.
@@ -112,8 +118,13 @@ void main() {
     }
     if (gl_LocalInvocationIndex == 0u && group_slices != 0u) {
         uint tiles = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
-        uint tile = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-        atomicOr(slice_masks[uint(pc.layer) * tiles + tile], group_slices);
+        uint entry = uint(pc.layer) * tiles + gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+        uint capacity = tiles * uint(pc.layers);
+        for (uint bits = group_slices; bits != 0u; bits &= bits - 1u) {
+            uint slice = uint(findLSB(bits));
+            uint at = atomicAdd(slice_dispatch[3u * slice], 1u);
+            slice_lists[slice * capacity + at] = entry;
+        }
     }
 }
 

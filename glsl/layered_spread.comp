@@ -27,9 +27,9 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 layout(binding = 0, rgba32f) uniform readonly image2DArray fragment_color;
 layout(binding = 1, rg32f) uniform readonly image2DArray fragment_coc; // signed CoC, spread radius (0: none)
 layout(binding = 2, std430) buffer Differences { uint64_t differences[]; }; // 2 words per pixel
-// Per layer and workgroup tile of pixels (layered_prepare.comp): the
-// slices its kept fragments spread in, as bits.
-layout(binding = 3, std430) readonly buffer SliceMasks { uint slice_masks[]; };
+// Per slice, the (layer, tile) entries that have fragments in it
+// (layered_prepare.comp): one workgroup each, dispatched indirectly.
+layout(binding = 3, std430) readonly buffer SliceLists { uint slice_lists[]; };
 
 // Adds fixed-point v at G-buffer pixel (x, y) of the band; a difference
 // left of the image adds at x = 0 (the prefix sums right of it are the
@@ -56,15 +56,14 @@ vec2 disk_row(float r, int dy) {
 }
 
 void main() {
-    // A tile without fragments in this slice has nothing to do (most
-    // tiles of most slices).
-    uint tiles = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
-    uint tile = gl_WorkGroupID.z * tiles + gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    if ((slice_masks[tile] & (1u << uint(pc.slice))) == 0u) {
-        return;
-    }
-    ivec3 at = ivec3(gl_GlobalInvocationID);
-    if (any(greaterThanEqual(at.xy, pc.extent)) || at.z >= pc.layers) {
+    // This workgroup's tile of 8×8 pixels and layer: entry
+    // layer * tiles + tile of the slice's list (as prepare's workgroups).
+    uvec2 grid = (uvec2(pc.extent) + 7u) / 8u;
+    uint tiles = grid.x * grid.y;
+    uint entry = slice_lists[uint(pc.slice) * tiles * uint(pc.layers) + gl_WorkGroupID.x];
+    uint tile = entry % tiles;
+    ivec3 at = ivec3(ivec2(tile % grid.x, tile / grid.x) * 8 + ivec2(gl_LocalInvocationID.xy), entry / tiles);
+    if (any(greaterThanEqual(at.xy, pc.extent))) {
         return;
     }
     vec4 v = imageLoad(fragment_color, at);

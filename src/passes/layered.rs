@@ -98,7 +98,7 @@ impl Layered {
                 ctx,
                 "layered_prepare",
                 PREPARE,
-                &[I, I, I, I, I, I, B, B, B],
+                &[I, I, I, I, I, I, B, B, B, B],
             )?,
             spread: match int64 {
                 true => Some(ComputePipeline::new(
@@ -178,13 +178,14 @@ impl DofMethod for Configured<'_, Layered, LayeredOptions> {
                     .into(),
             ));
         };
+        let slices = Slices::of(&view.camera, view.depths);
         Ok(Box::new(LayeredFrame {
             pipelines: self.pipelines,
             spread,
             composite,
             options: self.options,
-            slices: Slices::of(&view.camera, view.depths),
-            images: LayeredImages::new(ctx, view, self.options.layers)?,
+            slices,
+            images: LayeredImages::new(ctx, view, self.options.layers, slices.count)?,
         }))
     }
 }
@@ -207,16 +208,25 @@ struct LayeredImages {
     result: Image,
     /// Kept and discarded pixels per layer (host-visible).
     counts: Buffer,
-    /// Per layer and 8×8 tile of pixels (a workgroup of prepare and
-    /// spread), the slices its kept fragments spread in, as bits.
-    slice_masks: Buffer,
+    /// Per slice, the 8×8 tiles of pixels (workgroups of prepare and of
+    /// the spread) with kept fragments in it, as layer × tiles + tile:
+    /// room for every tile of every layer.
+    slice_lists: Buffer,
+    /// Per slice, the spread's workgroup counts (`VkDispatchIndirectCommand`:
+    /// the length of its list, 1, 1).
+    slice_dispatch: Buffer,
 }
 
 /// Bytes of the row differences per pixel.
 const DIFFERENCE_BYTES: u64 = 16;
 
 impl LayeredImages {
-    fn new(ctx: &Arc<Context>, view: &FrameView, layers: u32) -> Result<LayeredImages> {
+    fn new(
+        ctx: &Arc<Context>,
+        view: &FrameView,
+        layers: u32,
+        slices: u32,
+    ) -> Result<LayeredImages> {
         let (w, h) = (view.full_width(), view.full_height());
         let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
         let storage = vk::ImageUsageFlags::STORAGE;
@@ -239,6 +249,13 @@ impl LayeredImages {
             )));
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+        let list_bytes =
+            4 * slices as u64 * groups(w, 8) as u64 * groups(h, 8) as u64 * layers as u64;
+        if list_bytes > limit {
+            return Err(Error::InvalidArgument(format!(
+                "the layered method's tile lists for a {w}×{h} G-buffer, {layers} layers and {slices} slices ({list_bytes} bytes) exceed the device's {limit}-byte buffer limit; use fewer --layers"
+            )));
+        }
         let table: &[u8] = bytemuck::cast_slice(spread_disk::radius_table_words());
         let spread_radius = Buffer::with_bytes(
             ctx,
@@ -284,11 +301,18 @@ impl LayeredImages {
                 usage,
                 MemoryLocation::GpuToCpu,
             )?,
-            slice_masks: Buffer::new(
+            slice_lists: Buffer::new(
                 ctx,
-                "layered slice masks",
-                4 * groups(w, 8) as u64 * groups(h, 8) as u64 * layers as u64,
+                "layered slice lists",
+                list_bytes,
                 usage,
+                MemoryLocation::GpuOnly,
+            )?,
+            slice_dispatch: Buffer::new(
+                ctx,
+                "layered slice dispatch",
+                12 * slices as u64,
+                usage | vk::BufferUsageFlags::INDIRECT_BUFFER,
                 MemoryLocation::GpuOnly,
             )?,
         })
@@ -358,7 +382,8 @@ impl DofFrame for LayeredFrame<'_> {
         });
         frame.pass("layered.prepare", |rec| {
             rec.fill_u32(&images.counts, 0);
-            rec.fill_u32(&images.slice_masks, 0);
+            let dispatch: Vec<u32> = (0..self.slices.count).flat_map(|_| [0, 1, 1]).collect();
+            rec.update_u32(&images.slice_dispatch, &dispatch);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             rec.barriers(&[
                 (
@@ -380,8 +405,9 @@ impl DofFrame for LayeredFrame<'_> {
                         Bind::StorageImage(&images.fragment_color),
                         Bind::StorageImage(&images.fragment_coc),
                         Bind::StorageBuffer(&images.counts),
-                        Bind::StorageBuffer(&images.slice_masks),
+                        Bind::StorageBuffer(&images.slice_lists),
                         Bind::StorageBuffer(&images.spread_radius),
+                        Bind::StorageBuffer(&images.slice_dispatch),
                     ],
                     &LayeredPush {
                         layer: l as i32,
@@ -397,6 +423,8 @@ impl DofFrame for LayeredFrame<'_> {
         frame.pass("layered.clear", |rec| {
             rec.fill_u32(&images.differences, 0);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
+            // The slices' workgroup counts, from prepare's atomics.
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::INDIRECT_READ);
             rec.barriers(&[
                 (
                     &images.fragment_color,
@@ -412,7 +440,6 @@ impl DofFrame for LayeredFrame<'_> {
                 (&images.result, Access::NONE, Access::COMPUTE_WRITE),
             ]);
         });
-        let spread_groups = [groups(w, 8), groups(h, 8), layers];
         for band_y0 in (0..h).step_by(images.band_rows as usize) {
             for slice in (0..self.slices.count).rev() {
                 let push = LayeredPush {
@@ -427,16 +454,17 @@ impl DofFrame for LayeredFrame<'_> {
                 // taken after the work before it when a barrier follows.)
                 frame.pass("layered.spread", |rec| {
                     rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-                    rec.dispatch(
+                    rec.dispatch_indirect(
                         self.spread,
                         &[
                             Bind::StorageImage(&images.fragment_color),
                             Bind::StorageImage(&images.fragment_coc),
                             Bind::StorageBuffer(&images.differences),
-                            Bind::StorageBuffer(&images.slice_masks),
+                            Bind::StorageBuffer(&images.slice_lists),
                         ],
                         &push,
-                        spread_groups,
+                        &images.slice_dispatch,
+                        12 * slice as u64,
                     );
                 });
                 frame.pass("layered.composite", |rec| {

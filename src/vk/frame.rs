@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use ash::vk;
 
-use super::pipeline::{Bind, ComputePipeline, PointPipeline, PushConstants};
+use super::pipeline::{Bind, ComputePipeline, Groups, PointPipeline, PushConstants};
 use super::{Access, Buffer, Context, Image};
 use crate::error::{Error, Result, VkContext};
 
@@ -368,7 +368,57 @@ impl<'r> Recorder<'_, 'r> {
                 Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
             }
         }
-        pipeline.record_dispatch(self.cmd, binds, push, groups);
+        pipeline.record_dispatch(self.cmd, binds, push, Groups::Direct(groups));
+    }
+
+    /// Dispatches `pipeline` with the workgroup counts the GPU wrote at
+    /// byte `offset` of `args` (a `VkDispatchIndirectCommand`: x, y, z),
+    /// read at [`Access::INDIRECT_READ`](super::Access::INDIRECT_READ).
+    pub fn dispatch_indirect<P: PushConstants>(
+        &mut self,
+        pipeline: &'r ComputePipeline<P>,
+        binds: &[Bind<'r>],
+        push: &P,
+        args: &'r Buffer,
+        offset: u64,
+    ) {
+        assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
+        for bind in binds {
+            match bind {
+                Bind::StorageImage(image) => self.own_image(image),
+                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
+            }
+        }
+        self.own_buffer(args);
+        assert!(
+            offset.is_multiple_of(4) && offset + 12 <= args.size(),
+            "dispatch arguments at {offset} of a {}-byte buffer",
+            args.size()
+        );
+        pipeline.record_dispatch(self.cmd, binds, push, Groups::Indirect(args, offset));
+    }
+
+    /// Writes `words` at the start of `buffer` ([`Access::FILL`] in memory
+    /// barriers: the specification counts an update among the clear
+    /// commands, like a fill).
+    pub fn update_u32(&mut self, buffer: &'r Buffer, words: &[u32]) {
+        self.own_buffer(buffer);
+        let bytes: &[u8] = bytemuck::cast_slice(words);
+        assert!(
+            !bytes.is_empty() && bytes.len() <= 65536 && bytes.len() as u64 <= buffer.size(),
+            "an update of {} bytes into a {}-byte buffer",
+            bytes.len(),
+            buffer.size()
+        );
+        // SAFETY: recording outside a render pass; the buffer is this
+        // device's (asserted) and was made with TRANSFER_DST usage (the
+        // validation layer checks); the data is 4-byte aligned, at most
+        // 65536 bytes and inside the buffer (asserted).
+        unsafe {
+            self.ctx
+                .device
+                .cmd_update_buffer(self.cmd, buffer.raw, 0, bytes)
+        };
     }
 
     /// Fills every layer of an unsigned-integer color image with `value`;

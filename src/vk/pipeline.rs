@@ -351,13 +351,15 @@ impl<P: PushConstants> ComputePipeline<P> {
         cmd: vk::CommandBuffer,
         binds: &[Bind<'_>],
         push: &P,
-        groups: [u32; 3],
+        groups: Groups<'_>,
     ) {
         let ctx = &self.layout.ctx;
         // SAFETY: `cmd` is recording outside a render pass (the recorder's
         // contract); the writes match the set layout (checked above), the
         // push range is `size_of::<P>()` bytes, and the bound resources are
-        // borrowed for the frame's lifetime (see `Recorder`).
+        // borrowed for the frame's lifetime (see `Recorder`); an indirect
+        // dispatch's 12 bytes lie inside its buffer (asserted by
+        // `Recorder::dispatch_indirect`), which outlives the frame too.
         unsafe {
             ctx.device
                 .cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.layout.pipeline);
@@ -377,10 +379,20 @@ impl<P: PushConstants> ComputePipeline<P> {
                 0,
                 bytemuck::bytes_of(push),
             );
-            ctx.device
-                .cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
+            match groups {
+                Groups::Direct([x, y, z]) => ctx.device.cmd_dispatch(cmd, x, y, z),
+                Groups::Indirect(args, offset) => {
+                    ctx.device.cmd_dispatch_indirect(cmd, args.raw, offset)
+                }
+            }
         }
     }
+}
+
+/// The workgroups of a dispatch: counts, or where the GPU wrote them.
+pub(super) enum Groups<'a> {
+    Direct([u32; 3]),
+    Indirect(&'a Buffer, u64),
 }
 
 /// One vertex attribute of a [`PointPipeline`]: location i is entry i.

@@ -95,6 +95,13 @@ impl Access {
         access: vk::AccessFlags2::VERTEX_ATTRIBUTE_READ,
         layout: vk::ImageLayout::UNDEFINED,
     };
+    /// A buffer of dispatch sizes read by
+    /// [`Recorder::dispatch_indirect`](super::Recorder::dispatch_indirect).
+    pub const INDIRECT_READ: Access = Access {
+        stage: vk::PipelineStageFlags2::DRAW_INDIRECT,
+        access: vk::AccessFlags2::INDIRECT_COMMAND_READ,
+        layout: vk::ImageLayout::UNDEFINED,
+    };
     /// Host reads of mapped memory after the frame.
     pub const HOST_READ: Access = Access {
         stage: vk::PipelineStageFlags2::HOST,

@@ -5,7 +5,7 @@
 // color and the coverage fraction.
 #include "gbuffer_fold.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 16, local_size_y = 16) in;
 
 layout(binding = 0, rgba32f) uniform readonly image2D sample_target; // (r, g, b, z)
 layout(binding = 1, rgba32f) uniform image2D color_sum;

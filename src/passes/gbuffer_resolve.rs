@@ -121,7 +121,7 @@ impl GBufferResolve {
                 Bind::StorageImage(images.gbuffer_color),
             ];
             let extent = [w as i32, h as i32];
-            let size = [groups(w, 8), groups(h, 8), 1];
+            let size = [groups(w, 16), groups(h, 16), 1];
             if samples == 1 {
                 assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
                 assert_eq!(

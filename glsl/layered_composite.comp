@@ -14,6 +14,10 @@ layout(local_size_x = 64) in;
 layout(binding = 0, std430) buffer Differences { uint64_t differences[]; };
 layout(binding = 1, rgba32f) uniform image2D behind;             // rgb, alpha: coverage so far
 layout(binding = 2, rgba16f) uniform writeonly image2D result;
+// Per row, the columns the slice's differences touch (layered_spread.comp);
+// elsewhere the slice adds nothing, and a slice between the farthest and
+// the nearest leaves those pixels as they are. Cleared for the next slice.
+layout(binding = 3, std430) buffer RowSpans { uint row_spans[]; };
 
 void main() {
     int row = int(gl_GlobalInvocationID.x);
@@ -23,13 +27,20 @@ void main() {
     }
     bool farthest = pc.slice == pc.slices - 1;
     bool nearest = pc.slice == 0;
+    int from = pc.extent.x - int(row_spans[2 * row]);
+    int to = int(row_spans[2 * row + 1]) - 1;
+    row_spans[2 * row] = 0u;
+    row_spans[2 * row + 1] = 0u;
+    bool every = farthest || nearest;
     uint64_t rg = 0ul, ba = 0ul;
-    for (int x = 0; x < pc.extent.x; ++x) {
-        uint at = 2u * uint(row * pc.extent.x + x);
-        rg += differences[at];
-        ba += differences[at + 1u];
-        differences[at] = 0ul;
-        differences[at + 1u] = 0ul;
+    for (int x = every ? 0 : from; x <= (every ? pc.extent.x - 1 : to); ++x) {
+        if (x >= from && x <= to) {
+            uint at = 2u * uint(row * pc.extent.x + x);
+            rg += differences[at];
+            ba += differences[at + 1u];
+            differences[at] = 0ul;
+            differences[at + 1u] = 0ul;
+        }
         vec4 spread = vec4(unpack(rg), unpack(ba));
         float a = max(spread.a, 0.0);
         float alpha = min(a, 1.0);

@@ -30,6 +30,14 @@ layout(binding = 2, std430) buffer Differences { uint64_t differences[]; }; // 2
 // Per slice, the (layer, tile) entries that have fragments in it
 // (layered_prepare.comp): one workgroup each, dispatched indirectly.
 layout(binding = 3, std430) readonly buffer SliceLists { uint slice_lists[]; };
+// Per row of the band, the columns the slice's differences may touch, for
+// the composite to skip the rest: max(width - first column), max(last + 1)
+// (0, 0: none).
+layout(binding = 4, std430) buffer RowSpans { uint row_spans[]; };
+
+// The box of G-buffer pixels this workgroup's fragments wrote differences
+// at: x from, x to, y from, y to.
+shared int group_box[4];
 
 // Adds fixed-point v at G-buffer pixel (x, y) of the band; a difference
 // left of the image adds at x = 0 (the prefix sums right of it are the
@@ -55,7 +63,9 @@ vec2 disk_row(float r, int dy) {
     return vec2(height, max(sqrt(max(r * r - y * y, 0.0)), 0.5));
 }
 
-void main() {
+// Spreads this invocation's fragment, if it has one in the slice; returns
+// whether it did, with the box it wrote differences in.
+bool spread_fragment(out ivec4 box) {
     // This workgroup's tile of 8×8 pixels and layer: entry
     // layer * tiles + tile of the slice's list (as prepare's workgroups).
     uvec2 grid = (uvec2(pc.extent) + 7u) / 8u;
@@ -64,22 +74,22 @@ void main() {
     uint tile = entry % tiles;
     ivec3 at = ivec3(ivec2(tile % grid.x, tile / grid.x) * 8 + ivec2(gl_LocalInvocationID.xy), entry / tiles);
     if (any(greaterThanEqual(at.xy, pc.extent))) {
-        return;
+        return false;
     }
     vec4 v = imageLoad(fragment_color, at);
     if (v.a <= 0.0) {
-        return;
+        return false;
     }
     vec2 coc = imageLoad(fragment_coc, at).xy; // signed CoC, spread radius
     float c_signed = coc.x;
     float weight = slice_weight(c_signed, pc.slice);
     if (weight <= 0.0) {
-        return;
+        return false;
     }
     for (int l = 0; l < at.z; ++l) {
         vec2 nearer = imageLoad(fragment_coc, ivec3(at.xy, l)).xy;
         if (nearer.y > 0.0 && slice_weight(nearer.x, pc.slice) > 0.0) {
-            return;
+            return false;
         }
     }
     float r = coc.y;
@@ -89,7 +99,7 @@ void main() {
     int y_lo = max(p.y - rows, pc.band_y0);
     int y_hi = min(p.y + rows, min(pc.band_y0 + pc.band_rows, pc.extent.y) - 1);
     if (y_lo > y_hi) {
-        return;
+        return false;
     }
     // The disk: per row, the interval [x - h, x + h] around the pixel's
     // centre x, each pixel covered by its overlap with it, times the part
@@ -102,6 +112,11 @@ void main() {
     }
     vec4 unit = v * (weight / area);
     float centre = float(p.x) + 0.5;
+    // No row is wider than max(r, 0.5) each side; the last difference is
+    // one past the last pixel.
+    float reach = max(r, 0.5);
+    box = ivec4(max(int(floor(centre - reach)), 0),
+                min(int(floor(centre + reach)) + 1, pc.extent.x - 1), y_lo, y_hi);
     for (int y = y_lo; y <= y_hi; ++y) {
         vec2 row = disk_row(r, y - p.y);
         float h = row.y;
@@ -134,5 +149,27 @@ void main() {
             add(x1, y, last - whole);
             add(x1 + 1, y, -last);
         }
+    }
+    return true;
+}
+
+void main() {
+    if (gl_LocalInvocationIndex == 0u) {
+        group_box = int[](pc.extent.x, -1, pc.extent.y, -1);
+    }
+    barrier();
+    ivec4 box;
+    if (spread_fragment(box)) {
+        atomicMin(group_box[0], box.x);
+        atomicMax(group_box[1], box.y);
+        atomicMin(group_box[2], box.z);
+        atomicMax(group_box[3], box.w);
+    }
+    barrier();
+    // The workgroup's rows, spread over its invocations.
+    for (int y = group_box[2] + int(gl_LocalInvocationIndex); y <= group_box[3]; y += 64) {
+        uint row = uint(y - pc.band_y0);
+        atomicMax(row_spans[2u * row], uint(pc.extent.x - group_box[0]));
+        atomicMax(row_spans[2u * row + 1u], uint(group_box[1] + 1));
     }
 }

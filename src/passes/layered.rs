@@ -9,11 +9,13 @@
 //!    spreads with: `spread_disk`); layers after the first
 //!    keep only the pixels the modified peel finds visible through the
 //!    lens, and count kept and discarded pixels;
-//! 3. `layered.spread`, per depth slice: Kosloff et al.'s spreading, the
+//! 3. `layered.spread`, per depth slice, over the tiles prepare listed for
+//!    it (an indirect dispatch): Kosloff et al.'s spreading, the
 //!    fragments' row spans as signed differences in fixed point;
 //! 4. `layered.composite`, per slice, back to front: the prefix sums along
-//!    the rows, each slice normalised and laid over what is behind it with
-//!    its spread coverage as alpha.
+//!    the rows (over the columns the spread touched), each slice
+//!    normalised and laid over what is behind it with its spread coverage
+//!    as alpha.
 //!
 //! Fragments go to depth slices of equal signed-CoC width rather than
 //! spreading within their peel layer: a peel layer holds surfaces of any
@@ -105,7 +107,7 @@ impl Layered {
                     ctx,
                     "layered_spread",
                     SPREAD,
-                    &[I, I, B, B],
+                    &[I, I, B, B, B],
                 )?),
                 false => None,
             },
@@ -114,7 +116,7 @@ impl Layered {
                     ctx,
                     "layered_composite",
                     COMPOSITE,
-                    &[B, I, I],
+                    &[B, I, I, B],
                 )?),
                 false => None,
             },
@@ -202,6 +204,9 @@ struct LayeredImages {
     spread_radius: Buffer,
     /// Two 64-bit words per pixel of one band of rows.
     differences: Buffer,
+    /// Per row of the band, the columns a slice's differences touch (two
+    /// words, 0 for none): the composite skips the rest.
+    row_spans: Buffer,
     band_rows: u32,
     /// What lies behind the slices composited so far.
     behind: Image,
@@ -288,6 +293,13 @@ impl LayeredImages {
                 ctx,
                 "layered differences",
                 band_rows as u64 * row_bytes,
+                usage,
+                MemoryLocation::GpuOnly,
+            )?,
+            row_spans: Buffer::new(
+                ctx,
+                "layered row spans",
+                8 * band_rows as u64,
                 usage,
                 MemoryLocation::GpuOnly,
             )?,
@@ -422,6 +434,7 @@ impl DofFrame for LayeredFrame<'_> {
         });
         frame.pass("layered.clear", |rec| {
             rec.fill_u32(&images.differences, 0);
+            rec.fill_u32(&images.row_spans, 0);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             // The slices' workgroup counts, from prepare's atomics.
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::INDIRECT_READ);
@@ -461,6 +474,7 @@ impl DofFrame for LayeredFrame<'_> {
                             Bind::StorageImage(&images.fragment_coc),
                             Bind::StorageBuffer(&images.differences),
                             Bind::StorageBuffer(&images.slice_lists),
+                            Bind::StorageBuffer(&images.row_spans),
                         ],
                         &push,
                         &images.slice_dispatch,
@@ -475,6 +489,7 @@ impl DofFrame for LayeredFrame<'_> {
                             Bind::StorageBuffer(&images.differences),
                             Bind::StorageImage(&images.behind),
                             Bind::StorageImage(&images.result),
+                            Bind::StorageBuffer(&images.row_spans),
                         ],
                         &push,
                         [groups(images.band_rows.min(h - band_y0), 64), 1, 1],

@@ -121,7 +121,6 @@ bool spread_fragment(out ivec4 box) {
         vec2 row = disk_row(r, y - p.y);
         float h = row.y;
         vec4 v = unit * row.x;
-        ivec4 whole = to_fixed(v);
         float a = centre - h, b = centre + h;
         int x0 = int(floor(a)), x1 = int(floor(b));
         if (x1 < 0 || x0 >= pc.extent.x) {
@@ -131,24 +130,22 @@ bool spread_fragment(out ivec4 box) {
             ivec4 part = to_fixed(v * (b - a));
             add(x0, y, part);
             add(x0 + 1, y, -part);
-        } else if (x1 == x0 + 1) {
-            // As below, with the two differences at x1 added into one
-            // (the same integer sum).
-            ivec4 first = to_fixed(v * (float(x0 + 1) - a));
-            ivec4 last = to_fixed(v * (b - float(x1)));
-            add(x0, y, first);
+            continue;
+        }
+        // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those between
+        // all of it; the differences sum to exactly zero. Where x1 is x0 + 1
+        // its two differences are added as one (the same integer sum).
+        ivec4 first = to_fixed(v * (float(x0 + 1) - a));
+        ivec4 last = to_fixed(v * (b - float(x1)));
+        ivec4 whole = to_fixed(v);
+        add(x0, y, first);
+        if (x1 == x0 + 1) {
             add(x1, y, last - first);
-            add(x1 + 1, y, -last);
         } else {
-            // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those
-            // between all of it; the four differences sum to exactly zero.
-            ivec4 first = to_fixed(v * (float(x0 + 1) - a));
-            ivec4 last = to_fixed(v * (b - float(x1)));
-            add(x0, y, first);
             add(x0 + 1, y, whole - first);
             add(x1, y, last - whole);
-            add(x1 + 1, y, -last);
         }
+        add(x1 + 1, y, -last);
     }
     return true;
 }

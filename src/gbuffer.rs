@@ -275,8 +275,9 @@ impl GBuffer {
     /// is the mean over all samples, the eye depth the nearest sample's,
     /// ties to the lowest index in the one-sample form (lens position, then
     /// sample), whatever the plan. Then every later layer (of a pinhole
-    /// view: one lens position) as one depth peel of the plan's samples per
-    /// pass at their standard locations (unjittered), against the previous
+    /// view: one lens position) as one depth peel of the samples the
+    /// targets were made for (`peel_samples` of [`GBuffer::new`]) at their
+    /// standard locations (unjittered), against the previous
     /// layer's resolved depth, and its resolve: passes `peel.raster` and
     /// `peel.resolve`, the layered method's work, which `bench` counts as
     /// depth of field. A hidden layer is seen only through a blurred

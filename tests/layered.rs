@@ -336,9 +336,10 @@ fn a_single_pixel_spreads_as_the_cpu_disk_says_with_its_energy() {
                 let tolerance = 1e-3 * want.max_element() + 1e-5;
                 assert!(
                     (got - *want).abs().max_element() <= tolerance,
-                    "CoC {coc} px: pixel ({}, {}) is {got}, the CPU disk gives {want}",
+                    "CoC {coc} px: pixel ({}, {}) is {got}, the CPU disk gives {want}; image in {}",
                     i as u32 % W,
-                    i as u32 / W
+                    i as u32 / W,
+                    keep("layered-single-pixel", &[("actual", &img)])
                 );
             }
             let rel = (energy - color).abs() / color;

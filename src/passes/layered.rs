@@ -461,8 +461,9 @@ impl DofFrame for LayeredFrame<'_> {
                     ..base
                 };
                 // Each pass starts with the barrier on what it reads: the
-                // slice masks and the cleared differences (prepare, clear,
-                // the last composite), then the spread's differences.
+                // slice lists, the cleared differences and row spans
+                // (prepare, clear, the last composite), then the spread's
+                // differences and row spans.
                 // (On lavapipe, a timestamp at a pass's start is also only
                 // taken after the work before it when a barrier follows.)
                 frame.pass("layered.spread", |rec| {

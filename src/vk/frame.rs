@@ -309,6 +309,15 @@ impl<'r> Recorder<'_, 'r> {
         assert!(buffer.made_on(self.ctx), "a buffer of another device");
     }
 
+    fn own_binds(&self, binds: &[Bind<'_>]) {
+        for bind in binds {
+            match bind {
+                Bind::StorageImage(image) => self.own_image(image),
+                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
+            }
+        }
+    }
+
     /// Image barriers from each `src` to its `dst` (layout transitions
     /// included), in one call.
     pub fn barriers(&mut self, list: &[(&'r Image, Access, Access)]) {
@@ -362,12 +371,7 @@ impl<'r> Recorder<'_, 'r> {
         groups: [u32; 3],
     ) {
         assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
-        for bind in binds {
-            match bind {
-                Bind::StorageImage(image) => self.own_image(image),
-                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
-            }
-        }
+        self.own_binds(binds);
         pipeline.record_dispatch(self.cmd, binds, push, Groups::Direct(groups));
     }
 
@@ -383,12 +387,7 @@ impl<'r> Recorder<'_, 'r> {
         offset: u64,
     ) {
         assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
-        for bind in binds {
-            match bind {
-                Bind::StorageImage(image) => self.own_image(image),
-                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
-            }
-        }
+        self.own_binds(binds);
         self.own_buffer(args);
         assert!(
             offset.is_multiple_of(4) && offset + 12 <= args.size(),
@@ -547,17 +546,14 @@ impl<'r> Recorder<'_, 'r> {
         push: &P,
     ) {
         assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
+        self.own_binds(binds);
         for bind in binds {
-            match bind {
-                Bind::StorageImage(image) => {
-                    self.own_image(image);
-                    assert!(
-                        colors.iter().all(|c| !std::ptr::eq(c.0, *image))
-                            && !std::ptr::eq(depth, *image),
-                        "a render target bound as a fragment resource"
-                    );
-                }
-                Bind::StorageBuffer(buffer) => self.own_buffer(buffer),
+            if let Bind::StorageImage(image) = bind {
+                assert!(
+                    colors.iter().all(|c| !std::ptr::eq(c.0, *image))
+                        && !std::ptr::eq(depth, *image),
+                    "a render target bound as a fragment resource"
+                );
             }
         }
         for (image, _) in colors {

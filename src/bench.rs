@@ -24,7 +24,8 @@ use crate::metrics::{psnr, ssim};
 use crate::options::{AccumOptions, Method};
 use crate::ply::load_ply;
 use crate::render::{RenderOptions, Renderer, SplatSize};
-pub use crate::report::{DeviceReport, Upload};
+pub use crate::report::{DeviceReport, LodReport, Upload};
+use crate::tree::Lod;
 use crate::vk::{Context, FrameTimings};
 
 /// Lens samples of the quality reference (`--quality`).
@@ -234,6 +235,8 @@ pub struct BenchOptions {
     pub samples_per_pass: Option<u32>,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
+    /// The `--lod-px` values to measure (an axis of the matrix).
+    pub lod_px: Vec<f32>,
     /// Where the bundled clouds are.
     pub data_dir: PathBuf,
 }
@@ -334,6 +337,14 @@ pub struct Cell {
     pub samples: u32,
     pub camera: CameraSpec,
     pub coc_px: CocRange,
+    /// `--lod-px` of the cell (0 in reports written before the splat
+    /// hierarchy: every point was drawn).
+    #[serde(default)]
+    pub lod_px: f32,
+    /// The splat hierarchy's work in the cell's first frame (the later
+    /// frames reuse its splats: same camera).
+    #[serde(default)]
+    pub lod: LodReport,
     pub runs: u32,
     pub warmup: u32,
     pub frame_wall_ms: Stats,
@@ -365,7 +376,8 @@ pub type Progress<'a> = &'a mut dyn FnMut(u64, u64, &str);
 /// The number of frames [`run`] renders (for a progress bar).
 pub fn frame_count(options: &BenchOptions) -> u64 {
     let per_method = (options.warmup + options.runs) as u64;
-    let per_resolution = per_method * options.methods.len() as u64 + options.quality as u64;
+    let per_lod = per_method * options.methods.len() as u64;
+    let per_resolution = per_lod * options.lod_px.len() as u64 + options.quality as u64;
     per_resolution * (options.resolutions.len() * options.models.len()) as u64
 }
 
@@ -374,7 +386,14 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     if options.runs == 0 {
         return Err(Error::InvalidArgument("--runs must be at least 1".into()));
     }
-    if options.methods.is_empty() || options.models.is_empty() || options.resolutions.is_empty() {
+    for &px in &options.lod_px {
+        crate::options::check_lod_px(px)?;
+    }
+    if options.methods.is_empty()
+        || options.models.is_empty()
+        || options.resolutions.is_empty()
+        || options.lod_px.is_empty()
+    {
         return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
     }
     let renderer = Renderer::new(ctx)?;
@@ -388,12 +407,16 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         for &(width, height) in &options.resolutions {
             let camera = model.camera(&cloud, width, height)?;
             let coc = CocRange::of(&camera, &cloud.positions);
-            let frame = |method: Method| RenderOptions {
+            let frame = |method: Method, lod_px: f32| RenderOptions {
                 camera,
                 method,
                 ssaa: options.ssaa,
                 samples_per_pass: options.samples_per_pass,
                 background: Vec3::ZERO,
+                lod: Lod {
+                    px: lod_px,
+                    blur: None,
+                },
             };
             let what = |method: &str| format!("{} {width}×{height} {method}", model.name());
             let reference = if options.quality {
@@ -402,17 +425,28 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 let reference = Method::Accum(AccumOptions {
                     samples: REFERENCE_SAMPLES,
                 });
-                let r = renderer.render(&scene, &frame(reference))?;
+                // Every point: what the LOD's cost is measured against.
+                let r = renderer.render(&scene, &frame(reference, 0.0))?;
                 Some(r.image)
             } else {
                 None
             };
-            for m in &options.methods {
-                let options_m = frame(m.method);
+            for (&lod_px, m) in options
+                .lod_px
+                .iter()
+                .flat_map(|px| options.methods.iter().map(move |m| (px, m)))
+            {
+                let options_m = frame(m.method, lod_px);
+                let what = |m: &str| match options.lod_px.len() {
+                    1 => what(m),
+                    _ => what(&format!("{m} lod-px {lod_px}")),
+                };
+                let mut lod = None;
                 for _ in 0..options.warmup {
                     progress(done, total, &what(&format!("{} (warm-up)", m.name)));
                     done += 1;
-                    renderer.render(&scene, &options_m)?;
+                    let r = renderer.render(&scene, &options_m)?;
+                    lod.get_or_insert(r.lod);
                 }
                 let mut timings = Vec::new();
                 let mut encode = Vec::new();
@@ -422,6 +456,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     progress(done, total, &what(&m.name));
                     done += 1;
                     let r = renderer.render(&scene, &options_m)?;
+                    lod.get_or_insert(r.lod);
                     let t = Instant::now();
                     encode_png(&r.image)?;
                     encode.push(t.elapsed().as_secs_f64() * 1e3);
@@ -448,6 +483,8 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     samples: m.samples(),
                     camera: camera.to_spec(),
                     coc_px: coc,
+                    lod_px,
+                    lod: lod.expect("runs ≥ 1"),
                     runs: options.runs,
                     warmup: options.warmup,
                     frame_wall_ms: Stats::of(
@@ -513,9 +550,9 @@ impl BenchReport {
             d.name, d.driver, d.driver_info, d.api_version, self.ssaa, self.runs, self.warmup
         );
         let quality = self.quality_reference.is_some();
-        s += "| model | points | resolution | method | CoC px (points; background) | frame wall | GPU total | DOF passes | upload | PNG encode |";
+        s += "| model | points | resolution | method | lod px | splats | traversal | CoC px (points; background) | frame wall | GPU total | DOF passes | tree build | PNG encode |";
         s += if quality { " PSNR dB | SSIM |\n" } else { "\n" };
-        s += "|---|---:|---|---|---|---:|---:|---:|---:|---:|";
+        s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|";
         s += if quality { "---:|---:|\n" } else { "\n" };
         for c in &self.cells {
             let dof: f64 = c
@@ -529,19 +566,22 @@ impl BenchReport {
                 .sum::<f64>()
                 + 0.0; // an empty sum is −0.0
             s += &format!(
-                "| {} | {} | {}×{} | {} | {:.1}–{:.1}; {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                "| {} | {} | {}×{} | {} | {} | {} | {:.1} | {:.1}–{:.1}; {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
                 c.model,
                 c.points,
                 c.width,
                 c.height,
                 c.method,
+                c.lod_px,
+                c.lod.splats_emitted,
+                c.lod.traversal_ms,
                 c.coc_px.min,
                 c.coc_px.max,
                 c.coc_px.background,
                 fmt_stats(&c.frame_wall_ms),
                 c.gpu_total_ms.median,
                 dof,
-                c.upload.wall_ms,
+                c.upload.tree_ms,
                 c.png_encode_ms.median,
             );
             if let Some(q) = &c.quality {
@@ -558,7 +598,7 @@ impl BenchReport {
     /// every pass, the splat sizes, the upload and the PNG encoding.
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
-            "model,points,width,height,method,ssaa,samples,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim\n",
+            "model,points,width,height,method,ssaa,samples,lod_px,splats,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim\n",
         );
         for c in &self.cells {
             let (p, q) = match &c.quality {
@@ -567,7 +607,7 @@ impl BenchReport {
             };
             let mut row = |measure: &str, count: u32, st: Stats| {
                 s += &format!(
-                    "{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4},{:.4},{},{}\n",
+                    "{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4},{:.4},{},{}\n",
                     csv_field(&c.model),
                     c.points,
                     c.width,
@@ -575,6 +615,8 @@ impl BenchReport {
                     csv_field(&c.method),
                     c.ssaa,
                     c.samples,
+                    c.lod_px,
+                    c.lod.splats_emitted,
                     c.coc_px.min,
                     c.coc_px.max,
                     c.coc_px.background,
@@ -598,6 +640,8 @@ impl BenchReport {
                 max: v,
             };
             row("splat_sizes", 1, once(c.upload.splat_sizes_ms));
+            row("tree_build", 1, once(c.upload.tree_ms));
+            row("traversal", 1, once(c.lod.traversal_ms));
             row("upload_gpu", 1, once(c.upload.gpu_ms));
             row("upload_wall", 1, once(c.upload.wall_ms));
             row("png_encode", 1, c.png_encode_ms);

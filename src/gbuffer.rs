@@ -71,14 +71,17 @@ impl RasterView {
 /// `camera`; None when no point is in front.
 pub fn depth_range(camera: &Camera, positions: &[Vec3]) -> Option<(f32, f32)> {
     let eye_from_world = camera.eye_from_world_transform();
-    depth_range_with(&eye_from_world, positions)
+    depth_range_with(&eye_from_world, positions.iter().copied())
 }
 
 /// [`depth_range`] with the camera's transform made once.
-pub fn depth_range_with(eye_from_world: &EyeFromWorld, positions: &[Vec3]) -> Option<(f32, f32)> {
+pub fn depth_range_with(
+    eye_from_world: &EyeFromWorld,
+    positions: impl IntoIterator<Item = Vec3>,
+) -> Option<(f32, f32)> {
     let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
     for p in positions {
-        let z = eye_from_world.apply(*p).z;
+        let z = eye_from_world.apply(p).z;
         if z > 0.0 {
             lo = lo.min(z);
             hi = hi.max(z);

@@ -19,13 +19,14 @@ use pointlens::image_io::{
 };
 use pointlens::metrics;
 use pointlens::options::{
-    check_layers, check_rdb_bins, check_samples, check_samples_per_pass, check_ssaa, AccumOptions,
-    FastOptions, FastWeights, GatherWindow, LayeredOptions, MethodKind, RdbAtomics, RdbMode,
-    RdbOptions,
+    check_layers, check_lod, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
+    check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
+    LayeredOptions, MethodKind, RdbAtomics, RdbMode, RdbOptions,
 };
 use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
+use pointlens::tree::Lod;
 use pointlens::vk::{Context, ContextOptions};
 
 #[derive(Parser)]
@@ -94,9 +95,14 @@ struct BenchArgs {
     /// the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
-    /// Also PSNR and SSIM of each cell against accum with 256 lens samples.
+    /// Also PSNR and SSIM of each cell against accum with 256 lens samples
+    /// (of every point: `--lod-px 0`).
     #[arg(long)]
     quality: bool,
+    /// Comma-separated `--lod-px` values to measure, each a column of the
+    /// matrix (0: every point).
+    #[arg(long, value_name = "P,P,…", default_value = "1")]
+    lod_px: String,
     /// Write every measurement as JSON.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
@@ -210,6 +216,16 @@ struct RenderArgs {
     /// Background color R,G,B, sRGB values in [0, 1] (default black).
     #[arg(long, value_parser = parse_vec3)]
     background: Option<[f32; 3]>,
+    /// Level of detail: draw a node of the splat hierarchy as one splat
+    /// when it projects to at most P pixels (0: every point, no culling).
+    #[arg(long, value_name = "P", default_value_t = 1.0, allow_negative_numbers = true,
+          value_parser = checked_f32(check_lod_px))]
+    lod_px: f32,
+    /// Blur-aware detail: a node may also stop where it projects to at most
+    /// F times its circle of confusion (detail finer than the blur).
+    #[arg(long, value_name = "F", allow_negative_numbers = true,
+          value_parser = checked_f32(check_lod_blur))]
+    lod_blur: Option<f32>,
     /// Focus on the nearest surface seen at output pixel X,Y.
     #[arg(long, value_name = "X,Y", value_parser = parse_pixel)]
     focus_pixel: Option<[u32; 2]>,
@@ -242,6 +258,19 @@ fn checked(
             .parse::<u32>()
             .map_err(|_| format!("'{s}' is not a whole number"))?;
         check(n).map_err(|e| e.to_string())
+    }
+}
+
+/// [`checked`] for a real number.
+fn checked_f32(
+    check: fn(f32) -> pointlens::Result<f32>,
+) -> impl Fn(&str) -> Result<f32, String> + Clone + Send + Sync + 'static {
+    move |s| {
+        let v = s
+            .trim()
+            .parse::<f32>()
+            .map_err(|_| format!("'{s}' is not a number"))?;
+        check(v).map_err(|e| e.to_string())
     }
 }
 
@@ -400,6 +429,17 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
         ssaa: args.ssaa,
         samples_per_pass: args.samples_per_pass,
         quality: args.quality,
+        lod_px: args
+            .lod_px
+            .split(',')
+            .map(|p| {
+                let v = p
+                    .trim()
+                    .parse::<f32>()
+                    .map_err(|_| anyhow::anyhow!("--lod-px: '{p}' is not a number"))?;
+                Ok(check_lod_px(v)?)
+            })
+            .collect::<anyhow::Result<Vec<f32>>>()?,
         data_dir,
     };
     let ctx = Context::new(&ContextOptions::from_env(
@@ -530,8 +570,15 @@ fn render(args: RenderArgs) -> Result<()> {
     ))?;
     let renderer = Renderer::new(&ctx)?;
     let scene = renderer.upload(&cloud, splat)?;
+    let points = cloud.len();
+    drop(cloud); // The hierarchy holds the points from here on.
+    let lod = Lod {
+        px: args.lod_px,
+        blur: args.lod_blur,
+    };
+    check_lod(&lod)?;
     if let Some([x, y]) = args.focus_pixel {
-        cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, x, y)?;
+        cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, lod, x, y)?;
     }
     if args.print_camera {
         println!("{}", cam.to_json());
@@ -542,6 +589,7 @@ fn render(args: RenderArgs) -> Result<()> {
         ssaa: args.ssaa,
         samples_per_pass: args.samples_per_pass,
         background,
+        lod,
     };
     // PNG pixels are encoded on the device; EXR gets the linear floats.
     let (rendered, encode_ms) = if is_png_path(&args.output)? {
@@ -559,6 +607,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let report = FrameReport {
         samples_per_pass: rendered.samples_per_pass,
         counts: rendered.counts.clone(),
+        lod: rendered.lod,
         load_ms,
         encode_ms,
         ..FrameReport::new(
@@ -566,7 +615,7 @@ fn render(args: RenderArgs) -> Result<()> {
             method.short_name(),
             (cam.width, cam.height),
             args.ssaa,
-            cloud.len(),
+            points,
             rendered.guard,
             &rendered.timings,
             scene.upload,

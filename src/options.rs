@@ -7,6 +7,7 @@
 use clap::ValueEnum;
 
 use crate::error::{Error, Result};
+use crate::tree::Lod;
 
 /// How each pixel's contribution to the fast gather is weighted
 /// (`--fast-weights`).
@@ -368,6 +369,43 @@ pub const MAX_SAMPLES: u32 = 65_536;
 /// S of `--samples` (lens samples of `accum`): 1 to [`MAX_SAMPLES`].
 pub fn check_samples(s: u32) -> Result<u32> {
     in_range("--samples", s, 1, MAX_SAMPLES)
+}
+
+/// P of `--lod-px` (emit a node of the splat hierarchy when it projects to
+/// at most P pixels; 0: every point): finite, 0 to 1024.
+pub fn check_lod_px(p: f32) -> Result<f32> {
+    if !(p.is_finite() && (0.0..=1024.0).contains(&p)) {
+        return Err(Error::InvalidArgument(format!(
+            "--lod-px must be between 0 and 1024, not {p}"
+        )));
+    }
+    Ok(p)
+}
+
+/// F of `--lod-blur` (a node may also stop where it projects to at most F
+/// times its CoC): finite, above 0 and at most 16.
+pub fn check_lod_blur(f: f32) -> Result<f32> {
+    if !(f.is_finite() && f > 0.0 && f <= 16.0) {
+        return Err(Error::InvalidArgument(format!(
+            "--lod-blur must be above 0 and at most 16, not {f}"
+        )));
+    }
+    Ok(f)
+}
+
+/// A frame's level of detail: each number in range, and `--lod-blur` only
+/// with a traversal (`--lod-px` above 0).
+pub fn check_lod(lod: &Lod) -> Result<()> {
+    check_lod_px(lod.px)?;
+    if let Some(f) = lod.blur {
+        check_lod_blur(f)?;
+        if lod.draws_all() {
+            return Err(Error::InvalidArgument(
+                "--lod-blur needs --lod-px above 0 (--lod-px 0 draws every point)".into(),
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn in_range(flag: &str, v: u32, lo: u32, hi: u32) -> Result<u32> {

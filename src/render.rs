@@ -14,11 +14,12 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
-use crate::options::{check_samples_per_pass, check_ssaa, Method};
+use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Method};
 use crate::passes::output::{OutputConvert, OutputFormat};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
-use crate::report::Upload;
+use crate::report::{LodReport, Upload};
+use crate::tree::{LeafSize, Lod, SplatTree, Widening};
 use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point
@@ -27,10 +28,12 @@ use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 /// PCL stereo scan) keep some holes; `--splat-size` / `--splat-px` cover them.
 pub const SPACING_TO_DIAMETER: f32 = 1.0;
 
-/// Every point's world diameter under `splat` (DESIGN §3), as the upload
-/// makes them: `SPACING_TO_DIAMETER` × local spacing (the cloud's median
-/// spacing where a point's is 0), W for `World(W)`, and 0 for `Pixels`
-/// (sized on the GPU).
+/// Every point's world diameter under `splat` (DESIGN §3) from the exact
+/// k-nearest-neighbour spacing (`PointCloud::local_spacing`):
+/// `SPACING_TO_DIAMETER` × local spacing (the cloud's median spacing where
+/// a point's is 0), W for `World(W)`, and 0 for `Pixels` (sized on the
+/// GPU). The renderer sizes splats from the tree ([`SplatTree`]); this is
+/// the reference the tests compare it with ([`Renderer::upload_sized`]).
 pub fn splat_diameters(cloud: &PointCloud, splat: SplatSize) -> Vec<f32> {
     match splat {
         SplatSize::World(w) => vec![w; cloud.len()],
@@ -71,79 +74,163 @@ pub struct RenderOptions {
     pub samples_per_pass: Option<u32>,
     /// Linear-light background color.
     pub background: Vec3,
+    /// Level of detail of the splat hierarchy (`--lod-px`, `--lod-blur`).
+    pub lod: Lod,
 }
 
 /// What the CPU knows about a scene seen through one camera: the eye-depth
-/// range of its points and its largest splat in pixels.
+/// range of its splats and its largest splat in pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct SceneView {
     depths: Option<(f32, f32)>,
     max_splat_px: f32,
 }
 
-/// A cloud on the GPU: its splats, and what the CPU needs to frame them.
-pub struct Scene {
+/// The splats of one camera on the GPU (what the traversal emitted) and
+/// what the CPU measured of them.
+struct FrameSplats {
+    /// At least one vertex long (an empty frame draws none of it).
     vertices: Buffer,
     count: u32,
-    positions: Vec<Vec3>,
-    /// World diameters (unused when `splat` is `Pixels`).
-    diameters: Vec<f32>,
+    view: SceneView,
+    lod: LodReport,
+}
+
+/// What selected a frame's splats: the camera, the LOD rule, what the
+/// frustum is widened by, and the point-size limit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SplatsKey {
+    camera: Camera,
+    lod: Lod,
+    widening: Widening,
+    point_size_max: f32,
+}
+
+/// A cloud ready to render: its splat hierarchy (DESIGN §3) on the host;
+/// each frame's splats go to the GPU after the traversal.
+pub struct Scene {
+    tree: SplatTree,
     splat: SplatSize,
-    /// The last camera's [`SceneView`] (with the point-size limit it was
-    /// clamped to): frames of one camera scan the points once.
-    last_view: Mutex<Option<(Camera, f32, SceneView)>>,
-    /// The upload's times: splat sizes on the CPU (the k-nearest neighbour
-    /// spacing for `SplatSize::Spacing`), the copy's GPU time, and the wall
-    /// time of all of it. Not part of any frame.
+    ctx: Arc<Context>,
+    /// The last frame's splats: frames of one camera traverse once.
+    last: Mutex<Option<(SplatsKey, Arc<FrameSplats>)>>,
+    /// The tree's build (splat sizes included). Not part of any frame.
     pub upload: Upload,
 }
 
 impl Scene {
-    /// Number of splats.
+    /// Number of points.
     pub fn len(&self) -> usize {
-        self.count as usize
+        self.tree.len()
     }
 
-    /// Whether the scene has no splats.
+    /// Whether the scene has no points.
     pub fn is_empty(&self) -> bool {
-        self.count == 0
+        self.tree.is_empty()
     }
 
-    /// The depth range and largest splat of the scene through `camera`
-    /// (points nearer than the clip range's near plane do not count towards
-    /// the splat size), from the cache when the camera is the last one.
-    fn view(&self, camera: &Camera, point_size_max: f32) -> SceneView {
-        let mut last = self.last_view.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((c, limit, v)) = *last {
-            if c == *camera && limit == point_size_max {
-                return v;
+    /// The splat hierarchy.
+    pub fn tree(&self) -> &SplatTree {
+        &self.tree
+    }
+
+    /// The splats of a frame through `key.camera`: the traversal's, with
+    /// their depth range and largest splat (splats nearer than the clip
+    /// range's near plane do not count towards the size), on the GPU; from
+    /// the cache when the key is the last one.
+    fn splats(&self, key: SplatsKey) -> Result<(Arc<FrameSplats>, LodReport)> {
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, s)) = &*last {
+            if *k == key {
+                let lod = LodReport {
+                    traversal_ms: 0.0,
+                    splats_upload_ms: 0.0,
+                    cached: true,
+                    ..s.lod
+                };
+                return Ok((s.clone(), lod));
             }
         }
+        // Free the last camera's buffer before making the next one.
+        *last = None;
+        let camera = &key.camera;
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let traversal = self.tree.traverse(camera, key.lod, key.widening, threads);
+        let started = Instant::now();
         let eye_from_world = camera.eye_from_world_transform();
-        let depths = depth_range_with(&eye_from_world, &self.positions);
+        let centre = |v: &SplatVertex| {
+            let [x, y, z, _] = v.position_size;
+            Vec3::new(x, y, z)
+        };
+        let depths = depth_range_with(&eye_from_world, traversal.splats.iter().map(centre));
         let (near, _) = clip_range(depths);
         let max_splat_px = match self.splat {
-            SplatSize::Pixels(p) => p.min(point_size_max),
+            SplatSize::Pixels(p) => p.min(key.point_size_max),
             _ => {
                 let f_px = camera.f_px();
                 let mut m = 1.0f32;
-                for (p, d) in self.positions.iter().zip(&self.diameters) {
-                    let z = eye_from_world.apply(*p).z;
+                for v in &traversal.splats {
+                    let z = eye_from_world.apply(centre(v)).z;
                     if z >= near {
-                        m = m.max(f_px * d / z);
+                        m = m.max(f_px * v.position_size[3] / z);
                     }
                 }
-                m.min(point_size_max)
+                m.min(key.point_size_max)
             }
         };
-        let view = SceneView {
-            depths,
-            max_splat_px,
+        let count = u32::try_from(traversal.splats.len()).map_err(|_| {
+            Error::InvalidArgument(format!(
+                "{} splats in one frame exceed 2^32; raise --lod-px",
+                traversal.splats.len()
+            ))
+        })?;
+        let bytes: &[u8] = if traversal.splats.is_empty() {
+            bytemuck::bytes_of(&EMPTY_VERTEX)
+        } else {
+            bytemuck::cast_slice(&traversal.splats)
         };
-        *last = Some((*camera, point_size_max, view));
-        view
+        let vertices = Buffer::with_bytes(
+            &self.ctx,
+            "splats",
+            bytes,
+            vk::BufferUsageFlags::VERTEX_BUFFER,
+        )
+        .map_err(|e| {
+            Error::Allocation(format!(
+                "{count} splats ({} MiB) do not fit in device-visible memory ({e}); \
+                 raise --lod-px",
+                bytes.len() >> 20
+            ))
+        })?;
+        let splats = Arc::new(FrameSplats {
+            vertices,
+            count,
+            view: SceneView {
+                depths,
+                max_splat_px,
+            },
+            lod: LodReport {
+                lod_px: key.lod.px,
+                lod_blur: key.lod.blur,
+                nodes_visited: traversal.nodes_visited,
+                splats_emitted: count as u64,
+                inner_emitted: traversal.inner_emitted,
+                traversal_ms: traversal.ms,
+                splats_upload_ms: started.elapsed().as_secs_f64() * 1e3,
+                cached: false,
+            },
+        });
+        *last = Some((key, splats.clone()));
+        let lod = splats.lod;
+        Ok((splats, lod))
     }
 }
+
+/// The vertex of a frame that emits none (a buffer is never empty).
+const EMPTY_VERTEX: SplatVertex = SplatVertex {
+    position_size: [0.0; 4],
+    color: [0; 4],
+};
 
 /// The result of a frame: the image without guard band, and its timings.
 pub struct Rendered<I = LinearImage> {
@@ -158,6 +245,9 @@ pub struct Rendered<I = LinearImage> {
     /// What the method counted ([`crate::passes::DofFrame::counts`]), e.g.
     /// the layered method's kept and discarded pixels per layer.
     pub counts: Vec<(String, u64)>,
+    /// The splat hierarchy's work for the frame (zero times when the
+    /// frame's splats came from the cache).
+    pub lod: LodReport,
 }
 
 /// A G-buffer read back to the host (guard band included), for CPU
@@ -182,10 +272,6 @@ pub struct Renderer {
     output: OutputConvert,
 }
 
-fn unorm16(c: f32) -> u16 {
-    (c.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16
-}
-
 impl Renderer {
     pub fn new(ctx: &Arc<Context>) -> Result<Renderer> {
         Ok(Renderer {
@@ -201,71 +287,81 @@ impl Renderer {
         &self.ctx
     }
 
-    /// Computes splat sizes and copies the splats to device memory.
+    /// Builds the cloud's splat hierarchy (splat sizes from the tree's
+    /// local spacing under `splat`, DESIGN §3). The splats reach the GPU
+    /// per frame, after the traversal.
     pub fn upload(&self, cloud: &PointCloud, splat: SplatSize) -> Result<Scene> {
-        let count = u32::try_from(cloud.len())
+        let size = match splat {
+            SplatSize::Spacing => LeafSize::Spacing,
+            SplatSize::World(w) => LeafSize::World(w),
+            SplatSize::Pixels(_) => LeafSize::Zero,
+        };
+        self.upload_with(cloud, splat, size)
+    }
+
+    /// [`Renderer::upload`] with each point's world diameter given (in the
+    /// cloud's order), e.g. the exact k-nearest-neighbour sizes of
+    /// [`splat_diameters`].
+    pub fn upload_sized(&self, cloud: &PointCloud, diameters: &[f32]) -> Result<Scene> {
+        if diameters.len() != cloud.len() {
+            return Err(Error::InvalidArgument(format!(
+                "{} diameters for {} points",
+                diameters.len(),
+                cloud.len()
+            )));
+        }
+        self.upload_with(cloud, SplatSize::Spacing, LeafSize::PerPoint(diameters))
+    }
+
+    fn upload_with(&self, cloud: &PointCloud, splat: SplatSize, size: LeafSize) -> Result<Scene> {
+        u32::try_from(cloud.len())
             .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
-        let started = Instant::now();
-        let diameters = splat_diameters(cloud, splat);
-        let splat_sizes_ms = started.elapsed().as_secs_f64() * 1e3;
-        let vertices: Vec<SplatVertex> = cloud
-            .positions
-            .iter()
-            .zip(&cloud.colors)
-            .zip(&diameters)
-            .map(|((p, c), d)| SplatVertex {
-                position_size: [p.x, p.y, p.z, *d],
-                color: [unorm16(c.x), unorm16(c.y), unorm16(c.z), 65535],
-            })
-            .collect();
-        let bytes: &[u8] = bytemuck::cast_slice(&vertices);
-        let size = bytes.len() as u64;
-        let staging = Buffer::with_bytes(
-            &self.ctx,
-            "splat staging",
-            bytes,
-            vk::BufferUsageFlags::TRANSFER_SRC,
-        )?;
-        let vertex_buffer = Buffer::new(
-            &self.ctx,
-            "splats",
-            size,
-            vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuOnly,
-        )?;
-        let mut frame = Frame::begin(&self.ctx, "upload")?;
-        frame.pass("upload", |rec| {
-            rec.copy_buffer(&staging, &vertex_buffer);
-            // Makes the copy visible to every later vertex fetch, in this
-            // and later submissions.
-            rec.memory_barrier(Access::COPY_WRITE, Access::VERTEX_READ);
-        });
-        let copy = frame.submit_and_wait()?;
-        drop(staging);
+        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let tree = SplatTree::build(cloud, size, threads);
         let upload = Upload {
-            splat_sizes_ms,
-            gpu_ms: copy.gpu_total_ms(),
-            wall_ms: started.elapsed().as_secs_f64() * 1e3,
+            splat_sizes_ms: tree.build.spacing_ms,
+            tree_ms: tree.build.total_ms,
+            tree_bytes: tree.bytes() as u64,
+            gpu_ms: 0.0,
+            wall_ms: tree.build.total_ms,
         };
         Ok(Scene {
-            vertices: vertex_buffer,
-            count,
-            positions: cloud.positions.clone(),
-            diameters,
+            tree,
             splat,
-            last_view: Mutex::new(None),
+            ctx: self.ctx.clone(),
+            last: Mutex::new(None),
             upload,
         })
     }
 
-    /// The raster view of `scene` through `camera`: depth range, splat rule
-    /// and a guard band for the blur of `method` (DESIGN §3).
-    fn raster_view(&self, scene: &Scene, camera: &Camera, method: &dyn DofMethod) -> RasterView {
+    /// The splats and raster view of `scene` through `camera`: depth
+    /// range, splat rule and a guard band for the blur of `method` (DESIGN
+    /// §3).
+    fn raster_view(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        lod: Lod,
+        method: &dyn DofMethod,
+    ) -> Result<(Arc<FrameSplats>, LodReport, RasterView)> {
         let max_point = self.ctx.info.point_size_max;
-        let seen = scene.view(camera, max_point);
+        let (splats, lod_report) = scene.splats(SplatsKey {
+            camera: *camera,
+            lod,
+            widening: Widening {
+                // What the method's guard band holds besides the points' blur.
+                background_coc_px: method.guard_coc_px(camera, None),
+                splat_px: match scene.splat {
+                    SplatSize::Pixels(p) => p.min(max_point),
+                    _ => 0.0,
+                },
+            },
+            point_size_max: max_point,
+        })?;
+        let seen = splats.view;
         let max_coc_px = method.guard_coc_px(camera, seen.depths);
         let (near, far) = clip_range(seen.depths);
-        RasterView {
+        let view = RasterView {
             frame: FrameView {
                 camera: *camera,
                 guard: Camera::guard_band_px(max_coc_px, seen.max_splat_px),
@@ -279,7 +375,8 @@ impl Renderer {
                 _ => 0.0,
             },
             max_point_size: max_point,
-        }
+        };
+        Ok((splats, lod_report, view))
     }
 
     /// Renders one frame of `scene`.
@@ -308,6 +405,7 @@ impl Renderer {
         scene: &Scene,
         camera: &Camera,
         ssaa: u32,
+        lod: Lod,
         x: u32,
         y: u32,
     ) -> Result<f32> {
@@ -323,6 +421,7 @@ impl Renderer {
             ssaa,
             samples_per_pass: None,
             background: Vec3::ZERO,
+            lod,
         };
         let (_, gbuffer) = self.render_with_gbuffer(scene, &options)?;
         let g = gbuffer.guard;
@@ -362,14 +461,16 @@ impl Renderer {
         if let Some(s) = options.samples_per_pass {
             check_samples_per_pass(s)?;
         }
-        if !scene.vertices.made_on(&self.ctx) {
+        if !Arc::ptr_eq(&scene.ctx, &self.ctx) {
             return Err(Error::InvalidArgument(
                 "the scene was uploaded by a renderer on another device".into(),
             ));
         }
+        check_lod(&options.lod)?;
         let started = Instant::now();
         let method = self.methods.get(&options.method);
-        let view = self.raster_view(scene, &options.camera, method.as_ref());
+        let (splats, lod_report, view) =
+            self.raster_view(scene, &options.camera, options.lod, method.as_ref())?;
         let view_ms = started.elapsed().as_secs_f64() * 1e3;
 
         let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
@@ -402,8 +503,8 @@ impl Renderer {
         gbuffer.record(
             &mut frame,
             &self.gbuffer,
-            &scene.vertices,
-            scene.count,
+            &splats.vertices,
+            splats.count,
             &lens,
             method.gbuffer_label(),
         );
@@ -423,6 +524,7 @@ impl Renderer {
             guard: view.frame.guard,
             samples_per_pass: plan.samples_per_pass,
             counts: dof.counts(),
+            lod: lod_report,
         };
         Ok((rendered, host_gbuffer))
     }
@@ -471,6 +573,7 @@ impl<I> Rendered<I> {
             guard: self.guard,
             samples_per_pass: self.samples_per_pass,
             counts: self.counts,
+            lod: self.lod,
         }
     }
 }

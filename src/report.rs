@@ -42,14 +42,43 @@ fn one() -> u32 {
 /// The upload of a cloud (once per scene, not part of any frame).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Upload {
-    /// Splat sizes from the k-nearest-neighbour spacing, on the CPU (0 in
-    /// reports written before it was measured apart).
+    /// Splat sizes on the CPU: the splat hierarchy's local spacing (before
+    /// the hierarchy: the k-nearest-neighbour spacing; 0 in reports written
+    /// before it was measured apart).
     #[serde(default)]
     pub splat_sizes_ms: f64,
-    /// The copy to device memory, GPU time.
+    /// Building the splat hierarchy, splat sizes included (0 in reports
+    /// written before it existed).
+    #[serde(default)]
+    pub tree_ms: f64,
+    /// Host bytes of the hierarchy, every level.
+    #[serde(default)]
+    pub tree_bytes: u64,
+    /// The copy to device memory, GPU time (0 since the hierarchy: the
+    /// splats go to the GPU per frame).
     pub gpu_ms: f64,
-    /// All of it: splat sizes, staging, copy and wait.
+    /// All of it.
     pub wall_ms: f64,
+}
+
+/// The splat hierarchy's work for one frame (DESIGN §3): the LOD rule,
+/// nodes tested, splats emitted, and the times on the CPU.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct LodReport {
+    pub lod_px: f32,
+    pub lod_blur: Option<f32>,
+    pub nodes_visited: u64,
+    pub splats_emitted: u64,
+    /// Inner nodes among the emitted splats.
+    pub inner_emitted: u64,
+    pub traversal_ms: f64,
+    /// Measuring the emitted splats (depth range, largest splat) and
+    /// copying them to a buffer the GPU reads.
+    pub splats_upload_ms: f64,
+    /// Whether the splats came from the last frame's (same camera and
+    /// rule): no traversal in this frame.
+    #[serde(default)]
+    pub cached: bool,
 }
 
 /// One rendered frame: what was rendered, each pass's GPU time, the frame's
@@ -74,6 +103,9 @@ pub struct FrameReport {
     /// method's slices and kept and discarded pixels per layer.
     #[serde(default)]
     pub counts: Vec<(String, u64)>,
+    /// The splat hierarchy's work for the frame.
+    #[serde(default)]
+    pub lod: LodReport,
     pub gpu_total_ms: f64,
     pub frame_wall_ms: f64,
     pub upload: Upload,
@@ -107,6 +139,7 @@ impl FrameReport {
             guard_px,
             passes: frame.passes.clone(),
             counts: Vec::new(),
+            lod: LodReport::default(),
             gpu_total_ms: frame.gpu_total_ms(),
             frame_wall_ms: frame.wall_ms,
             upload,
@@ -140,10 +173,26 @@ impl FrameReport {
         for (name, value) in &self.counts {
             s += &format!("{name:<28} {value:>10}\n");
         }
+        let l = &self.lod;
+        let rule = match l.lod_blur {
+            Some(f) => format!("lod-px {} lod-blur {f}", l.lod_px),
+            None => format!("lod-px {}", l.lod_px),
+        };
+        let cached = if l.cached { " (last frame's)" } else { "" };
+        s += &format!(
+            "splats: {} emitted ({} inner nodes), {} nodes visited, {rule}{cached}\n",
+            l.splats_emitted, l.inner_emitted, l.nodes_visited
+        );
+        s += &format!("{:<20} {:>10.3}\n", "traversal wall", l.traversal_ms);
+        s += &format!(
+            "{:<20} {:>10.3}\n",
+            "splats upload wall", l.splats_upload_ms
+        );
         s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
         for (name, ms) in [
             ("upload gpu", self.upload.gpu_ms),
             ("splat sizes wall", self.upload.splat_sizes_ms),
+            ("tree build wall", self.upload.tree_ms),
             ("load wall", self.load_ms),
             ("encode wall", self.encode_ms),
         ] {

@@ -27,6 +27,7 @@ fn accum(
         ssaa,
         samples_per_pass: None,
         background: Vec3::ZERO,
+        lod: pointlens::tree::Lod::default(),
     };
     renderer.render(&scene, &options).unwrap().image
 }

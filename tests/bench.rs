@@ -420,6 +420,7 @@ fn bench_fails_on_any_validation_message() {
         ssaa: 1,
         samples_per_pass: None,
         quality: false,
+        lod_px: vec![1.0],
         data_dir: common::root().join("data"),
     };
     // Clean, it succeeds; after one invalid call, the same run fails.

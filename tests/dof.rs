@@ -7,6 +7,7 @@ use glam::Vec3;
 use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow, RdbMode};
 use pointlens::render::{Renderer, SplatSize};
+use pointlens::tree::Lod;
 
 const METHODS: [Method; 7] = [
     Method::fast(FastWeights::Area, GatherWindow::Tiles),
@@ -90,12 +91,16 @@ fn focus_pixel_focuses_on_the_surface_seen_there() {
             .upload(&cloud(&points), SplatSize::Pixels(3.0))
             .unwrap();
         let cam = camera(40, 30);
-        let near = renderer.depth_at_pixel(&scene, &cam, 2, 5, 15).unwrap();
-        let far = renderer.depth_at_pixel(&scene, &cam, 2, 35, 15).unwrap();
+        let near = renderer
+            .depth_at_pixel(&scene, &cam, 2, Lod::default(), 5, 15)
+            .unwrap();
+        let far = renderer
+            .depth_at_pixel(&scene, &cam, 2, Lod::default(), 35, 15)
+            .unwrap();
         assert!((near - 1.0).abs() < 1e-5, "{near}");
         assert!((far - 2.5).abs() < 1e-5, "{far}");
         let outside = renderer
-            .depth_at_pixel(&scene, &cam, 2, 40, 0)
+            .depth_at_pixel(&scene, &cam, 2, Lod::default(), 40, 0)
             .unwrap_err()
             .to_string();
         assert!(outside.contains("outside"), "{outside}");
@@ -106,7 +111,7 @@ fn focus_pixel_focuses_on_the_surface_seen_there() {
             )
             .unwrap();
         let empty = renderer
-            .depth_at_pixel(&lone, &cam, 2, 2, 2)
+            .depth_at_pixel(&lone, &cam, 2, Lod::default(), 2, 2)
             .unwrap_err()
             .to_string();
         assert!(empty.contains("background"), "{empty}");

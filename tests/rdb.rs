@@ -23,6 +23,7 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         ssaa: 2,
         samples_per_pass: None,
         background: Vec3::ZERO,
+        lod: pointlens::tree::Lod::default(),
     }
 }
 

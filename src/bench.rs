@@ -163,60 +163,12 @@ impl BenchModel {
     }
 }
 
-/// A deterministic synthetic scene of `count` points for scaling tests: a
-/// wavy wall facing +z (70 % of the points) and five spheres in front of it
-/// at different depths, colored by a checker of their position, so that a
-/// lens blurs something at every depth.
+/// A deterministic synthetic scene of `count` points for scaling tests
+/// ([`crate::synth`]): a wavy wall facing +z (70 % of the points) and five
+/// spheres in front of it at different depths, colored by a checker of
+/// their position, so that a lens blurs something at every depth.
 pub fn synthetic_cloud(count: usize) -> PointCloud {
-    // SplitMix64: a fixed stream, the same cloud on every machine.
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
-    };
-    let spheres = [
-        (Vec3::new(-0.6, -0.3, 0.9), 0.25),
-        (Vec3::new(0.5, 0.35, 0.6), 0.3),
-        (Vec3::new(0.0, -0.05, 0.35), 0.2),
-        (Vec3::new(-0.45, 0.45, 0.15), 0.15),
-        (Vec3::new(0.6, -0.5, 1.2), 0.12),
-    ];
-    let mut positions = Vec::with_capacity(count);
-    let mut colors = Vec::with_capacity(count);
-    for i in 0..count {
-        let p = if i % 10 < 7 {
-            let (x, y) = (2.0 * next() - 1.0, 2.0 * next() - 1.0);
-            Vec3::new(x, y, 0.08 * (6.0 * x).sin() * (5.0 * y).cos() - 0.3)
-        } else {
-            // The k-th sphere point goes to sphere k mod 5: all get as many.
-            let k = i / 10 * 3 + i % 10 - 7;
-            let (center, radius) = spheres[k % spheres.len()];
-            // Uniform on the sphere: z uniform in [−1, 1], angle uniform.
-            let z = 2.0 * next() - 1.0;
-            let phi = std::f32::consts::TAU * next();
-            let r = (1.0 - z * z).sqrt();
-            center + radius * Vec3::new(r * phi.cos(), r * phi.sin(), z)
-        };
-        let cell = |v: f32| (v * 8.0).floor() as i32;
-        let even = (cell(p.x) + cell(p.y) + cell(p.z)).rem_euclid(2) == 0;
-        let hue = 0.5 + 0.5 * p.x;
-        colors.push(if even {
-            Vec3::new(0.8 * hue + 0.1, 0.5, 0.9 - 0.8 * hue)
-        } else {
-            Vec3::splat(0.05)
-        });
-        positions.push(p);
-    }
-    PointCloud {
-        positions,
-        colors,
-        normals: None,
-        has_colors: true,
-        attributes: vec!["x".into(), "y".into(), "z".into()],
-    }
+    crate::synth::cloud(count)
 }
 
 /// What to measure.

@@ -26,6 +26,7 @@ pub mod ply;
 pub mod reference;
 pub mod render;
 pub mod report;
+pub mod synth;
 pub mod tree;
 #[allow(unsafe_code)]
 pub mod vk;

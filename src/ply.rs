@@ -2,7 +2,8 @@
 //! coordinates, 8/16-bit integer or float colors, optional normals. Faces,
 //! other elements and unknown properties are ignored.
 
-use std::io::Cursor;
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, Cursor, Read, Seek};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -23,39 +24,120 @@ const COLOR_NAMES: [[&str; 3]; 3] = [
     ["diffuse_red", "diffuse_green", "diffuse_blue"],
 ];
 
+/// Bytes of a binary vertex block that [`load_ply`] reads and converts at a
+/// time (rounded down to whole records): its peak memory is the cloud plus
+/// about one such chunk.
+pub const CHUNK_BYTES: usize = 16 << 20;
+
 /// Loads a point cloud from a PLY file. Colors are taken as sRGB-encoded
 /// values scaled to [0, 1] (by the integer type's maximum) and converted to
 /// linear light; normals are normalised.
 ///
-/// The vertex block is read directly ([`read_vertices`], split over every
-/// core); anything it does not take as well-formed — a malformed number, a
-/// truncated file, a list property in the way, a non-finite coordinate —
-/// goes through the general reader ([`load_ply_general`]), which gives the
-/// same cloud for every file the fast one reads and the error messages for
-/// the rest.
+/// The vertex block is read directly, split over every core: a binary one
+/// streamed from the file [`CHUNK_BYTES`] at a time into the cloud's
+/// vectors, an ASCII one from the whole file in memory. Anything the direct
+/// reader does not take as well-formed — a malformed number, a truncated
+/// file, a list property in the way, a non-finite coordinate — goes through
+/// the general reader ([`load_ply_general`]), which gives the same cloud
+/// for every file the direct one reads and the error messages for the rest.
 pub fn load_ply(path: &Path) -> Result<PointCloud> {
-    let bytes = read_file(path)?;
-    match load_direct(&bytes, path)? {
-        Some(cloud) => Ok(cloud),
-        None => load_parsed(&bytes, path),
+    load_ply_with_chunk(path, CHUNK_BYTES)
+}
+
+/// [`load_ply`] reading a binary vertex block `chunk_bytes` at a time
+/// (at least one record).
+pub fn load_ply_with_chunk(path: &Path, chunk_bytes: usize) -> Result<PointCloud> {
+    match load_direct(path, chunk_bytes)? {
+        Direct::Read(cloud) => Ok(cloud),
+        Direct::Declined(Some(bytes)) => load_parsed(&bytes, path),
+        Direct::Declined(None) => load_parsed(&read_file(path)?, path),
     }
 }
 
 /// The direct reader alone: None when it declines the file (which
 /// [`load_ply`] then hands to the general reader). For tests.
 pub fn load_ply_direct(path: &Path) -> Result<Option<PointCloud>> {
-    load_direct(&read_file(path)?, path)
+    load_ply_direct_with_chunk(path, CHUNK_BYTES)
 }
 
-fn load_direct(bytes: &[u8], path: &Path) -> Result<Option<PointCloud>> {
-    let (header, payload_at) = read_header(bytes, path)?;
+/// [`load_ply_direct`] reading a binary vertex block `chunk_bytes` at a
+/// time (at least one record). For tests.
+pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Option<PointCloud>> {
+    Ok(match load_direct(path, chunk_bytes)? {
+        Direct::Read(cloud) => Some(cloud),
+        Direct::Declined(_) => None,
+    })
+}
+
+/// What the direct reader made of a file.
+enum Direct {
+    Read(PointCloud),
+    /// Left to the general reader, with the file's bytes where they were
+    /// read whole (ASCII).
+    Declined(Option<Vec<u8>>),
+}
+
+fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let metadata = file.metadata().map_err(io)?;
+    let bytes = if metadata.is_file() {
+        let file_len = metadata.len();
+        let mut magic = Vec::with_capacity(5);
+        (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
+        check_magic(&magic, path)?;
+        file.rewind().map_err(io)?;
+        let mut input = BufReader::with_capacity(64 << 10, file);
+        let header = parse_header(&mut input, path)?;
+        let (vertex, layout) = vertex_element(&header, path)?;
+        if !matches!(header.encoding, Encoding::Ascii) {
+            let payload_len = file_len.saturating_sub(input.stream_position().map_err(io)?);
+            let cloud = read_binary(
+                &mut input,
+                payload_len,
+                &header,
+                vertex,
+                &layout,
+                chunk_bytes,
+            )
+            .map_err(io)?;
+            return Ok(cloud.map_or(Direct::Declined(None), Direct::Read));
+        }
+        // ASCII is read whole: its lines are found in memory.
+        drop(input);
+        read_file(path)?
+    } else {
+        // A pipe or a device, whose size is known at its end: read whole,
+        // from the handle already open.
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io)?;
+        check_magic(&bytes, path)?;
+        bytes
+    };
+    let (header, payload_at) = read_header(&bytes, path)?;
     let (vertex, layout) = vertex_element(&header, path)?;
-    Ok(read_vertices(
-        &bytes[payload_at..],
-        &header,
-        vertex,
-        &layout,
-    ))
+    let payload = &bytes[payload_at..];
+    let cloud = if matches!(header.encoding, Encoding::Ascii) {
+        read_ascii(payload, &header, vertex, &layout)
+    } else {
+        let mut input = payload;
+        read_binary(
+            &mut input,
+            payload.len() as u64,
+            &header,
+            vertex,
+            &layout,
+            chunk_bytes,
+        )
+        .map_err(io)?
+    };
+    Ok(match cloud {
+        Some(cloud) => Direct::Read(cloud),
+        None => Direct::Declined(Some(bytes)),
+    })
 }
 
 /// [`load_ply`] through the general reader alone (ply-rs, a map per
@@ -76,24 +158,36 @@ fn read_file(path: &Path) -> Result<Vec<u8>> {
         path: path.to_path_buf(),
         source,
     })?;
-    if !bytes.starts_with(b"ply\n") && !bytes.starts_with(b"ply\r\n") {
+    check_magic(&bytes, path)?;
+    Ok(bytes)
+}
+
+/// Whether the file starts as a PLY file does.
+fn check_magic(start: &[u8], path: &Path) -> Result<()> {
+    if !start.starts_with(b"ply\n") && !start.starts_with(b"ply\r\n") {
         return Err(ply_error(
             path,
             "not a PLY file (it does not start with 'ply')".into(),
         ));
     }
-    Ok(bytes)
+    Ok(())
+}
+
+/// Reads the header from `input`, which is left where the payload starts:
+/// ply-rs reads it line by line and stops right after the `end_header`
+/// line.
+fn parse_header(input: &mut impl BufRead, path: &Path) -> Result<Header> {
+    let parser = Parser::<DefaultElement>::new();
+    let mut reader = Reader::new(input);
+    guarded(|| parser.read_header(&mut reader))
+        .map_err(|e| ply_error(path, format!("malformed header: {e}")))
 }
 
 /// The header and the offset of the payload after it.
 fn read_header(bytes: &[u8], path: &Path) -> Result<(Header, usize)> {
-    let parser = Parser::<DefaultElement>::new();
-    let mut reader = Reader::new(Cursor::new(bytes));
-    let header = guarded(|| parser.read_header(&mut reader))
-        .map_err(|e| ply_error(path, format!("malformed header: {e}")))?;
-    // The header is read line by line from the cursor: it stops right after
-    // the `end_header` line, where the payload starts.
-    Ok((header, reader.get_ref().position() as usize))
+    let mut cursor = Cursor::new(bytes);
+    let header = parse_header(&mut cursor, path)?;
+    Ok((header, cursor.position() as usize))
 }
 
 /// The vertex element and its layout, or the header's error.
@@ -490,16 +584,22 @@ impl Converter {
 /// the file has none).
 type Part = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
 
+/// The threads that convert `count` vertices: every core, at least 16,384
+/// vertices each.
+fn threads_for(count: usize) -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(count.div_ceil(16_384))
+        .max(1)
+}
+
 /// Converts `count` vertices on every core, in order: `convert` makes the
 /// vertices of one range, None when one is not well-formed.
 fn convert_all(
     count: usize,
     convert: impl Fn(std::ops::Range<usize>) -> Option<Part> + Sync,
 ) -> Option<Part> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(count.div_ceil(16_384))
-        .max(1);
+    let threads = threads_for(count);
     let chunk = count.div_ceil(threads);
     let convert = &convert;
     let parts: Vec<_> = std::thread::scope(|scope| {
@@ -527,30 +627,30 @@ fn convert_all(
     Some(all)
 }
 
-/// One field of the binary records `range` of `block`, each value mapped
-/// by `map`: the type is matched once, outside the loop.
-fn binary_column<T>(
+/// One field of the binary records of `block` into component `axis` of
+/// `out` (a slot per record), each value mapped by `map`: the type is
+/// matched once, outside the loop.
+fn binary_column(
     block: &[u8],
     stride: usize,
     field: &Field,
     big_endian: bool,
-    range: std::ops::Range<usize>,
-    map: impl Fn(Scalar) -> T,
-) -> Vec<T> {
+    out: &mut [Vec3],
+    axis: usize,
+    map: impl Fn(Scalar) -> f32,
+) {
     macro_rules! column {
         ($variant:ident, $t:ty) => {{
             const N: usize = std::mem::size_of::<$t>();
-            range
-                .map(|i| {
-                    let at = i * stride + field.at;
-                    let bytes: [u8; N] = block[at..at + N].try_into().expect("N bytes");
-                    map(Scalar::$variant(if big_endian {
-                        <$t>::from_be_bytes(bytes)
-                    } else {
-                        <$t>::from_le_bytes(bytes)
-                    }))
-                })
-                .collect()
+            for (i, o) in out.iter_mut().enumerate() {
+                let at = i * stride + field.at;
+                let bytes: [u8; N] = block[at..at + N].try_into().expect("N bytes");
+                o[axis] = map(Scalar::$variant(if big_endian {
+                    <$t>::from_be_bytes(bytes)
+                } else {
+                    <$t>::from_le_bytes(bytes)
+                }));
+            }
         }};
     }
     match field.ty {
@@ -565,45 +665,100 @@ fn binary_column<T>(
     }
 }
 
-/// The binary vertex records `range`, converted column by column.
+/// Where one range of binary records goes: a slot per record in
+/// positions and colors, and in normals when the file has them (else
+/// empty).
+struct Slots<'a> {
+    positions: &'a mut [Vec3],
+    colors: &'a mut [Vec3],
+    normals: &'a mut [Vec3],
+}
+
+/// The binary records of `block`, converted column by column into `out`;
+/// false when a coordinate is not finite.
 fn binary_part(
     block: &[u8],
     fields: &Fields,
     converter: &Converter,
     big_endian: bool,
-    range: std::ops::Range<usize>,
-) -> Option<Part> {
+    out: Slots,
+) -> bool {
     let stride = fields.stride;
-    let columns = |f: &[Field; 3], map: &dyn Fn(usize, Scalar) -> f32| -> [Vec<f32>; 3] {
-        [0, 1, 2].map(|c| {
-            binary_column(block, stride, &f[c], big_endian, range.clone(), |v| {
-                map(c, v)
-            })
-        })
+    let columns = |out: &mut [Vec3], f: &[Field; 3], map: &dyn Fn(usize, Scalar) -> f32| {
+        for (c, field) in f.iter().enumerate() {
+            binary_column(block, stride, field, big_endian, out, c, |v| map(c, v));
+        }
     };
-    let join = |[x, y, z]: [Vec<f32>; 3]| -> Vec<Vec3> {
-        x.into_iter()
-            .zip(y)
-            .zip(z)
-            .map(|((x, y), z)| Vec3::new(x, y, z))
-            .collect()
-    };
-    let positions = join(columns(&fields.position, &|_, v| v.coordinate()));
-    if !positions.iter().all(|p| p.is_finite()) {
-        return None;
+    columns(out.positions, &fields.position, &|_, v| v.coordinate());
+    if !out.positions.iter().all(|p| p.is_finite()) {
+        return false;
     }
-    let colors = match &fields.color {
-        Some(f) => join(columns(f, &|c, v| converter.channel(c, v))),
-        None => vec![DEFAULT_COLOR; range.len()],
+    match &fields.color {
+        Some(f) => columns(out.colors, f, &|c, v| converter.channel(c, v)),
+        None => out.colors.fill(DEFAULT_COLOR),
+    }
+    if let Some(f) = &fields.normal {
+        columns(out.normals, f, &|_, v| v.coordinate());
+        for n in out.normals.iter_mut() {
+            *n = unit_normal(*n);
+        }
+    }
+    true
+}
+
+/// Converts the binary records of `block` and appends them to `cloud`
+/// (whose vectors have the room), split over every core; false when a
+/// coordinate is not finite.
+fn append_binary(
+    block: &[u8],
+    fields: &Fields,
+    converter: &Converter,
+    big_endian: bool,
+    cloud: &mut Part,
+) -> bool {
+    let stride = fields.stride;
+    let n = block.len() / stride;
+    let per_thread = n.div_ceil(threads_for(n));
+    let slots = |v: &mut Vec<Vec3>, wanted: bool| -> std::ops::Range<usize> {
+        let base = v.len();
+        if wanted {
+            v.resize(base + n, Vec3::ZERO);
+        }
+        base..v.len()
     };
-    let normals = match &fields.normal {
-        Some(f) => join(columns(f, &|_, v| v.coordinate()))
+    let (at_p, at_c) = (slots(&mut cloud.0, true), slots(&mut cloud.1, true));
+    let at_n = slots(&mut cloud.2, fields.normal.is_some());
+    let mut positions = &mut cloud.0[at_p];
+    let mut colors = &mut cloud.1[at_c];
+    let mut normals = &mut cloud.2[at_n];
+    let mut block = block;
+    std::thread::scope(|scope| {
+        let mut handles = Vec::new();
+        while !positions.is_empty() {
+            let len = per_thread.min(positions.len());
+            let p;
+            (p, positions) = std::mem::take(&mut positions).split_at_mut(len);
+            let c;
+            (c, colors) = std::mem::take(&mut colors).split_at_mut(len);
+            let nr;
+            let len_n = len.min(normals.len());
+            (nr, normals) = std::mem::take(&mut normals).split_at_mut(len_n);
+            let b;
+            (b, block) = block.split_at(len * stride);
+            let out = Slots {
+                positions: p,
+                colors: c,
+                normals: nr,
+            };
+            handles.push(scope.spawn(move || binary_part(b, fields, converter, big_endian, out)));
+        }
+        // Every thread joined (a panic is a decline, as a bad value is).
+        let done: Vec<bool> = handles
             .into_iter()
-            .map(unit_normal)
-            .collect(),
-        None => Vec::new(),
-    };
-    Some((positions, colors, normals))
+            .map(|h| h.join().unwrap_or(false))
+            .collect();
+        done.into_iter().all(|ok| ok)
+    })
 }
 
 /// The ASCII vertex lines `range`: each line's tokens parsed once, as the
@@ -656,28 +811,63 @@ fn ascii_part(
     Some((positions, colors, normals))
 }
 
-/// The byte size of a binary element instance at the start of `b`, with
-/// its list counts read as the general reader reads them; None when `b` is
-/// too short or a count is negative.
-fn binary_element_size(b: &[u8], element: &ElementDef, big_endian: bool) -> Option<usize> {
-    let mut at = 0usize;
+/// Fills `buf` from `input`: false when the file ends first.
+fn read_or_end(input: &mut impl Read, buf: &mut [u8]) -> io::Result<bool> {
+    match input.read_exact(buf) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => Ok(false),
+        Err(e) => Err(e),
+    }
+}
+
+/// Skips `n` bytes of `input`: false when the file ends first.
+fn skip_or_end(input: &mut impl BufRead, mut n: u64) -> io::Result<bool> {
+    while n > 0 {
+        let available = match input.fill_buf() {
+            Ok([]) => return Ok(false),
+            Ok(b) => b.len(),
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        let k = n.min(available as u64);
+        input.consume(k as usize);
+        n -= k;
+    }
+    Ok(true)
+}
+
+/// Skips one binary instance of `element`, its list counts read as the
+/// general reader reads them: false when the file ends first or a count is
+/// negative (or not an integer).
+fn skip_binary_element(
+    input: &mut impl BufRead,
+    element: &ElementDef,
+    big_endian: bool,
+) -> io::Result<bool> {
     for p in element.properties.values() {
-        match &p.data_type {
-            PropertyType::Scalar(ty) => at += scalar_bytes(ty),
+        let bytes = match &p.data_type {
+            PropertyType::Scalar(ty) => scalar_bytes(ty),
             PropertyType::List(count_ty, item_ty) => {
-                let count = match binary_scalar(
-                    b.get(at..)?.get(..scalar_bytes(count_ty))?,
-                    count_ty,
-                    big_endian,
-                ) {
-                    Scalar::Float(_) | Scalar::Double(_) => return None,
-                    n => usize::try_from(n.value() as i64).ok()?,
+                let mut buf = [0u8; 8];
+                let buf = &mut buf[..scalar_bytes(count_ty)];
+                if !read_or_end(input, buf)? {
+                    return Ok(false);
+                }
+                let count = match binary_scalar(buf, count_ty, big_endian) {
+                    Scalar::Float(_) | Scalar::Double(_) => return Ok(false),
+                    n => usize::try_from(n.value() as i64).ok(),
                 };
-                at += scalar_bytes(count_ty) + count.checked_mul(scalar_bytes(item_ty))?;
+                match count.and_then(|c| c.checked_mul(scalar_bytes(item_ty))) {
+                    Some(bytes) => bytes,
+                    None => return Ok(false),
+                }
             }
+        };
+        if !skip_or_end(input, bytes as u64)? {
+            return Ok(false);
         }
     }
-    (at <= b.len()).then_some(at)
+    Ok(true)
 }
 
 /// Whether an ASCII line is an instance of `element` for the general
@@ -718,85 +908,176 @@ fn ascii_tokens(line: &[u8]) -> Vec<&[u8]> {
         .collect()
 }
 
-/// Reads the vertex element straight from the payload, or None when the
-/// file is anything but well-formed (the general reader then reads it, or
-/// says what is wrong). Every element is checked as the general reader
+/// A reader that counts the bytes taken from it.
+struct Counted<R> {
+    inner: R,
+    taken: u64,
+}
+
+impl<R: Read> Read for Counted<R> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.taken += n as u64;
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for Counted<R> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+
+    fn consume(&mut self, n: usize) {
+        self.taken += n as u64;
+        self.inner.consume(n);
+    }
+}
+
+/// Reads a binary vertex element straight from the payload, `input` (of
+/// `payload_len` bytes), streamed `chunk_bytes` at a time (whole records,
+/// at least one) into the cloud's vectors. None when the file is anything
+/// but well-formed (the general reader then reads it, or says what is
+/// wrong). Every element is checked as the general reader would read it,
+/// those before and after the vertices too.
+fn read_binary(
+    input: &mut impl BufRead,
+    payload_len: u64,
+    header: &Header,
+    vertex: &ElementDef,
+    layout: &Layout,
+    chunk_bytes: usize,
+) -> io::Result<Option<PointCloud>> {
+    let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
+    let Some(fields) = Fields::of(vertex, layout, true) else {
+        return Ok(None);
+    };
+    let count = vertex.count;
+    let input = &mut Counted {
+        inner: input,
+        taken: 0,
+    };
+    let mut vertices = None;
+    for element in header.elements.values() {
+        if element.name == vertex.name {
+            // The block must lie in the file before room is made for it.
+            let left = payload_len.saturating_sub(input.taken);
+            match (count as u64).checked_mul(fields.stride as u64) {
+                Some(bytes) if bytes <= left => {}
+                _ => return Ok(None),
+            }
+            vertices = read_vertex_block(input, &fields, count, big_endian, chunk_bytes)?;
+            if vertices.is_none() {
+                return Ok(None);
+            }
+            continue;
+        }
+        if element.properties.is_empty() {
+            // Instances of no bytes: nothing to walk, whatever the count.
+            continue;
+        }
+        for _ in 0..element.count {
+            if !skip_binary_element(input, element, big_endian)? {
+                return Ok(None);
+            }
+        }
+    }
+    let Some((positions, colors, normals)) = vertices else {
+        return Ok(None);
+    };
+    Ok(Some(PointCloud {
+        positions,
+        colors,
+        normals: layout.normals.then_some(normals),
+        has_colors: layout.colors.is_some(),
+        attributes: vertex.properties.keys().cloned().collect(),
+    }))
+}
+
+/// The `count` binary vertex records at the start of `input`, read
+/// `chunk_bytes` at a time (whole records, at least one) and converted
+/// into vectors of room for all of them; None when the file ends first or
+/// a coordinate is not finite.
+fn read_vertex_block(
+    input: &mut impl Read,
+    fields: &Fields,
+    count: usize,
+    big_endian: bool,
+    chunk_bytes: usize,
+) -> io::Result<Option<Part>> {
+    let stride = fields.stride;
+    let per_chunk = (chunk_bytes / stride).clamp(1, count.max(1));
+    let mut cloud: Part = (
+        Vec::with_capacity(count),
+        Vec::with_capacity(count),
+        Vec::with_capacity(if fields.normal.is_some() { count } else { 0 }),
+    );
+    let converter = Converter::new(fields);
+    let mut buf = vec![0u8; per_chunk * stride];
+    let mut done = 0;
+    while done < count {
+        let n = per_chunk.min(count - done);
+        let block = &mut buf[..n * stride];
+        if !read_or_end(input, block)?
+            || !append_binary(block, fields, &converter, big_endian, &mut cloud)
+        {
+            return Ok(None);
+        }
+        done += n;
+    }
+    Ok(Some(cloud))
+}
+
+/// Reads an ASCII vertex element straight from the payload, or None when
+/// the file is anything but well-formed (the general reader then reads it,
+/// or says what is wrong). Every element is checked as the general reader
 /// would read it, those before and after the vertices too.
-fn read_vertices(
+fn read_ascii(
     payload: &[u8],
     header: &Header,
     vertex: &ElementDef,
     layout: &Layout,
 ) -> Option<PointCloud> {
-    let binary = !matches!(header.encoding, Encoding::Ascii);
-    let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
-    let fields = Fields::of(vertex, layout, binary)?;
+    let fields = Fields::of(vertex, layout, false)?;
     let count = vertex.count;
-    let (positions, colors, normals) = if binary {
-        // Where the vertex block starts; every other element walked.
-        let mut at = 0usize;
-        let mut block_at = None;
-        for element in header.elements.values() {
-            if element.name == vertex.name {
-                block_at = Some(at);
-                at = at.checked_add(fields.stride.checked_mul(count)?)?;
-                continue;
-            }
-            if element.properties.is_empty() {
-                // Instances of no bytes: nothing to walk, whatever the count.
-                continue;
-            }
-            for _ in 0..element.count {
-                at += binary_element_size(payload.get(at..)?, element, big_endian)?;
-            }
-        }
-        let block_at = block_at?;
-        let block = payload.get(block_at..block_at + fields.stride * count)?;
-        let converter = Converter::new(&fields);
-        convert_all(count, |range| {
-            binary_part(block, &fields, &converter, big_endian, range)
-        })?
-    } else {
-        // Lines as the general reader reads them: up to each '\n', one per
-        // element instance.
-        let mut rest = payload;
-        let mut next_line = || -> Option<&[u8]> {
-            let (line, next) = match rest.iter().position(|&b| b == b'\n') {
-                Some(n) => (&rest[..n], &rest[n + 1..]),
-                None if !rest.is_empty() => (rest, &rest[rest.len()..]),
-                None => return None,
-            };
-            rest = next;
-            Some(line.strip_suffix(b"\r").unwrap_or(line))
+    // Lines as the general reader reads them: up to each '\n', one per
+    // element instance.
+    let mut rest = payload;
+    let mut next_line = || -> Option<&[u8]> {
+        let (line, next) = match rest.iter().position(|&b| b == b'\n') {
+            Some(n) => (&rest[..n], &rest[n + 1..]),
+            None if !rest.is_empty() => (rest, &rest[rest.len()..]),
+            None => return None,
         };
-        let mut vertex_lines = Vec::new();
-        for element in header.elements.values() {
-            if element.name == vertex.name {
-                vertex_lines = (0..count)
-                    .map(|_| next_line())
-                    .collect::<Option<Vec<_>>>()?;
-                continue;
-            }
-            for _ in 0..element.count {
-                if !ascii_element_ok(&ascii_tokens(next_line()?), element) {
-                    return None;
-                }
+        rest = next;
+        Some(line.strip_suffix(b"\r").unwrap_or(line))
+    };
+    let mut vertex_lines = Vec::new();
+    for element in header.elements.values() {
+        if element.name == vertex.name {
+            vertex_lines = (0..count)
+                .map(|_| next_line())
+                .collect::<Option<Vec<_>>>()?;
+            continue;
+        }
+        for _ in 0..element.count {
+            if !ascii_element_ok(&ascii_tokens(next_line()?), element) {
+                return None;
             }
         }
-        // Every vertex property is a scalar (Fields::of checked).
-        let types: Vec<ScalarType> = vertex
-            .properties
-            .values()
-            .filter_map(|p| match &p.data_type {
-                PropertyType::Scalar(ty) => Some(ty.clone()),
-                PropertyType::List(..) => None,
-            })
-            .collect();
-        let converter = Converter::new(&fields);
-        convert_all(count, |range| {
-            ascii_part(&vertex_lines, &types, &fields, &converter, range)
-        })?
-    };
+    }
+    // Every vertex property is a scalar (Fields::of checked).
+    let types: Vec<ScalarType> = vertex
+        .properties
+        .values()
+        .filter_map(|p| match &p.data_type {
+            PropertyType::Scalar(ty) => Some(ty.clone()),
+            PropertyType::List(..) => None,
+        })
+        .collect();
+    let converter = Converter::new(&fields);
+    let (positions, colors, normals) = convert_all(count, |range| {
+        ascii_part(&vertex_lines, &types, &fields, &converter, range)
+    })?;
     Some(PointCloud {
         positions,
         colors,

@@ -10,7 +10,10 @@ use std::path::{Path, PathBuf};
 use common::{root, scratch};
 use glam::Vec3;
 use pointlens::cloud::{srgb_to_linear, DEFAULT_COLOR};
-use pointlens::ply::{load_ply, load_ply_direct, load_ply_general};
+use pointlens::ply::{
+    load_ply, load_ply_direct, load_ply_direct_with_chunk, load_ply_general, load_ply_with_chunk,
+    CHUNK_BYTES,
+};
 use pointlens::PointCloud;
 
 /// The three test points: positions, 8-bit sRGB colors, and normals (not unit
@@ -341,6 +344,174 @@ fn elements_around_the_vertices_are_walked_and_bad_data_is_left_to_the_general_r
     let path = write(&dir, "dot-five.ply", text.as_bytes());
     assert!(load_ply_direct(&path).unwrap().is_none());
     assert_error(&path, "malformed data");
+}
+
+/// A binary PLY of `count` vertices between a face element and an edge
+/// element (lists and scalars): positions double or float, normals, 16-bit
+/// or 8-bit colors, an extra property; values from a fixed stream. Also
+/// the vertex record's size and where the vertex block starts.
+fn streamed_file(count: usize, big_endian: bool, wide: bool) -> (Vec<u8>, usize, usize) {
+    let fmt = if big_endian { "big" } else { "little" };
+    let (coord, color) = if wide {
+        ("double", "ushort")
+    } else {
+        ("float", "uchar")
+    };
+    let mut header = format!(
+        "ply\nformat binary_{fmt}_endian 1.0\nelement face 2\n\
+         property list uchar int vertex_indices\nproperty uchar flags\n\
+         element vertex {count}\nproperty {coord} x\nproperty float y\n\
+         property {coord} z\nproperty uchar intensity\n"
+    );
+    if wide {
+        header += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    header += &format!(
+        "property {color} red\nproperty {color} green\nproperty {color} blue\n\
+         element edge 3\nproperty int vertex1\nproperty list ushort float weights\n\
+         end_header\n"
+    );
+    let mut out = header.into_bytes();
+    // A value given in little-endian bytes, in the file's order.
+    let put = |out: &mut Vec<u8>, le: &[u8]| {
+        let start = out.len();
+        out.extend(le);
+        if big_endian {
+            out[start..].reverse();
+        }
+    };
+    // Faces: 3 and 4 indices, then a flag.
+    for n in [3u8, 4] {
+        put(&mut out, &[n]);
+        for i in 0..n as i32 {
+            put(&mut out, &i.to_le_bytes());
+        }
+        put(&mut out, &[1]);
+    }
+    let mut x = 0x1234_5678_9abc_def0u64;
+    let mut rnd = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let value = |r: u64| (r % 2_000_001) as f64 / 1000.0 - 1000.0 + 1e-7;
+    let block_at = out.len();
+    for _ in 0..count {
+        for axis in 0..3 {
+            let v = value(rnd());
+            if wide && axis != 1 {
+                put(&mut out, &v.to_le_bytes());
+            } else {
+                put(&mut out, &(v as f32).to_le_bytes());
+            }
+            if axis == 2 {
+                put(&mut out, &[rnd() as u8]);
+            }
+        }
+        if wide {
+            for _ in 0..3 {
+                put(&mut out, &(value(rnd()) as f32 / 500.0).to_le_bytes());
+            }
+        }
+        for _ in 0..3 {
+            if wide {
+                put(&mut out, &(rnd() as u16).to_le_bytes());
+            } else {
+                put(&mut out, &[rnd() as u8]);
+            }
+        }
+    }
+    let stride = (out.len() - block_at) / count;
+    assert_eq!(stride, if wide { 8 + 4 + 8 + 1 + 12 + 6 } else { 16 });
+    // Edges: an index and a list of 0, 1 or 2 weights.
+    for e in 0..3u16 {
+        put(&mut out, &(e as i32).to_le_bytes());
+        put(&mut out, &e.to_le_bytes());
+        for w in 0..e {
+            put(&mut out, &(w as f32 * 0.5).to_le_bytes());
+        }
+    }
+    (out, stride, block_at)
+}
+
+#[test]
+fn binary_blocks_are_streamed_in_chunks_as_the_general_reader_reads_them() {
+    let dir = scratch("ply-chunks");
+    for big_endian in [false, true] {
+        for wide in [false, true] {
+            for count in [1, 6, 7, 8, 100, 1001] {
+                let (bytes, stride, block_at) = streamed_file(count, big_endian, wide);
+                let name = format!("c{count}-{big_endian}-{wide}.ply");
+                let path = write(&dir, &name, &bytes);
+                let general = load_ply_general(&path).unwrap();
+                assert_eq!(general.len(), count);
+                assert_eq!(general.normals.is_some(), wide);
+                // Chunks of one record, of 7 (a boundary mid-file for odd
+                // counts), of 7 and a bit (rounded down to whole records),
+                // of the whole block, and the default.
+                for chunk in [1, 7 * stride, 7 * stride + 5, count * stride, CHUNK_BYTES] {
+                    let what = dir.join(format!("{name} in chunks of {chunk} bytes"));
+                    let direct = load_ply_direct_with_chunk(&path, chunk)
+                        .unwrap()
+                        .expect("read directly");
+                    assert_same(&direct, &general, &what);
+                    assert_same(&load_ply_with_chunk(&path, chunk).unwrap(), &general, &what);
+                }
+                if count < 100 {
+                    continue;
+                }
+                // Cut in the vertex block, after a few chunks: declined, and
+                // the general reader says it is truncated.
+                let cut = write(&dir, "cut.ply", &bytes[..block_at + 50 * stride + 3]);
+                assert!(load_ply_direct_with_chunk(&cut, 7 * stride)
+                    .unwrap()
+                    .is_none());
+                let err = load_ply_with_chunk(&cut, 7 * stride)
+                    .unwrap_err()
+                    .to_string();
+                assert!(err.contains("truncated"), "{err}");
+                // Cut in the edges after the vertices: declined too.
+                let cut = write(&dir, "cut-edges.ply", &bytes[..bytes.len() - 3]);
+                assert!(load_ply_direct_with_chunk(&cut, 7 * stride)
+                    .unwrap()
+                    .is_none());
+                assert!(load_ply_with_chunk(&cut, 7 * stride).is_err());
+                // A NaN in a later chunk: declined, and the general reader
+                // names the vertex.
+                let mut nan = bytes.clone();
+                let at = block_at + 57 * stride + if wide { 8 } else { 4 };
+                nan[at..at + 4].copy_from_slice(&if big_endian {
+                    f32::NAN.to_be_bytes()
+                } else {
+                    f32::NAN.to_le_bytes()
+                });
+                let nan = write(&dir, "nan.ply", &nan);
+                assert!(load_ply_direct_with_chunk(&nan, 7 * stride)
+                    .unwrap()
+                    .is_none());
+                assert_error(&nan, "vertex 57 has a non-finite coordinate");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_vertex_count_beyond_the_file_is_truncated_without_a_huge_allocation() {
+    let dir = scratch("ply-huge-count");
+    for count in ["1000000000000", "18446744073709551615"] {
+        let mut bytes = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex {count}\n\
+             property float x\nproperty float y\nproperty float z\nend_header\n"
+        )
+        .into_bytes();
+        for v in [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0] {
+            bytes.extend(v.to_le_bytes());
+        }
+        let path = write(&dir, &format!("huge-{count}.ply"), &bytes);
+        assert!(load_ply_direct(&path).unwrap().is_none());
+        assert_error(&path, "truncated data: the header declares");
+    }
 }
 
 fn assert_error(path: &Path, phrase: &str) {

@@ -1,0 +1,174 @@
+//! The synthetic scene of `pointlens bench` and `pointlens synth`: a wavy
+//! wall facing +z (70 % of the points) and five spheres in front of it at
+//! different depths, colored by a checker of their position, so that a lens
+//! blurs something at every depth.
+//!
+//! The points come from a SplitMix64 stream (the same scene on every
+//! machine), two draws per point. SplitMix64's state only advances by a
+//! constant, so point `i` is a function of `i` alone ([`point`]): any range
+//! of the scene can be made on its own, in parallel and in chunks, and
+//! gives the points of the whole scene in order.
+
+use std::io::Write;
+use std::ops::Range;
+use std::path::Path;
+
+use glam::Vec3;
+
+use crate::cloud::PointCloud;
+use crate::error::{Error, Result};
+use crate::image_io::{linear_to_srgb8, write_atomically};
+
+/// SplitMix64's increment, which is also the stream's starting state.
+const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
+/// The spheres: centre and radius.
+const SPHERES: [(Vec3, f32); 5] = [
+    (Vec3::new(-0.6, -0.3, 0.9), 0.25),
+    (Vec3::new(0.5, 0.35, 0.6), 0.3),
+    (Vec3::new(0.0, -0.05, 0.35), 0.2),
+    (Vec3::new(-0.45, 0.45, 0.15), 0.15),
+    (Vec3::new(0.6, -0.5, 1.2), 0.12),
+];
+
+/// Draw `j` of the stream, uniform in [0, 1) with 24 bits: the state after
+/// `j + 1` steps from `GAMMA`, mixed.
+fn draw(j: u64) -> f32 {
+    let mut z = GAMMA.wrapping_mul(j.wrapping_add(2));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Point `i` of the scene: its position and linear color.
+pub fn point(i: u64) -> (Vec3, Vec3) {
+    let (a, b) = (draw(2 * i), draw(2 * i + 1));
+    let p = if i % 10 < 7 {
+        let (x, y) = (2.0 * a - 1.0, 2.0 * b - 1.0);
+        Vec3::new(x, y, 0.08 * (6.0 * x).sin() * (5.0 * y).cos() - 0.3)
+    } else {
+        // The k-th sphere point goes to sphere k mod 5: all get as many.
+        let k = i / 10 * 3 + i % 10 - 7;
+        let (center, radius) = SPHERES[(k % SPHERES.len() as u64) as usize];
+        // Uniform on the sphere: z uniform in [−1, 1], angle uniform.
+        let z = 2.0 * a - 1.0;
+        let phi = std::f32::consts::TAU * b;
+        let r = (1.0 - z * z).sqrt();
+        center + radius * Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    };
+    let cell = |v: f32| (v * 8.0).floor() as i32;
+    let even = (cell(p.x) + cell(p.y) + cell(p.z)).rem_euclid(2) == 0;
+    let hue = 0.5 + 0.5 * p.x;
+    let color = if even {
+        Vec3::new(0.8 * hue + 0.1, 0.5, 0.9 - 0.8 * hue)
+    } else {
+        Vec3::splat(0.05)
+    };
+    (p, color)
+}
+
+/// The points `range` of the scene, in order: positions and linear colors.
+pub fn points(range: Range<u64>) -> impl Iterator<Item = (Vec3, Vec3)> {
+    range.map(point)
+}
+
+/// The first `count` points of the scene as a cloud (colors, no normals).
+pub fn cloud(count: usize) -> PointCloud {
+    let (positions, colors) = points(0..count as u64).unzip();
+    PointCloud {
+        positions,
+        colors,
+        normals: None,
+        has_colors: true,
+        attributes: vec!["x".into(), "y".into(), "z".into()],
+    }
+}
+
+/// Points that [`write_ply`] makes and writes at a time.
+pub const CHUNK_POINTS: usize = 1 << 20;
+
+/// Bytes of one vertex record of the file: x, y, z float; red, green,
+/// blue uchar.
+pub const RECORD_BYTES: usize = 15;
+
+/// The PLY header of a scene of `count` points.
+pub fn ply_header(count: u64) -> String {
+    format!(
+        "ply\nformat binary_little_endian 1.0\n\
+         comment pointlens synth: the synthetic scene of pointlens bench\n\
+         element vertex {count}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\n\
+         end_header\n"
+    )
+}
+
+/// Writes the first `count` points of the scene to `path` as a binary
+/// little-endian PLY: positions as float, colors as 8-bit sRGB
+/// ([`linear_to_srgb8`]). Streamed, [`CHUNK_POINTS`] at a time (made on
+/// every core), so that any count takes bounded memory; written
+/// atomically ([`write_atomically`]): a failure leaves no file at `path`.
+/// `progress` is told the points written so far after each chunk.
+pub fn write_ply(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -> Result<()> {
+    write_ply_with_chunk(path, count, CHUNK_POINTS, progress)
+}
+
+/// [`write_ply`] making `chunk_points` points at a time (at least one).
+pub fn write_ply_with_chunk(
+    path: &Path,
+    count: u64,
+    chunk_points: usize,
+    progress: &mut dyn FnMut(u64),
+) -> Result<()> {
+    if count == 0 {
+        return Err(Error::InvalidArgument(
+            "a synthetic cloud needs at least 1 point".into(),
+        ));
+    }
+    let chunk = chunk_points.max(1) as u64;
+    write_atomically(path, |mut file| {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        file.write_all(ply_header(count).as_bytes()).map_err(io)?;
+        let mut buf = Vec::new();
+        let mut start = 0;
+        while start < count {
+            let end = count.min(start + chunk);
+            buf.resize((end - start) as usize * RECORD_BYTES, 0);
+            encode_records(start..end, &mut buf);
+            file.write_all(&buf).map_err(io)?;
+            progress(end);
+            start = end;
+        }
+        file.sync_all().map_err(io)
+    })
+}
+
+/// The PLY records of points `range` into `out` (exactly their size),
+/// split over every core.
+fn encode_records(range: Range<u64>, out: &mut [u8]) {
+    let n = out.len() / RECORD_BYTES;
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(n.div_ceil(16_384))
+        .max(1);
+    let per_thread = n.div_ceil(threads);
+    std::thread::scope(|scope| {
+        for (t, part) in out.chunks_mut(per_thread * RECORD_BYTES).enumerate() {
+            let first = range.start + (t * per_thread) as u64;
+            scope.spawn(move || {
+                for (record, i) in part.chunks_exact_mut(RECORD_BYTES).zip(first..) {
+                    let (p, c) = point(i);
+                    for (a, v) in p.to_array().into_iter().enumerate() {
+                        record[4 * a..4 * a + 4].copy_from_slice(&v.to_le_bytes());
+                    }
+                    for (a, v) in c.to_array().into_iter().enumerate() {
+                        record[12 + a] = linear_to_srgb8(v);
+                    }
+                }
+            });
+        }
+    });
+}

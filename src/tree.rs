@@ -869,6 +869,15 @@ pub fn tree_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
 /// the splats cover as much as the exact sizes' on average.
 pub const SPACING_BIAS: f32 = 1.096;
 
+/// The median of [`tree_spacing`] over `positions` (any order; 0 for fewer
+/// than two points): what `info` prints, in the time of a tree build
+/// rather than the exact k-NN search's.
+pub fn median_spacing(positions: &[Vec3], threads: usize) -> f32 {
+    let order = morton_order(positions, threads);
+    let in_order: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
+    crate::cloud::median(tree_spacing(&in_order, threads))
+}
+
 /// Where the second Morton order's cube starts, in units of the first's
 /// side: no common dyadic boundary with the first for several levels.
 const SECOND_ORDER_SHIFT: Vec3 = Vec3::new(0.381_966, 0.236_068, 0.145_898);
@@ -891,21 +900,25 @@ fn window_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
             let mut best = [f32::INFINITY; K];
             let lo = i.saturating_sub(SPACING_WINDOW);
             let hi = (i + SPACING_WINDOW).min(n - 1);
-            for (o, &other) in p[lo..=hi].iter().enumerate() {
-                let d2 = q.distance_squared(other);
-                if d2 < best[k - 1] && lo + o != i {
-                    let mut at = k - 1;
-                    while at > 0 && best[at - 1] > d2 {
-                        best[at] = best[at - 1];
-                        at -= 1;
-                    }
-                    best[at] = d2;
-                }
+            for &other in p[lo..i].iter().chain(&p[i + 1..=hi]) {
+                insert_sorted(&mut best, q.distance_squared(other));
             }
             *s = best[..k].iter().map(|d2| d2.sqrt()).sum::<f32>() / k as f32;
         }
     });
     spacing
+}
+
+/// Inserts `d` into the ascending `best`, dropping the largest, without
+/// a branch: the new best[t] is min(best[t], max(best[t − 1], d)) (so the
+/// compiler makes it a few vector min/max).
+#[inline(always)]
+fn insert_sorted(best: &mut [f32; SPACING_NEIGHBOURS], d: f32) {
+    let mut shifted = [f32::NEG_INFINITY; SPACING_NEIGHBOURS];
+    shifted[1..].copy_from_slice(&best[..SPACING_NEIGHBOURS - 1]);
+    for (b, s) in best.iter_mut().zip(shifted) {
+        *b = b.min(s.max(d));
+    }
 }
 
 fn ms_since(t: Instant) -> f64 {

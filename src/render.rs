@@ -189,6 +189,21 @@ impl Scene {
         } else {
             bytemuck::cast_slice(&traversal.splats)
         };
+        // A buffer larger than one allocation or than the device's memory
+        // may not be made (lavapipe crashed on 2.4 GB in a 2 GiB heap
+        // instead of failing).
+        let info = &self.ctx.info;
+        let limit = info
+            .max_memory_allocation_bytes
+            .min(info.device_local_heap_bytes);
+        if bytes.len() as u64 > limit {
+            return Err(Error::Allocation(format!(
+                "{count} splats ({} MiB) exceed what the device can hold in one buffer \
+                 ({} MiB); raise --lod-px (0 draws every point)",
+                bytes.len() >> 20,
+                limit >> 20
+            )));
+        }
         let vertices = Buffer::with_bytes(
             &self.ctx,
             "splats",
@@ -313,11 +328,31 @@ impl Renderer {
         self.upload_with(cloud, SplatSize::Spacing, LeafSize::PerPoint(diameters))
     }
 
+    /// [`Renderer::upload`] drawing every point in the cloud's order, no
+    /// hierarchy ([`SplatTree::build_in_input_order`]): to measure what
+    /// Morton order gains the raster.
+    pub fn upload_in_input_order(&self, cloud: &PointCloud) -> Result<Scene> {
+        self.upload_tree(cloud, SplatSize::Spacing, |threads| {
+            SplatTree::build_in_input_order(cloud, LeafSize::Spacing, threads)
+        })
+    }
+
     fn upload_with(&self, cloud: &PointCloud, splat: SplatSize, size: LeafSize) -> Result<Scene> {
+        self.upload_tree(cloud, splat, |threads| {
+            SplatTree::build(cloud, size, threads)
+        })
+    }
+
+    fn upload_tree(
+        &self,
+        cloud: &PointCloud,
+        splat: SplatSize,
+        build: impl FnOnce(usize) -> SplatTree,
+    ) -> Result<Scene> {
         u32::try_from(cloud.len())
             .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
         let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
-        let tree = SplatTree::build(cloud, size, threads);
+        let tree = build(threads);
         let upload = Upload {
             splat_sizes_ms: tree.build.spacing_ms,
             tree_ms: tree.build.total_ms,

@@ -189,6 +189,13 @@ impl FrameReport {
             "splats upload wall", l.splats_upload_ms
         );
         s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
+        if self.points > 0 && self.upload.tree_bytes > 0 {
+            s += &format!(
+                "tree: {} bytes, {:.1} per point (every level)\n",
+                self.upload.tree_bytes,
+                self.upload.tree_bytes as f64 / self.points as f64
+            );
+        }
         for (name, ms) in [
             ("upload gpu", self.upload.gpu_ms),
             ("splat sizes wall", self.upload.splat_sizes_ms),

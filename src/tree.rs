@@ -274,6 +274,22 @@ impl SplatTree {
         }
     }
 
+    /// The same points and splat sizes as [`SplatTree::build`], drawn in
+    /// the cloud's own order and without a hierarchy (every frame draws
+    /// every point, whatever the LOD): for measuring what Morton order
+    /// gains the raster (`examples/point_order.rs`).
+    pub fn build_in_input_order(cloud: &PointCloud, size: LeafSize, threads: usize) -> SplatTree {
+        let mut tree = SplatTree::build(cloud, size, threads);
+        let order = morton_order(&cloud.positions, threads);
+        let mut leaves = vec![SplatVertex::zeroed(); tree.leaves.len()];
+        for (v, &i) in tree.leaves.iter().zip(&order) {
+            leaves[i as usize] = *v;
+        }
+        tree.leaves = leaves;
+        tree.levels.clear();
+        tree
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.leaves.len()
@@ -351,7 +367,7 @@ impl SplatTree {
         threads: usize,
     ) -> Traversal {
         let started = Instant::now();
-        if lod.draws_all() || self.is_empty() {
+        if lod.draws_all() || self.levels.is_empty() {
             return Traversal {
                 splats: self.leaves.clone(),
                 nodes_visited: 0,

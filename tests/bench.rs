@@ -198,21 +198,27 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
     }
 
     // CSV: a header, then per cell frame_wall, gpu_total, each pass,
-    // splat_sizes, upload_gpu, upload_wall and png_encode.
+    // splat_sizes, tree_build, traversal, upload_gpu, upload_wall and
+    // png_encode.
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.len(), 17);
-    assert_eq!(header[10], "measure");
+    assert_eq!(header.len(), 19);
+    assert_eq!(header[12], "measure");
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let expected: usize = cells
         .iter()
-        .map(|c| 6 + c["passes"].as_array().unwrap().len())
+        .map(|c| 8 + c["passes"].as_array().unwrap().len())
         .sum();
     assert_eq!(rows.len(), expected);
-    assert!(rows.iter().all(|r| r.len() == 17), "{text}");
-    let walls = rows.iter().filter(|r| r[10] == "frame_wall").count();
+    assert!(rows.iter().all(|r| r.len() == 19), "{text}");
+    let walls = rows.iter().filter(|r| r[12] == "frame_wall").count();
     assert_eq!(walls, cells.len());
+    // Every cell drew through the splat hierarchy at the default --lod-px.
+    for c in cells {
+        assert_eq!(c["lod_px"], 1.0);
+        assert!(c["lod"]["splats_emitted"].as_u64().unwrap() > 0, "{c}");
+    }
 
     // The chart is a PNG with a panel for the one resolution.
     let png = read_image(&chart).unwrap();
@@ -262,6 +268,11 @@ fn bench_rejects_bad_input_with_one_line_and_writes_nothing() {
         (&["--models", "synthetic", "--points", "0"][..], "--points"),
         (&["--chart", "chart.jpg"][..], ".png"),
         (&["--csv", "no/such/dir/b.csv"][..], "no/such/dir"),
+        (
+            &["--lod-px", "1,-2"][..],
+            "--lod-px must be between 0 and 1024, not -2",
+        ),
+        (&["--lod-px", "1,x"][..], "--lod-px: 'x' is not a number"),
     ] {
         let mut args = vec!["bench"];
         args.extend(tiny);

@@ -152,6 +152,36 @@ fn bad_input_gives_one_line_and_no_output() {
         &out,
     );
     assert_fails(&["render", &b, "-o", &out_s, "--ssaa", "0"], "--ssaa", &out);
+    for (flags, phrase) in [
+        (
+            &["--lod-px", "-1"][..],
+            "--lod-px must be between 0 and 1024, not -1",
+        ),
+        (
+            &["--lod-px", "NaN"],
+            "--lod-px must be between 0 and 1024, not NaN",
+        ),
+        (&["--lod-px", "two"], "'two' is not a number"),
+        (
+            &["--lod-blur", "0"],
+            "--lod-blur must be above 0 and at most 16, not 0",
+        ),
+        (
+            &["--lod-blur", "inf"],
+            "--lod-blur must be above 0 and at most 16, not inf",
+        ),
+        (
+            &["--lod-px", "0", "--lod-blur", "1"],
+            "--lod-blur needs --lod-px above 0",
+        ),
+    ] {
+        let args: Vec<&str> = ["render", &b, "-o", &out_s]
+            .iter()
+            .chain(flags)
+            .copied()
+            .collect();
+        assert_fails(&args, phrase, &out);
+    }
     assert_fails(
         &["render", &b, "-o", &out_s, "--focus-distance", "-1"],
         "focus_distance",

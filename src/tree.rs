@@ -6,14 +6,14 @@
 //! points themselves, sorted by the Morton code of their position, as the
 //! splat vertices the raster pass reads (24 bytes: position, world
 //! diameter, linear color as UNORM16; the color's unused alpha holds the
-//! octahedral normal). Level l ≥ 1 groups 8 consecutive nodes of level
-//! l − 1: node i of level l is the parent of nodes 8i .. 8i + 7 of level
-//! l − 1, so no child index is stored. Consecutive points in Morton order
-//! lie in the same octree cell but for the cells' boundaries, so each group
-//! is compact. An inner node is a [`Node`] (28 bytes: its splat — centre,
-//! diameter of the bounding sphere, mean color, mean normal — and the
-//! normal cone's half-angle). With 8 children per node there are n/7 inner
-//! nodes: 24 + 28/7 = 28 bytes per point for every level together.
+//! octahedral normal). Level l ≥ 1 groups runs of at most 8 consecutive
+//! nodes of level l − 1, broken wherever Morton order jumps (the next node
+//! farther from the one before than `GROUP_JUMP_RADII` of their radii), so
+//! that each group is compact. An inner node is a [`Node`] (32 bytes: its
+//! splat — centre, diameter of the bounding sphere, mean color, mean
+//! normal — the normal cone's half-angle, and its first child; the
+//! children run to the next node's first child). About 30.8 bytes per
+//! point for every level together, at most 32.
 
 use std::time::Instant;
 
@@ -24,8 +24,14 @@ use crate::camera::{Camera, EyeFromWorld};
 use crate::cloud::PointCloud;
 use crate::passes::splat_raster::SplatVertex;
 
-/// Children per inner node.
+/// The most children of an inner node.
 pub const FANOUT: usize = 8;
+
+/// A group of consecutive nodes ends where the next one lies farther from
+/// its predecessor than this many times the larger of their radii: there
+/// Morton order jumped across a cell boundary, and a node spanning the jump
+/// would be too large for the level of detail.
+pub const GROUP_JUMP_RADII: f32 = 4.0;
 
 /// How many points `tree_spacing` looks at on either side of a point in
 /// Morton order.
@@ -44,9 +50,12 @@ pub const SPACING_NEIGHBOURS: usize = crate::cloud::SPACING_NEIGHBOURS;
 pub struct Node {
     pub splat: SplatVertex,
     pub cone_rad: f32,
+    /// Its first child in the level below; the children run to the next
+    /// node's first child (the last node's: to the end of that level).
+    pub first_child: u32,
 }
 
-const _: () = assert!(std::mem::size_of::<Node>() == 28);
+const _: () = assert!(std::mem::size_of::<Node>() == 32);
 
 /// How a leaf's world diameter is chosen (DESIGN §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -223,41 +232,50 @@ impl SplatTree {
         let levels_started = Instant::now();
         let has_normals = normals.is_some();
         let mut levels: Vec<Vec<Node>> = Vec::new();
-        let mut below = leaves.len();
-        let mut level = 1usize;
-        while below > 1 {
-            let count = below.div_ceil(FANOUT);
-            let mut nodes = vec![Node::zeroed(); count];
-            {
-                let prev = levels.last();
-                let leaves = &leaves;
-                let get = |j: usize| -> (SplatVertex, f32) {
-                    match prev {
-                        None => (leaves[j], leaf_cone_rad),
-                        Some(p) => (p[j].splat, p[j].cone_rad),
-                    }
-                };
-                let leaves_per_child = FANOUT.pow(level as u32 - 1);
-                let n = leaves.len();
-                par_chunks(&mut nodes, CHUNK / FANOUT, threads, |c, out| {
-                    for (j, node) in out.iter_mut().enumerate() {
-                        let i = c * (CHUNK / FANOUT) + j;
-                        let first = i * FANOUT;
-                        let last = (first + FANOUT).min(below);
-                        let children: Vec<(SplatVertex, f32, f32)> = (first..last)
-                            .map(|k| {
-                                let (s, cone) = get(k);
-                                let leaves_under = leaves_per_child.min(n - k * leaves_per_child);
-                                (s, cone, leaves_under as f32)
-                            })
-                            .collect();
-                        *node = merge(&children, has_normals);
-                    }
-                });
+        // Points beneath each node of the level below (the mean color's
+        // weights).
+        let mut beneath: Vec<u32> = vec![1; leaves.len()];
+        loop {
+            let prev = levels.last();
+            let below = prev.map_or(leaves.len(), Vec::len);
+            if below <= 1 {
+                break;
             }
+            let get = |j: usize| -> (SplatVertex, f32) {
+                match prev {
+                    None => (leaves[j], leaf_cone_rad),
+                    Some(p) => (p[j].splat, p[j].cone_rad),
+                }
+            };
+            let mut starts = group_starts(below, |j| get(j).0, GROUP_JUMP_RADII);
+            if starts.len() * 5 > below {
+                // Groups of fewer than 5 on average (many isolated nodes):
+                // fixed groups of 8 for this level instead, so that the
+                // inner nodes stay under n/4 (n/5 + n/25 + …): 32 bytes a
+                // point at most with the leaves.
+                starts = (0..below).step_by(FANOUT).map(|j| j as u32).collect();
+            }
+            let mut nodes = vec![Node::zeroed(); starts.len()];
+            let end = |g: usize| starts.get(g + 1).map_or(below, |&e| e as usize);
+            par_chunks(&mut nodes, CHUNK / FANOUT, threads, |c, out| {
+                for (j, node) in out.iter_mut().enumerate() {
+                    let g = c * (CHUNK / FANOUT) + j;
+                    let children: Vec<(SplatVertex, f32, f32)> = (starts[g] as usize..end(g))
+                        .map(|k| {
+                            let (s, cone) = get(k);
+                            (s, cone, beneath[k] as f32)
+                        })
+                        .collect();
+                    *node = Node {
+                        first_child: starts[g],
+                        ..merge(&children, has_normals)
+                    };
+                }
+            });
+            beneath = (0..starts.len())
+                .map(|g| beneath[starts[g] as usize..end(g)].iter().sum())
+                .collect();
             levels.push(nodes);
-            below = count;
-            level += 1;
         }
         let levels_ms = ms_since(levels_started);
         SplatTree {
@@ -342,6 +360,15 @@ impl SplatTree {
         }
     }
 
+    /// The children of node `i` of `level` ≥ 1, as indices into `level` − 1.
+    pub fn children(&self, level: usize, i: usize) -> std::ops::Range<usize> {
+        let nodes = &self.levels[level - 1];
+        let end = nodes
+            .get(i + 1)
+            .map_or(self.level_len(level - 1), |n| n.first_child as usize);
+        nodes[i].first_child as usize..end
+    }
+
     /// Number of nodes of `level` (0: the leaves).
     pub fn level_len(&self, level: usize) -> usize {
         if level == 0 {
@@ -412,8 +439,9 @@ impl SplatTree {
                             Test::Cull => {}
                             Test::Emit => next.push(Item::Splat(s, true)),
                             Test::Recurse => {
-                                let end = ((i + 1) * FANOUT).min(self.level_len(level - 1));
-                                next.extend((i * FANOUT..end).map(|c| Item::Subtree(level - 1, c)));
+                                next.extend(
+                                    self.children(level, i).map(|c| Item::Subtree(level - 1, c)),
+                                );
                             }
                         }
                     }
@@ -498,8 +526,7 @@ impl SplatTree {
                 *inner += (level > 0) as u64;
             }
             Test::Recurse => {
-                let end = ((i + 1) * FANOUT).min(self.level_len(level - 1));
-                for c in i * FANOUT..end {
+                for c in self.children(level, i) {
                     self.walk(view, level - 1, c, out, visited, inner);
                 }
             }
@@ -677,7 +704,32 @@ fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
             color: [color[0], color[1], color[2], packed],
         },
         cone_rad,
+        first_child: 0,
     }
+}
+
+/// Where each group of the next level starts among `count` consecutive
+/// nodes (`splat(j)`): at most `FANOUT` to a group, and a new group
+/// wherever a node lies farther from the one before than `jump_radii`
+/// times the larger of their radii. Sequential: the same for any threads.
+fn group_starts(count: usize, splat: impl Fn(usize) -> SplatVertex, jump_radii: f32) -> Vec<u32> {
+    let sphere = |j: usize| {
+        let [x, y, z, d] = splat(j).position_size;
+        (Vec3::new(x, y, z), 0.5 * d)
+    };
+    let mut starts = Vec::with_capacity(count / 4 + 1);
+    let mut start = 0usize;
+    starts.push(0);
+    let (mut last_c, mut last_r) = sphere(0);
+    for j in 1..count {
+        let (c, r) = sphere(j);
+        if j - start == FANOUT || c.distance(last_c) > jump_radii * r.max(last_r) {
+            start = j;
+            starts.push(j as u32);
+        }
+        (last_c, last_r) = (c, r);
+    }
+    starts
 }
 
 /// The angle between two unit vectors, radians.
@@ -1025,7 +1077,7 @@ mod tests {
                 let (p, cone) = tree.node(level, i);
                 let pc = Vec3::from_slice(&p.position_size[..3]);
                 let axis = oct_decode(p.color[3]);
-                for k in i * FANOUT..((i + 1) * FANOUT).min(tree.level_len(level - 1)) {
+                for k in tree.children(level, i) {
                     let (s, child_cone) = tree.node(level - 1, k);
                     let sc = Vec3::from_slice(&s.position_size[..3]);
                     let reach = pc.distance(sc) + 0.5 * s.position_size[3];
@@ -1044,6 +1096,55 @@ mod tests {
         for (leaf, &i) in tree.leaves().iter().zip(&order) {
             let a = angle(oct_decode(leaf.color[3]), normals[i as usize]);
             assert!(a <= tree.leaf_cone_rad && tree.leaf_cone_rad < 0.02);
+        }
+    }
+
+    #[test]
+    fn groups_break_at_jumps_and_the_tree_stays_within_32_bytes_a_point() {
+        // Pairs of close points, the pairs far apart: every group of the
+        // first level would be a pair, so that level takes fixed groups.
+        let positions: Vec<Vec3> = (0..40_000)
+            .map(|i| Vec3::new((i / 2) as f32, (i % 2) as f32 * 0.01, 0.0))
+            .collect();
+        let n = positions.len();
+        let c = PointCloud {
+            colors: vec![Vec3::splat(0.5); n],
+            positions,
+            normals: None,
+            has_colors: true,
+            attributes: vec![],
+        };
+        let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
+        assert!(tree.bytes() as f64 / n as f64 <= 32.0, "{}", tree.bytes());
+        // A cloud of two clusters far apart: no group of the first level
+        // holds points of both.
+        let mut positions: Vec<Vec3> = Vec::new();
+        for i in 0..4004 {
+            let p = Vec3::new((i % 20) as f32, (i / 20 % 20) as f32, (i / 400) as f32) * 0.01;
+            positions.push(
+                p + if i % 2 == 0 {
+                    Vec3::ZERO
+                } else {
+                    Vec3::splat(5.0)
+                },
+            );
+        }
+        let c = PointCloud {
+            colors: vec![Vec3::splat(0.5); positions.len()],
+            positions,
+            ..c
+        };
+        let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
+        for g in 0..tree.level_len(1) {
+            let xs: Vec<f32> = tree
+                .children(1, g)
+                .map(|k| tree.leaves()[k].position_size[0])
+                .collect();
+            assert!(
+                xs.iter().all(|&x| x < 1.0) || xs.iter().all(|&x| x > 4.0),
+                "{xs:?}"
+            );
+            assert!(xs.len() <= FANOUT);
         }
     }
 

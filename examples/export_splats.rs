@@ -4,10 +4,12 @@
 //!
 //! `cargo run --release --example export_splats -- INPUT.ply OUT.bin [--splat-size W]`
 //!
-//! The diameters are `render::splat_diameters`, the function
-//! `Renderer::upload` sizes splats with: by default each point's local
-//! spacing times `render::SPACING_TO_DIAMETER` (DESIGN §3); `--splat-size W`
-//! gives every point W, as `render --splat-size` does.
+//! The splats are the leaves of the splat hierarchy that `Renderer::upload`
+//! builds (`tree::SplatTree`), in its Morton order: by default each
+//! point's diameter is the tree's local spacing times
+//! `render::SPACING_TO_DIAMETER` (DESIGN §3); `--splat-size W` gives every
+//! point W, as `render --splat-size` does. Colors are the UNORM16 values
+//! the raster reads. They are what `render --lod-px 0` draws.
 //!
 //! Output, little endian: the 8 bytes `PLSPLAT1`, the point count as u64,
 //! then per point 7 f32: x y z diameter r g b (colors linear, in [0, 1]).
@@ -18,7 +20,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context as _};
 use pointlens::cloud::median;
 use pointlens::ply::load_ply;
-use pointlens::render::{splat_diameters, SplatSize};
+use pointlens::tree::{LeafSize, SplatTree};
 
 const MAGIC: &[u8; 8] = b"PLSPLAT1";
 
@@ -54,14 +56,18 @@ fn run() -> anyhow::Result<()> {
         bail!("usage: export_splats INPUT.ply OUT.bin [--splat-size W]");
     };
     let cloud = load_ply(input)?;
-    let splat = splat_size.map_or(SplatSize::Spacing, SplatSize::World);
-    let d = splat_diameters(&cloud, splat);
+    let size = splat_size.map_or(LeafSize::Spacing, LeafSize::World);
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let tree = SplatTree::build(&cloud, size, threads);
+    let d: Vec<f32> = tree.leaves().iter().map(|v| v.position_size[3]).collect();
 
     let mut bytes = Vec::with_capacity(16 + cloud.len() * 28);
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&(cloud.len() as u64).to_le_bytes());
-    for ((p, c), d) in cloud.positions.iter().zip(&cloud.colors).zip(&d) {
-        for v in [p.x, p.y, p.z, *d, c.x, c.y, c.z] {
+    for leaf in tree.leaves() {
+        let [x, y, z, d] = leaf.position_size;
+        let c = leaf.color.map(|u| u as f32 / 65535.0);
+        for v in [x, y, z, d, c[0], c[1], c[2]] {
             bytes.extend_from_slice(&v.to_le_bytes());
         }
     }

@@ -57,7 +57,7 @@ fn run() -> anyhow::Result<()> {
     };
     let cloud = load_ply(input)?;
     let size = splat_size.map_or(LeafSize::Spacing, LeafSize::World);
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+    let threads = pointlens::available_threads();
     let tree = SplatTree::build(&cloud, size, threads);
     let d: Vec<f32> = tree.leaves().iter().map(|v| v.position_size[3]).collect();
 

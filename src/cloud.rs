@@ -64,7 +64,7 @@ impl PointCloud {
         let mut spacing = vec![0.0; n];
         // Each point's search is independent: split the points into one
         // contiguous chunk per core. Same result whatever the split.
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let threads = crate::available_threads();
         let chunk = n.div_ceil(threads).max(1024);
         std::thread::scope(|scope| {
             for (c, out) in spacing.chunks_mut(chunk).enumerate() {
@@ -105,10 +105,7 @@ impl PointCloud {
             self.attributes.join(" "),
             yes(self.has_colors),
             yes(self.normals.is_some()),
-            crate::tree::median_spacing(
-                &self.positions,
-                std::thread::available_parallelism().map_or(1, |t| t.get())
-            )
+            crate::tree::median_spacing(&self.positions, crate::available_threads())
         )
     }
 }

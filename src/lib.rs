@@ -32,4 +32,10 @@ pub mod tree;
 pub mod vk;
 
 pub use cloud::PointCloud;
+
+/// The threads the CPU work (PLY conversion, splat sizes, the splat
+/// hierarchy, its traversal) is split over: every core the process may use.
+pub fn available_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |t| t.get())
+}
 pub use error::{Error, Result};

@@ -587,8 +587,7 @@ type Part = (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>);
 /// The threads that convert `count` vertices: every core, at least 16,384
 /// vertices each.
 fn threads_for(count: usize) -> usize {
-    std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
+    crate::available_threads()
         .min(count.div_ceil(16_384))
         .max(1)
 }

@@ -154,15 +154,14 @@ impl Scene {
         // Free the last camera's buffer before making the next one.
         *last = None;
         let camera = &key.camera;
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let threads = crate::available_threads();
         let traversal = self.tree.traverse(camera, key.lod, key.widening, threads);
         let started = Instant::now();
         let eye_from_world = camera.eye_from_world_transform();
-        let centre = |v: &SplatVertex| {
-            let [x, y, z, _] = v.position_size;
-            Vec3::new(x, y, z)
-        };
-        let depths = depth_range_with(&eye_from_world, traversal.splats.iter().map(centre));
+        let depths = depth_range_with(
+            &eye_from_world,
+            traversal.splats.iter().map(SplatVertex::centre),
+        );
         let (near, _) = clip_range(depths);
         let max_splat_px = match self.splat {
             SplatSize::Pixels(p) => p.min(key.point_size_max),
@@ -170,7 +169,7 @@ impl Scene {
                 let f_px = camera.f_px();
                 let mut m = 1.0f32;
                 for v in &traversal.splats {
-                    let z = eye_from_world.apply(centre(v)).z;
+                    let z = eye_from_world.apply(v.centre()).z;
                     if z >= near {
                         m = m.max(f_px * v.position_size[3] / z);
                     }
@@ -351,7 +350,7 @@ impl Renderer {
     ) -> Result<Scene> {
         u32::try_from(cloud.len())
             .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
-        let threads = std::thread::available_parallelism().map_or(1, |t| t.get());
+        let threads = crate::available_threads();
         let tree = build(threads);
         let upload = Upload {
             splat_sizes_ms: tree.build.spacing_ms,

@@ -150,10 +150,7 @@ pub fn write_ply_with_chunk(
 /// split over every core.
 fn encode_records(range: Range<u64>, out: &mut [u8]) {
     let n = out.len() / RECORD_BYTES;
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |t| t.get())
-        .min(n.div_ceil(16_384))
-        .max(1);
+    let threads = crate::available_threads().min(n.div_ceil(16_384)).max(1);
     let per_thread = n.div_ceil(threads);
     std::thread::scope(|scope| {
         for (t, part) in out.chunks_mut(per_thread * RECORD_BYTES).enumerate() {

@@ -214,10 +214,7 @@ impl SplatTree {
             LeafSize::World(w) => leaves.iter_mut().for_each(|v| v.position_size[3] = w),
             LeafSize::Zero | LeafSize::PerPoint(_) => {}
             LeafSize::Spacing => {
-                let in_order: Vec<Vec3> = leaves
-                    .iter()
-                    .map(|v| Vec3::from_slice(&v.position_size[..3]))
-                    .collect();
+                let in_order: Vec<Vec3> = leaves.iter().map(SplatVertex::centre).collect();
                 let spacing = tree_spacing(&in_order, threads);
                 drop(in_order);
                 let fallback = crate::cloud::median(spacing.clone());
@@ -535,9 +532,7 @@ impl SplatTree {
 
     /// The traversal's decision for one node.
     fn test(&self, view: &View, s: &SplatVertex, cone_rad: f32, leaf: bool) -> Test {
-        let [x, y, z, diameter] = s.position_size;
-        let centre = Vec3::new(x, y, z);
-        let r = 0.5 * diameter;
+        let (centre, r) = s.sphere();
         let e = view.eye_from_world.apply(centre);
         let in_front = e.z - r > 0.0;
         // Behind the lens, nothing of it can be seen. A leaf is one depth,
@@ -565,7 +560,8 @@ impl SplatTree {
             return Test::Emit;
         }
         if in_front {
-            let size_px = view.f_px * diameter / e.z;
+            // The size the vertex shader draws: f_px · diameter / z.
+            let size_px = view.f_px * s.position_size[3] / e.z;
             if size_px <= view.lod.px {
                 return Test::Emit;
             }
@@ -653,20 +649,16 @@ const ANGLE_SLACK_RAD: f32 = 1e-3;
 /// holding theirs, their mean color and normal weighted by leaves beneath,
 /// and the cone holding their cones.
 fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
-    let sphere = |s: &SplatVertex| {
-        let [x, y, z, d] = s.position_size;
-        (Vec3::new(x, y, z), 0.5 * d)
-    };
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for (s, ..) in children {
-        let (c, r) = sphere(s);
+        let (c, r) = s.sphere();
         lo = lo.min(c - r);
         hi = hi.max(c + r);
     }
     let centre = 0.5 * (lo + hi);
     let mut radius = 0.0f32;
     for (s, ..) in children {
-        let (c, r) = sphere(s);
+        let (c, r) = s.sphere();
         radius = radius.max(c.distance(centre) + r);
     }
     // Rounding: the parent must hold every child.
@@ -713,10 +705,7 @@ fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
 /// wherever a node lies farther from the one before than `jump_radii`
 /// times the larger of their radii. Sequential: the same for any threads.
 fn group_starts(count: usize, splat: impl Fn(usize) -> SplatVertex, jump_radii: f32) -> Vec<u32> {
-    let sphere = |j: usize| {
-        let [x, y, z, d] = splat(j).position_size;
-        (Vec3::new(x, y, z), 0.5 * d)
-    };
+    let sphere = |j: usize| splat(j).sphere();
     let mut starts = Vec::with_capacity(count / 4 + 1);
     let mut start = 0usize;
     starts.push(0);
@@ -1075,11 +1064,11 @@ mod tests {
         for level in 1..=tree.levels().len() {
             for i in 0..tree.level_len(level) {
                 let (p, cone) = tree.node(level, i);
-                let pc = Vec3::from_slice(&p.position_size[..3]);
+                let pc = p.centre();
                 let axis = oct_decode(p.color[3]);
                 for k in tree.children(level, i) {
                     let (s, child_cone) = tree.node(level - 1, k);
-                    let sc = Vec3::from_slice(&s.position_size[..3]);
+                    let sc = s.centre();
                     let reach = pc.distance(sc) + 0.5 * s.position_size[3];
                     assert!(reach <= 0.5 * p.position_size[3], "level {level} node {i}");
                     let a = angle(axis, oct_decode(s.color[3])) + child_cone;

@@ -53,10 +53,6 @@ fn inside_camera() -> Camera {
     cam
 }
 
-fn centre(v: &pointlens::passes::splat_raster::SplatVertex) -> Vec3 {
-    Vec3::from_slice(&v.position_size[..3])
-}
-
 #[test]
 fn culling_keeps_exactly_what_can_reach_the_image() {
     let cloud = cube_cloud(60_000);
@@ -75,7 +71,7 @@ fn culling_keeps_exactly_what_can_reach_the_image() {
     let (w, h) = (cam.width as f32, cam.height as f32);
     let mut kept: Vec<[u32; 3]> = Vec::new();
     for v in &emitted.splats {
-        let e = eye_from_world.apply(centre(v));
+        let e = eye_from_world.apply(v.centre());
         assert!(e.z > 0.0, "a point behind the lens was emitted: z {}", e.z);
         let (x, y) = (w / 2.0 + f * e.x / e.z, h / 2.0 - f * e.y / e.z);
         // The widening: half the point's CoC and 1 px, plus the sphere of
@@ -206,7 +202,7 @@ fn coarser_lod_emits_fewer_splats_and_no_node_above_the_threshold() {
             if leaves.contains(&v.position_size.map(f32::to_bits)) {
                 continue;
             }
-            let z = eye_from_world.apply(centre(v)).z;
+            let z = eye_from_world.apply(v.centre()).z;
             let size = f * v.position_size[3] / z;
             assert!(size <= px, "an inner node of {size} px at lod {px}");
         }

@@ -32,6 +32,18 @@ pub struct SplatVertex {
 
 const _: () = assert!(std::mem::size_of::<SplatVertex>() == 24);
 
+impl SplatVertex {
+    /// The world position.
+    pub fn centre(&self) -> glam::Vec3 {
+        glam::Vec3::from_slice(&self.position_size[..3])
+    }
+
+    /// The splat's sphere: world centre and radius (half the diameter).
+    pub fn sphere(&self) -> (glam::Vec3, f32) {
+        (self.centre(), 0.5 * self.position_size[3])
+    }
+}
+
 push_constants! {
     /// Push constants of the pass; mirrors `glsl/splat_raster.glsl` (128 bytes).
     pub struct SplatPush {

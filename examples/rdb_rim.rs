@@ -37,6 +37,7 @@ fn main() -> anyhow::Result<()> {
         normals: None,
         has_colors: true,
         attributes: vec!["x".into(), "y".into(), "z".into()],
+        ..Default::default()
     };
     let ctx = Context::new(&ContextOptions::from_env(false, None))?;
     let renderer = Renderer::new(&ctx)?;

@@ -83,7 +83,7 @@ fn split_list<'a>(list: &'a str, flag: &str) -> Result<Vec<&'a str>> {
     Ok(items)
 }
 
-/// A model of the matrix: a bundled cloud, the synthetic cloud, or a PLY
+/// A model of the matrix: a bundled cloud, the synthetic cloud, or a PLY, LAS or LAZ
 /// file, each with its fixed camera.
 #[derive(Debug, Clone, PartialEq)]
 pub enum BenchModel {
@@ -93,7 +93,7 @@ pub enum BenchModel {
     Mug,
     /// [`synthetic_cloud`] of `--points` points, auto-framed from +z.
     Synthetic,
-    /// Any PLY file, auto-framed from +z.
+    /// Any PLY, LAS or LAZ file, auto-framed from +z.
     File(PathBuf),
 }
 
@@ -105,10 +105,15 @@ impl BenchModel {
             "bunny" => BenchModel::Bunny,
             "mug" => BenchModel::Mug,
             "synthetic" => BenchModel::Synthetic,
-            _ if name.to_ascii_lowercase().ends_with(".ply") => BenchModel::File(name.into()),
+            _ if [".ply", ".las", ".laz"]
+                .iter()
+                .any(|e| name.to_ascii_lowercase().ends_with(e)) =>
+            {
+                BenchModel::File(name.into())
+            }
             _ => {
                 return Err(Error::InvalidArgument(format!(
-                "--models: unknown model '{name}' (known: bunny, mug, synthetic, or a .ply file)"
+                "--models: unknown model '{name}' (known: bunny, mug, synthetic, or a .ply, .las or .laz file)"
             )))
             }
         })
@@ -137,7 +142,7 @@ impl BenchModel {
             BenchModel::Bunny => load_ply(&data_dir.join("bunny_colored.ply")),
             BenchModel::Mug => load_ply(&data_dir.join("pcl_table_scene_mug_rgb.ply")),
             BenchModel::Synthetic => Ok(synthetic_cloud(points)),
-            BenchModel::File(p) => load_ply(p),
+            BenchModel::File(p) => crate::cloud::load_cloud(p, None, &mut |_, _| {}),
         }
     }
 

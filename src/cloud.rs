@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use glam::{IVec3, Vec3};
+use glam::{DVec3, IVec3, Vec3};
 
 pub use crate::image_io::{linear_to_srgb, srgb_to_linear};
 
@@ -27,6 +27,70 @@ pub struct PointCloud {
     /// Names of the vertex properties the file declared, in file order
     /// (e.g. `["x", "y", "z", "red", "green", "blue"]`), for `info`.
     pub attributes: Vec<String>,
+    /// The scene's origin in the file's coordinates: a point's position in
+    /// the file is `origin + position`, in double precision. LAS and LAZ
+    /// clouds are re-centred (see `las`); PLY clouds keep the file's
+    /// coordinates (zero) unless `--origin` is given.
+    pub origin: DVec3,
+    /// Per-point classification codes (ASPRS classes), when the file had them.
+    pub classifications: Option<Vec<u8>>,
+    /// What `info` prints about the file beyond the cloud itself, in order:
+    /// `(name, value)` (format, version, scale, offset, CRS, …).
+    pub file_info: Vec<(String, String)>,
+}
+
+/// A coordinate in the file's units for people to read: rounded to a
+/// millionth (637240.4500000001 → 637240.45), far below any LAS scale.
+pub fn display_coord(v: f64) -> String {
+    format!("{}", (v * 1e6).round() / 1e6)
+}
+
+/// The linear-light value of a color channel stored as an sRGB-encoded
+/// integer `code` out of `max_code` (e.g. 255 or 65535), clamped to [0, 1]:
+/// the one conversion every loader uses.
+pub fn linear_from_code(code: f64, max_code: f64) -> f32 {
+    srgb_to_linear(((code / max_code) as f32).clamp(0.0, 1.0))
+}
+
+/// Loads a point cloud by its format: LAS or LAZ (COPC included) by the
+/// magic bytes `LASF` or, for a file that cannot be peeked at, by the
+/// extension; PLY otherwise. `origin` (file coordinates) re-centres the
+/// cloud: LAS/LAZ in double precision from the integer codes (default: the
+/// centre of its bounds, see `las`), PLY from its f32 positions (default:
+/// none). `progress(done, total)` follows a LAS/LAZ read chunk by chunk.
+pub fn load_cloud(
+    path: &Path,
+    origin: Option<DVec3>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> crate::Result<PointCloud> {
+    if is_las(path) {
+        return crate::las::load_las(path, origin, progress);
+    }
+    let mut cloud = crate::ply::load_ply(path)?;
+    if let Some(origin) = origin {
+        cloud.recentre(origin).map_err(|msg| crate::Error::Ply {
+            path: path.to_path_buf(),
+            msg,
+        })?;
+    }
+    Ok(cloud)
+}
+
+/// Whether `path` holds a LAS or LAZ file: by its first four bytes where it
+/// is a regular file, else by its extension.
+fn is_las(path: &Path) -> bool {
+    use std::io::Read;
+    match std::fs::File::open(path) {
+        Ok(file) if file.metadata().is_ok_and(|m| m.is_file()) => {
+            let mut magic = Vec::with_capacity(4);
+            match file.take(4).read_to_end(&mut magic) {
+                Ok(_) if crate::las::has_magic(&magic) => true,
+                Ok(_) if magic.starts_with(b"ply") => false,
+                _ => crate::las::has_las_extension(path),
+            }
+        }
+        _ => crate::las::has_las_extension(path),
+    }
 }
 
 impl PointCloud {
@@ -38,6 +102,31 @@ impl PointCloud {
     /// Whether the cloud has no points.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
+    }
+
+    /// Moves the scene's origin to `origin` (file coordinates): every
+    /// position becomes `(origin_old + p) − origin`, computed in f64. An
+    /// error (the message) when `origin` is not finite or a position would
+    /// not fit in f32.
+    pub fn recentre(&mut self, origin: DVec3) -> std::result::Result<(), String> {
+        if !origin.is_finite() {
+            return Err(format!(
+                "--origin must be three finite numbers, got {origin}"
+            ));
+        }
+        let shift = self.origin - origin;
+        for p in &mut self.positions {
+            let q = (p.as_dvec3() + shift).as_vec3();
+            if !q.is_finite() {
+                return Err(format!(
+                    "a point at {} does not fit in f32 after re-centring on {origin}",
+                    p.as_dvec3() + self.origin
+                ));
+            }
+            *p = q;
+        }
+        self.origin = origin;
+        Ok(())
     }
 
     /// The bounding box: (min corner, max corner); zeros for an empty cloud.
@@ -94,11 +183,22 @@ impl PointCloud {
         let (lo, hi) = self.bounds();
         let v = |p: Vec3| format!("{} {} {}", p.x, p.y, p.z);
         let yes = |b: bool| if b { "yes" } else { "no" };
+        let file_info: String = self
+            .file_info
+            .iter()
+            .map(|(name, value)| format!("{name}: {value}\n"))
+            .collect();
         format!(
-            "file: {}\npoints: {}\nbounds_min: {}\nbounds_max: {}\nextent: {}\n\
-             attributes: {}\ncolors: {}\nnormals: {}\nmedian_spacing: {}\n",
+            "file: {}\n{file_info}points: {}\norigin: {}\nbounds_min: {}\nbounds_max: {}\n\
+             extent: {}\nattributes: {}\ncolors: {}\nnormals: {}\nmedian_spacing: {}\n",
             path.display(),
             self.len(),
+            format_args!(
+                "{} {} {}",
+                display_coord(self.origin.x),
+                display_coord(self.origin.y),
+                display_coord(self.origin.z)
+            ),
             v(lo),
             v(hi),
             v(hi - lo),

@@ -15,6 +15,9 @@ pub enum Error {
     /// A PLY file that cannot be read: says which file and what is wrong.
     #[error("{path}: {msg}")]
     Ply { path: PathBuf, msg: String },
+    /// A LAS or LAZ file that cannot be read: says which file and what is wrong.
+    #[error("{path}: {msg}")]
+    Las { path: PathBuf, msg: String },
     /// A camera file or camera flag with a missing or impossible value; names the field.
     #[error("camera: {field}: {msg}")]
     Camera { field: &'static str, msg: String },

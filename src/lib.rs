@@ -19,6 +19,7 @@ pub mod cloud;
 pub mod error;
 pub mod gbuffer;
 pub mod image_io;
+pub mod las;
 pub mod metrics;
 pub mod options;
 pub mod passes;

@@ -7,12 +7,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, Parser, Subcommand};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use indicatif::{ProgressBar, ProgressStyle};
 use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
 use pointlens::camera::{self, CameraSpec};
 use pointlens::chart;
+use pointlens::cloud::load_cloud;
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{
     check_output_path, check_png_path, is_png_path, read_image, write_atomically, write_image,
@@ -23,11 +24,11 @@ use pointlens::options::{
     check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
     LayeredOptions, MethodKind, RdbAtomics, RdbMode, RdbOptions,
 };
-use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
 use pointlens::tree::Lod;
 use pointlens::vk::{Context, ContextOptions};
+use pointlens::PointCloud;
 
 #[derive(Parser)]
 #[command(
@@ -57,19 +58,25 @@ enum Command {
     /// Time a matrix of methods × models × resolutions (Zhao's Table 1,
     /// extended): per-pass GPU times and frame wall time, min/median/max.
     Bench(Box<BenchArgs>),
-    /// Print point count, bounds and attributes of a point cloud.
+    /// Print point count, bounds and attributes of a point cloud (for LAS
+    /// and LAZ also the version, point format, scale, offset, bounds in the
+    /// file's coordinates, the re-centring origin and the CRS).
     Info {
-        /// PLY file.
+        /// PLY, LAS or LAZ file.
         input: PathBuf,
+        /// Re-centre on X,Y,Z (file coordinates) instead of the default.
+        #[arg(long, value_name = "X,Y,Z", value_parser = parse_dvec3, allow_hyphen_values = true)]
+        origin: Option<[f64; 3]>,
     },
     /// Write the bench's synthetic scene (a wavy wall and five spheres) as
-    /// a binary little-endian PLY, streamed: any size in bounded memory.
+    /// a binary little-endian PLY, or LAS / LAZ (by the extension),
+    /// streamed: any size in bounded memory.
     Synth {
         /// Number of points.
         #[arg(long)]
         points: u64,
-        /// Output PLY file (replaced atomically).
-        #[arg(short, long, value_name = "FILE.ply")]
+        /// Output file, .ply, .las or .laz (replaced atomically).
+        #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
     },
 }
@@ -85,7 +92,7 @@ struct BenchArgs {
     /// rdbN, rdbN-pairs, layeredK, accumS.
     #[arg(long, default_value = BenchMethod::DEFAULT)]
     methods: String,
-    /// Comma-separated models: bunny, mug, synthetic, or PLY files.
+    /// Comma-separated models: bunny, mug, synthetic, or PLY, LAS or LAZ files.
     #[arg(long, default_value = BenchModel::DEFAULT)]
     models: String,
     /// Points of the synthetic model.
@@ -142,7 +149,7 @@ struct BenchArgs {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// PLY file (ASCII or binary).
+    /// PLY (ASCII or binary), LAS or LAZ (COPC included) file.
     input: PathBuf,
     /// Output image: .png (sRGB 8-bit) or .exr (linear float).
     #[arg(short, long)]
@@ -208,12 +215,22 @@ struct RenderArgs {
     /// Depth of the plane in focus along the view axis, scene units.
     #[arg(long, allow_negative_numbers = true)]
     focus_distance: Option<f32>,
-    /// Eye position X,Y,Z.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    eye: Option<[f32; 3]>,
+    /// Eye position X,Y,Z (in the coordinates `--coordinates` names).
+    #[arg(long, value_parser = parse_dvec3, allow_hyphen_values = true)]
+    eye: Option<[f64; 3]>,
     /// Look-at target X,Y,Z.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    target: Option<[f32; 3]>,
+    #[arg(long, value_parser = parse_dvec3, allow_hyphen_values = true)]
+    target: Option<[f64; 3]>,
+    /// Which coordinates the camera's eye and target are in (the camera
+    /// file's `coordinates`; default recentred): `file`, those of the input
+    /// (e.g. a LAS tile's UTM metres), or `recentred`, the file's less the
+    /// cloud's origin. `--print-camera` prints in these.
+    #[arg(long, value_enum)]
+    coordinates: Option<camera::Coordinates>,
+    /// Re-centre the cloud on X,Y,Z (file coordinates). Default: LAS/LAZ on
+    /// the centre of their bounds, PLY not at all.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_dvec3, allow_hyphen_values = true)]
+    origin: Option<[f64; 3]>,
     /// Up vector X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     up: Option<[f32; 3]>,
@@ -290,17 +307,29 @@ fn method_kind(s: &str) -> Result<MethodKind, String> {
 }
 
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    parse_triple(s)
+}
+
+/// [`parse_vec3`] in double precision (positions in file coordinates).
+fn parse_dvec3(s: &str) -> Result<[f64; 3], String> {
+    parse_triple(s)
+}
+
+/// `X,Y,Z`: three finite numbers, each parsed as `T` itself.
+fn parse_triple<T: std::str::FromStr + Copy + Default + Into<f64>>(
+    s: &str,
+) -> Result<[T; 3], String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
         return Err(format!("expected X,Y,Z, got '{s}'"));
     }
-    let mut v = [0.0f32; 3];
+    let mut v = [T::default(); 3];
     for (slot, p) in v.iter_mut().zip(parts) {
         *slot = p
             .trim()
-            .parse::<f32>()
+            .parse::<T>()
             .ok()
-            .filter(|x| x.is_finite())
+            .filter(|x| (*x).into().is_finite())
             .ok_or_else(|| format!("'{p}' is not a finite number in '{s}'"))?;
     }
     Ok(v)
@@ -336,7 +365,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(*args),
         Command::Compare { a, b, diff } => compare(&a, &b, diff.as_deref()),
-        Command::Info { input } => info(&input),
+        Command::Info { input, origin } => info(&input, origin),
         Command::Bench(args) => bench(*args),
         Command::Synth { points, output } => synth(points, &output),
     };
@@ -482,8 +511,23 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
     Ok(())
 }
 
-fn info(input: &Path) -> Result<()> {
-    let cloud = load_ply(input)?;
+/// Loads a cloud of any format, with a progress bar on stderr while a
+/// LAS/LAZ file streams in (drawn only when stderr is a terminal).
+fn load(input: &Path, origin: Option<[f64; 3]>) -> Result<PointCloud> {
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("loading {bar:30} {pos}/{len} points, {elapsed}")
+            .expect("a valid template"),
+    );
+    let cloud = load_cloud(input, origin.map(DVec3::from_array), &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    Ok(cloud?)
+}
+
+fn info(input: &Path, origin: Option<[f64; 3]>) -> Result<()> {
+    let cloud = load(input, origin)?;
     print!("{}", cloud.info_text(input));
     Ok(())
 }
@@ -498,7 +542,11 @@ fn synth(points: u64, output: &Path) -> Result<()> {
             .expect("a valid template"),
     );
     let t = Instant::now();
-    let written = pointlens::synth::write_ply(output, points, &mut |done| bar.set_position(done));
+    let written = if pointlens::las::has_las_extension(output) {
+        pointlens::synth::write_las(output, points, &mut |done| bar.set_position(done))
+    } else {
+        pointlens::synth::write_ply(output, points, &mut |done| bar.set_position(done))
+    };
     bar.finish_and_clear();
     written?;
     let bytes = std::fs::metadata(output).map_or(0, |m| m.len());
@@ -566,10 +614,11 @@ fn render(args: RenderArgs) -> Result<()> {
     };
 
     let t_load = Instant::now();
-    let cloud = load_ply(&args.input)?;
+    let cloud = load(&args.input, args.origin)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
 
     let flags = CameraSpec {
+        coordinates: args.coordinates,
         width: args.width,
         height: args.height,
         eye: args.eye,
@@ -590,6 +639,9 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         None => flags,
     };
+    let coordinates = spec.coordinates.unwrap_or_default();
+    let origin = cloud.origin;
+    let spec = spec.in_scene(origin)?;
     let (lo, hi) = cloud.bounds();
     let mut cam = camera::resolve(&spec, lo, hi, &cloud.positions)?;
 
@@ -615,7 +667,7 @@ fn render(args: RenderArgs) -> Result<()> {
         cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, lod, x, y)?;
     }
     if args.print_camera {
-        println!("{}", cam.to_json());
+        println!("{}", cam.to_spec_in(coordinates, origin).to_json());
     }
     let options = RenderOptions {
         camera: cam,

@@ -14,7 +14,7 @@ use ply_rs_bw::ply::{
     DefaultElement, ElementDef, Encoding, Header, Property, PropertyType, ScalarType,
 };
 
-use crate::cloud::{srgb_to_linear, PointCloud, DEFAULT_COLOR};
+use crate::cloud::{linear_from_code, srgb_to_linear, PointCloud, DEFAULT_COLOR};
 use crate::error::{Error, Result};
 
 /// The accepted names of the red, green and blue properties, in order of preference.
@@ -239,6 +239,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         normals: layout.normals.then(|| Vec::with_capacity(rows.len())),
         has_colors: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
+        ..PointCloud::default()
     };
     for (i, row) in rows.iter().enumerate() {
         let get = |name: &str| {
@@ -372,10 +373,9 @@ impl Scalar {
         self.value() as f32
     }
 
-    /// A color channel scaled to [0, 1]: integers by their type's maximum,
-    /// floats as they are.
-    fn normalised_color(self) -> f32 {
-        let max = match self {
+    /// The code of full intensity: an integer type's maximum, 1 for floats.
+    fn color_max(self) -> f64 {
+        match self {
             Scalar::Char(_) => i8::MAX as f64,
             Scalar::UChar(_) => u8::MAX as f64,
             Scalar::Short(_) => i16::MAX as f64,
@@ -383,13 +383,12 @@ impl Scalar {
             Scalar::Int(_) => i32::MAX as f64,
             Scalar::UInt(_) => u32::MAX as f64,
             Scalar::Float(_) | Scalar::Double(_) => 1.0,
-        };
-        (self.value() / max) as f32
+        }
     }
 
     /// The linear-light color of the channel (sRGB-encoded, clamped).
     fn linear_color(self) -> f32 {
-        srgb_to_linear(self.normalised_color().clamp(0.0, 1.0))
+        linear_from_code(self.value(), self.color_max())
     }
 }
 
@@ -989,6 +988,7 @@ fn read_binary(
         normals: layout.normals.then_some(normals),
         has_colors: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
+        ..PointCloud::default()
     }))
 }
 
@@ -1083,5 +1083,6 @@ fn read_ascii(
         normals: layout.normals.then_some(normals),
         has_colors: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
+        ..PointCloud::default()
     })
 }

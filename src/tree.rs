@@ -1009,6 +1009,7 @@ mod tests {
             normals,
             has_colors: true,
             attributes: vec![],
+            ..Default::default()
         }
     }
 
@@ -1102,6 +1103,7 @@ mod tests {
             normals: None,
             has_colors: true,
             attributes: vec![],
+            ..Default::default()
         };
         let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
         assert!(tree.bytes() as f64 / n as f64 <= 32.0, "{}", tree.bytes());

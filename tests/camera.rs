@@ -4,7 +4,7 @@
 mod common;
 
 use glam::{Vec2, Vec3};
-use pointlens::camera::{self, Camera, CameraSpec};
+use pointlens::camera::{self, Camera, CameraSpec, Coordinates};
 use pointlens::Error;
 
 fn close(a: f32, b: f32, tol: f32) -> bool {
@@ -343,6 +343,8 @@ fn camera_file_parses_every_field_and_ignores_unknown_ones() {
     assert_eq!(
         spec,
         CameraSpec {
+            coordinates: None,
+            origin: None,
             width: Some(800),
             height: Some(600),
             eye: Some([1.0, 2.0, 3.0]),
@@ -447,6 +449,8 @@ fn flags_override_single_fields() {
     // No flags: the file unchanged. Every field can be overridden.
     assert_eq!(file.clone().overridden_by(&CameraSpec::default()), file);
     let all = CameraSpec {
+        coordinates: Some(Coordinates::File),
+        origin: Some([13.0; 3]),
         width: Some(1),
         height: Some(2),
         eye: Some([3.0; 3]),
@@ -768,14 +772,14 @@ fn impossible_values_name_their_field() {
         (
             "eye",
             CameraSpec {
-                eye: Some([0.0, nan, 1.0]),
+                eye: Some([0.0, f64::from(nan), 1.0]),
                 ..complete()
             },
         ),
         (
             "target",
             CameraSpec {
-                target: Some([inf, 0.0, 0.0]),
+                target: Some([f64::from(inf), 0.0, 0.0]),
                 ..complete()
             },
         ),

@@ -321,7 +321,7 @@ fn a_scene_remembers_only_its_last_camera() {
         let renderer = Renderer::new(ctx).unwrap();
         let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
         let (lo, hi) = bunny.bounds();
-        let spec = |eye: Option<[f32; 3]>| CameraSpec {
+        let spec = |eye: Option<[f64; 3]>| CameraSpec {
             width: Some(40),
             height: Some(30),
             eye,

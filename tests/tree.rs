@@ -39,6 +39,7 @@ fn cube_cloud(n: usize) -> PointCloud {
         normals: None,
         has_colors: true,
         attributes: vec![],
+        ..Default::default()
     }
 }
 
@@ -135,6 +136,7 @@ fn plane(normal: Option<Vec3>) -> PointCloud {
         positions,
         has_colors: true,
         attributes: vec![],
+        ..Default::default()
     }
 }
 

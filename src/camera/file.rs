@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::Camera;
@@ -18,25 +18,49 @@ pub const DEFAULT_HEIGHT: u32 = 480;
 /// Default vertical field of view in degrees.
 pub const DEFAULT_FOVY_DEG: f32 = 40.0;
 
+/// Which coordinates a camera's `eye` and `target` are in: those of the
+/// file the cloud came from (e.g. UTM metres of a LAS tile), or the scene's,
+/// re-centred on the cloud's origin (`PointCloud::origin`; the default).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Coordinates {
+    /// The input file's coordinates.
+    File,
+    /// The scene's: the file's minus the cloud's origin.
+    #[default]
+    Recentred,
+}
+
 /// A camera file (`--camera FILE.json`, DESIGN §2) or the camera flags: every
 /// field optional, named as in the JSON. Unknown JSON fields are ignored.
-/// [`resolve`] fills in the defaults.
+/// [`resolve`] fills in the defaults. `eye` and `target` are in the
+/// coordinates `coordinates` names; [`CameraSpec::in_scene`] takes them to
+/// the scene's before [`resolve`].
 ///
 /// [`resolve`]: super::resolve
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct CameraSpec {
+    /// Which coordinates `eye` and `target` are in (default: recentred).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coordinates: Option<Coordinates>,
+    /// With `"coordinates": "recentred"`: the origin (file coordinates) the
+    /// camera was re-centred on, written by `--print-camera`; a cloud
+    /// re-centred elsewhere moves the camera by the difference.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<[f64; 3]>,
     /// Image width in pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub width: Option<u32>,
     /// Image height in pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub height: Option<u32>,
-    /// Eye (lens centre) position.
+    /// Eye (lens centre) position (double precision: file coordinates may
+    /// be millions of metres).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub eye: Option<[f32; 3]>,
+    pub eye: Option<[f64; 3]>,
     /// Point looked at.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub target: Option<[f32; 3]>,
+    pub target: Option<[f64; 3]>,
     /// Up direction (default +y).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub up: Option<[f32; 3]>,
@@ -87,6 +111,8 @@ impl CameraSpec {
     /// flag's value (command-line flags override single fields of the file).
     pub fn overridden_by(self, flags: &CameraSpec) -> CameraSpec {
         CameraSpec {
+            coordinates: flags.coordinates.or(self.coordinates),
+            origin: flags.origin.or(self.origin),
             width: flags.width.or(self.width),
             height: flags.height.or(self.height),
             eye: flags.eye.or(self.eye),
@@ -100,6 +126,47 @@ impl CameraSpec {
             units_per_mm: flags.units_per_mm.or(self.units_per_mm),
             focus_distance: flags.focus_distance.or(self.focus_distance),
         }
+    }
+
+    /// The spec as a pretty-printed camera file (unset fields left out).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a camera spec always serialises")
+    }
+
+    /// This spec with `eye` and `target` in the scene's coordinates, for a
+    /// cloud whose origin is `cloud_origin` (file coordinates): the file's
+    /// coordinates less the origin, or re-centred ones moved by the
+    /// difference between the spec's `origin` and the cloud's, in double
+    /// precision. The result has no `coordinates` or `origin`. Errors:
+    /// an `origin` given with file coordinates, a non-finite origin.
+    pub fn in_scene(&self, cloud_origin: DVec3) -> Result<CameraSpec> {
+        let shift =
+            match (self.coordinates.unwrap_or_default(), self.origin) {
+                (Coordinates::File, Some(_)) => return Err(camera_error(
+                    "origin",
+                    "only with \"coordinates\": \"recentred\" (file coordinates need no origin)",
+                )),
+                (Coordinates::File, None) => -cloud_origin,
+                (Coordinates::Recentred, Some(o)) => {
+                    let o = DVec3::from_array(o);
+                    if !o.is_finite() {
+                        return Err(camera_error(
+                            "origin",
+                            format!("must be three finite numbers, got {o}"),
+                        ));
+                    }
+                    o - cloud_origin
+                }
+                (Coordinates::Recentred, None) => DVec3::ZERO,
+            };
+        let moved = |v: Option<[f64; 3]>| v.map(|v| (DVec3::from_array(v) + shift).to_array());
+        Ok(CameraSpec {
+            coordinates: None,
+            origin: None,
+            eye: moved(self.eye),
+            target: moved(self.target),
+            ..self.clone()
+        })
     }
 
     /// Checks that a camera file is complete (DESIGN §2): an error naming the
@@ -190,9 +257,12 @@ fn check_positive(field: &'static str, v: Option<f32>) -> Result<()> {
 }
 
 /// Errors unless every component of `v` is finite.
-fn check_vector(field: &'static str, v: Option<[f32; 3]>) -> Result<()> {
+fn check_vector<T: Copy + Into<f64> + std::fmt::Debug>(
+    field: &'static str,
+    v: Option<[T; 3]>,
+) -> Result<()> {
     match v {
-        Some(v) if !v.iter().all(|c| c.is_finite()) => Err(camera_error(
+        Some(v) if !v.iter().all(|&c| c.into().is_finite()) => Err(camera_error(
             field,
             format!("must be three finite numbers, got {v:?}"),
         )),
@@ -212,6 +282,7 @@ pub(super) fn validate(spec: &CameraSpec) -> Result<()> {
     check_vector("eye", spec.eye)?;
     check_vector("target", spec.target)?;
     check_vector("up", spec.up)?;
+    check_vector("origin", spec.origin)?;
     if spec.up.is_some_and(|u| Vec3::from_array(u) == Vec3::ZERO) {
         return Err(camera_error("up", "must not be the zero vector"));
     }
@@ -259,15 +330,23 @@ pub(super) fn resolve_fovy(spec: &CameraSpec) -> Result<f32> {
     }
 }
 
+/// An f32 as the f64 with the same shortest decimal form (0.1f32 → 0.1,
+/// not 0.10000000149011612), so that camera files print as typed; it reads
+/// back as the same f32.
+fn shortest_f64(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(f64::from(v))
+}
+
 impl Camera {
     /// The camera as a complete camera file: width, height, eye, target, up,
-    /// fovy_deg, aperture_radius and focus_distance.
+    /// fovy_deg, aperture_radius and focus_distance, in the scene's
+    /// coordinates (no `coordinates` field).
     pub fn to_spec(&self) -> CameraSpec {
         CameraSpec {
             width: Some(self.width),
             height: Some(self.height),
-            eye: Some(self.eye.to_array()),
-            target: Some(self.target.to_array()),
+            eye: Some(self.eye.to_array().map(shortest_f64)),
+            target: Some(self.target.to_array().map(shortest_f64)),
             up: Some(self.up.to_array()),
             fovy_deg: Some(self.fovy_deg),
             aperture_radius: Some(self.aperture_radius),
@@ -282,6 +361,36 @@ impl Camera {
     ///
     /// [`resolve`]: super::resolve
     pub fn to_json(&self) -> String {
-        serde_json::to_string_pretty(&self.to_spec()).expect("a camera spec always serialises")
+        self.to_spec().to_json()
+    }
+
+    /// The camera as a complete camera file in the given coordinates, for a
+    /// cloud whose origin is `cloud_origin` (file coordinates): file
+    /// coordinates add the origin to `eye` and `target` (double precision);
+    /// recentred ones record the origin (when not zero) so that the file
+    /// stays right for a cloud re-centred elsewhere. Reading it back with
+    /// [`CameraSpec::in_scene`] and [`resolve`] gives this camera again.
+    ///
+    /// [`resolve`]: super::resolve
+    pub fn to_spec_in(&self, coordinates: Coordinates, cloud_origin: DVec3) -> CameraSpec {
+        let spec = self.to_spec();
+        match coordinates {
+            Coordinates::Recentred => CameraSpec {
+                coordinates: Some(Coordinates::Recentred),
+                origin: (cloud_origin != DVec3::ZERO).then_some(cloud_origin.to_array()),
+                ..spec
+            },
+            Coordinates::File => {
+                let file = |v: Option<[f64; 3]>| {
+                    v.map(|v| (DVec3::from_array(v) + cloud_origin).to_array())
+                };
+                CameraSpec {
+                    coordinates: Some(Coordinates::File),
+                    eye: file(spec.eye),
+                    target: file(spec.target),
+                    ..spec
+                }
+            }
+        }
     }
 }

@@ -2,9 +2,9 @@
 //! become a [`Camera`], with the automatic eye (framing every point with a
 //! [`FRAMING_MARGIN`]) and the automatic aperture.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
-use super::file::{camera_error, resolve_fovy, validate};
+use super::file::{camera_error, resolve_fovy, validate, Coordinates};
 use super::{Camera, CameraSpec, DEFAULT_HEIGHT, DEFAULT_WIDTH};
 use crate::error::Result;
 
@@ -115,6 +115,12 @@ pub fn resolve(
     points: &[Vec3],
 ) -> Result<Camera> {
     validate(spec)?;
+    if spec.coordinates == Some(Coordinates::File) || spec.origin.is_some() {
+        return Err(camera_error(
+            "coordinates",
+            "a camera in file coordinates (or with an origin) needs the cloud's origin: take it through CameraSpec::in_scene first",
+        ));
+    }
     let width = spec.width.unwrap_or(DEFAULT_WIDTH);
     let height = spec.height.unwrap_or(DEFAULT_HEIGHT);
     let fovy_deg = resolve_fovy(spec)?;
@@ -123,7 +129,7 @@ pub fn resolve(
     let diagonal = (cloud_max - cloud_min).length();
     let diagonal = if diagonal.is_finite() { diagonal } else { 0.0 };
     let target = match spec.target {
-        Some(t) => Vec3::from_array(t),
+        Some(t) => DVec3::from_array(t).as_vec3(),
         None => {
             let centre = (cloud_min + cloud_max) / 2.0;
             if !centre.is_finite() {
@@ -137,7 +143,7 @@ pub fn resolve(
     };
 
     let eye = match spec.eye {
-        Some(e) => Vec3::from_array(e),
+        Some(e) => DVec3::from_array(e).as_vec3(),
         None => {
             if !up_is_usable(-Vec3::Z, up) {
                 return Err(camera_error(

@@ -33,7 +33,7 @@ mod framing;
 mod lens;
 mod tables;
 
-pub use file::{CameraSpec, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH};
+pub use file::{CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH};
 pub use framing::{resolve, FRAMING_MARGIN};
 pub use lens::{Camera, EyeFromWorld};
 pub use tables::{concentric_disk, concentric_square, lens_samples, rdb_bin, rdb_lens_table};

@@ -161,6 +161,7 @@ pub fn cloud(points: &[(Vec3, Vec3)]) -> PointCloud {
         normals: None,
         has_colors: true,
         attributes: vec!["x".into(), "y".into(), "z".into()],
+        ..Default::default()
     }
 }
 

@@ -1,0 +1,669 @@
+//! LAS, LAZ and COPC input (the `las` crate, LAZ decompressed on every
+//! core): point data record formats 0–10, read in chunks straight into the
+//! cloud, with real-world coordinates re-centred in double precision.
+//!
+//! Positions: a record's coordinate is the integer code `c` with the
+//! header's scale `s` and offset `o`, `x = c·s + o` (double precision). The
+//! cloud is re-centred on an origin before it becomes f32: by default the
+//! centre of the header's bounding box, snapped to the file's integer grid,
+//! so that a point's scene coordinate is `(c − c_origin)·s` — an exact
+//! integer difference, one rounding — and the same cloud shifted by any
+//! multiple of the scale gives bitwise the same scene. A user's origin
+//! (`--origin`) is taken as given. `PointCloud::origin` is the origin in the
+//! file's coordinates.
+//!
+//! Colors: the 16-bit RGB of formats 2, 3, 5, 7, 8 and 10, taken as sRGB;
+//! a file whose every channel is at most 255 stores 8-bit values in the
+//! 16-bit fields (as many writers do) and is scaled by 255, any other by
+//! 65535. Without RGB, or with RGB all zero, the intensity becomes grey,
+//! normalised over the file's actual range (min to max) and taken as sRGB;
+//! without either, the default color. Classification codes are kept.
+
+use std::fs::File;
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+use las::{PointData, PointDataBuilder, Reader};
+
+use crate::cloud::{display_coord, linear_from_code, PointCloud, DEFAULT_COLOR};
+use crate::error::{Error, Result};
+
+/// Points read from the file at a time: ten LAZ chunks of the usual 50,000
+/// points, so that the parallel decompressor has work for every core.
+pub const CHUNK_POINTS: u64 = 500_000;
+
+/// The four bytes every LAS and LAZ file starts with.
+pub const MAGIC: &[u8; 4] = b"LASF";
+
+/// Whether `bytes` (a file's first bytes) start a LAS or LAZ file.
+pub fn has_magic(bytes: &[u8]) -> bool {
+    bytes.starts_with(MAGIC)
+}
+
+/// Whether a path names a LAS or LAZ file by its extension (`.las`, `.laz`,
+/// and so `.copc.laz`), whatever the case.
+pub fn has_las_extension(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
+}
+
+/// One axis of the conversion from a record's integer code to an f32 scene
+/// coordinate: `((code − origin_code)·scale + residual) as f32`.
+#[derive(Debug, Clone, Copy)]
+struct Axis {
+    scale: f64,
+    offset: f64,
+    /// The origin's code on the file's grid (an integer, as f64).
+    origin_code: f64,
+    /// The origin's distance from that grid point (0 for the default origin).
+    residual: f64,
+    /// The origin in file coordinates.
+    origin: f64,
+}
+
+impl Axis {
+    fn new(scale: f64, offset: f64, origin_code: f64, origin: f64) -> Axis {
+        Axis {
+            scale,
+            offset,
+            origin_code,
+            residual: (origin_code * scale + offset) - origin,
+            origin,
+        }
+    }
+
+    fn local(&self, code: i32) -> f32 {
+        ((f64::from(code) - self.origin_code) * self.scale + self.residual) as f32
+    }
+
+    fn file(&self, code: i32) -> f64 {
+        f64::from(code) * self.scale + self.offset
+    }
+
+    /// The grid code nearest the file coordinate `x`.
+    fn code_of(&self, x: f64) -> f64 {
+        ((x - self.offset) / self.scale).round()
+    }
+}
+
+/// The origin on one axis: the user's, or the centre of the codes'
+/// range `[lo, hi]` snapped to the grid (an integer midpoint).
+fn axis(scale: f64, offset: f64, user: Option<f64>, range: (f64, f64)) -> Result<Axis, String> {
+    let probe = Axis::new(scale, offset, 0.0, offset);
+    match user {
+        Some(origin) => {
+            let code = probe.code_of(origin);
+            // Beyond 2^52 the grid's integers are no longer exact in f64.
+            if code.is_nan() || code.abs() >= (1u64 << 52) as f64 {
+                return Err(format!(
+                    "--origin {origin} is too far from the file's coordinates (scale {scale}, offset {offset})"
+                ));
+            }
+            Ok(Axis::new(scale, offset, code, origin))
+        }
+        None => {
+            let code = ((range.0 + range.1) / 2.0).floor();
+            Ok(Axis::new(scale, offset, code, code * scale + offset))
+        }
+    }
+}
+
+/// The header, VLRs and EVLRs, checked against the file before any point
+/// is read: the checks the `las` and `laz` crates leave to the read, where
+/// a lying field would otherwise abort the process on a huge allocation
+/// or read garbage.
+struct Preflight {
+    header: las::Header,
+    record_len: u64,
+}
+
+fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
+    let (fail, io) = (las_fail(path), io_fail(path));
+    file.rewind().map_err(io)?;
+    let raw =
+        las::raw::Header::read_from(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
+    let record_len = u64::from(raw.point_data_record_length);
+    let offset = u64::from(raw.offset_to_point_data);
+    if offset > file_len {
+        return Err(fail(format!(
+            "truncated: the point data should start at byte {offset}, the file has {file_len} bytes"
+        )));
+    }
+    // The first EVLR's length (a u64 the `las` crate allocates as given).
+    let mut data_end = file_len;
+    if let Some(evlr) = raw.evlr.filter(|e| e.number_of_evlrs > 0) {
+        let start = evlr.start_of_first_evlr;
+        let mut head = [0u8; 60];
+        let room = file_len.saturating_sub(start.saturating_add(60));
+        if start < offset || start > file_len - 60.min(file_len) {
+            return Err(fail(format!(
+                "the first extended VLR should start at byte {start}, outside the file's {file_len} bytes after the point data"
+            )));
+        }
+        file.seek(SeekFrom::Start(start)).map_err(io)?;
+        file.read_exact(&mut head).map_err(io)?;
+        let len = u64::from_le_bytes(head[20..28].try_into().expect("8 bytes"));
+        if len > room {
+            return Err(fail(format!(
+                "an extended VLR declares {len} bytes, the file has {room} after it: truncated or corrupt"
+            )));
+        }
+        data_end = start;
+    }
+    file.rewind().map_err(io)?;
+    let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
+    let points = header.number_of_points();
+    if header.point_format().is_compressed {
+        check_chunk_table(path, file, offset, data_end, points, &header)?;
+    } else {
+        let room = data_end - offset;
+        let need = points.saturating_mul(record_len);
+        if need > room {
+            return Err(fail(format!(
+                "the header declares {points} points of {record_len} bytes ({need} bytes), \
+                 the file holds {room} bytes of point data: truncated, or a wrong point count or record length"
+            )));
+        }
+        if record_len > 0 && room - need >= record_len {
+            return Err(fail(format!(
+                "the header declares {points} points of {record_len} bytes ({need} bytes), \
+                 the file holds {room} bytes of point data: a wrong point count or record length"
+            )));
+        }
+    }
+    Ok(Preflight { header, record_len })
+}
+
+/// Checks a LAZ file's chunk table against the file and the header: its
+/// offset (the first 8 bytes of the point data, or the file's last 8 where
+/// those are −1) inside the data, version 0, no more chunks than bytes of
+/// compressed data or points, and, for chunks of a fixed size, a point
+/// count the chunks can hold.
+fn check_chunk_table(
+    path: &Path,
+    file: &mut File,
+    data_start: u64,
+    data_end: u64,
+    points: u64,
+    header: &las::Header,
+) -> Result<()> {
+    let fail = |msg: String| Error::Las {
+        path: path.to_path_buf(),
+        msg: format!("corrupt LAZ chunk table: {msg}"),
+    };
+    let io = io_fail(path);
+    let mut read_u64_at = |at: u64| -> Result<u64> {
+        let mut b = [0u8; 8];
+        file.seek(SeekFrom::Start(at)).map_err(io)?;
+        file.read_exact(&mut b).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                Error::Las {
+                    path: path.to_path_buf(),
+                    msg: "truncated: the file ends inside the LAZ chunk table".to_string(),
+                }
+            } else {
+                io(e)
+            }
+        })?;
+        Ok(u64::from_le_bytes(b))
+    };
+    if data_end < data_start + 8 {
+        return Err(fail("no room for its offset after the header".to_string()));
+    }
+    let mut table = read_u64_at(data_start)?;
+    if table as i64 == -1 {
+        table = read_u64_at(data_end - 8)?;
+    }
+    if table < data_start + 8 || table > data_end.saturating_sub(8) {
+        return Err(fail(format!(
+            "its offset {} is outside the point data (bytes {data_start} to {data_end})",
+            table as i64
+        )));
+    }
+    let words = read_u64_at(table)?;
+    let (version, chunks) = (words as u32, (words >> 32) as u32);
+    if version != 0 {
+        return Err(fail(format!("version {version}, not 0")));
+    }
+    let data_bytes = table - data_start - 8;
+    if u64::from(chunks) > data_bytes || u64::from(chunks) > points.max(1) {
+        return Err(fail(format!(
+            "{chunks} chunks for {points} points in {data_bytes} bytes of compressed data"
+        )));
+    }
+    let vlr = header.laz_vlr().map_err(|e| las_error(path, e))?;
+    if !vlr.uses_variable_size_chunks() {
+        let size = u64::from(vlr.chunk_size());
+        let chunks = u64::from(chunks);
+        if points > chunks * size || (chunks > 0 && points <= (chunks - 1) * size) {
+            return Err(Error::Las {
+                path: path.to_path_buf(),
+                msg: format!(
+                    "the header declares {points} points, the LAZ chunk table holds {chunks} chunks of {size}: \
+                     a wrong point count or a corrupt chunk table"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The error of a LAS file that cannot be read, naming it.
+fn las_fail(path: &Path) -> impl Fn(String) -> Error + Copy + '_ {
+    move |msg| Error::Las {
+        path: path.to_path_buf(),
+        msg,
+    }
+}
+
+/// An I/O error on the file, naming it.
+fn io_fail(path: &Path) -> impl Fn(std::io::Error) -> Error + Copy + '_ {
+    move |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// A `las` crate error as one line: the reader's I/O end-of-file becomes
+/// "truncated".
+fn las_error(path: &Path, e: las::Error) -> Error {
+    let msg = if ends_early(&e) {
+        "truncated: the file ends inside the data its header declares".to_string()
+    } else {
+        e.to_string().replace('\n', " ")
+    };
+    Error::Las {
+        path: path.to_path_buf(),
+        msg,
+    }
+}
+
+/// Whether an error is, or was caused by, an I/O end of file (the `laz`
+/// crate wraps it in its own error).
+fn ends_early(e: &(dyn std::error::Error + 'static)) -> bool {
+    let mut cause: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(c) = cause {
+        if c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::UnexpectedEof)
+            || c.to_string().contains("failed to fill whole buffer")
+        {
+            return true;
+        }
+        cause = c.source();
+    }
+    false
+}
+
+/// Loads a LAS or LAZ (or COPC) file, re-centred on `origin` (file
+/// coordinates; the default is the centre of the header's bounds, see the
+/// module's notes). `progress(done, total)` is called after each chunk.
+///
+/// Errors name the file and say what is wrong: not a LAS file, truncated,
+/// a point count or record length that does not match the file, a corrupt
+/// LAZ chunk table, a coordinate that does not fit in f32 after
+/// re-centring.
+pub fn load_las(
+    path: &Path,
+    origin: Option<DVec3>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<PointCloud> {
+    let (fail, io) = (las_fail(path), io_fail(path));
+    let mut file = File::open(path).map_err(io)?;
+    let file_len = file.metadata().map_err(io)?.len();
+    let mut magic = Vec::with_capacity(4);
+    (&mut file).take(4).read_to_end(&mut magic).map_err(io)?;
+    if !has_magic(&magic) {
+        return Err(fail(format!(
+            "not a LAS or LAZ file: it starts with {:?}, not \"LASF\"",
+            String::from_utf8_lossy(&magic)
+        )));
+    }
+    let facts = preflight(path, &mut file, file_len)?;
+    file.rewind().map_err(io)?;
+    let mut reader =
+        Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| las_error(path, e))?;
+    let header = facts.header.clone();
+    let format = *header.point_format();
+    let total = header.number_of_points();
+    let t = header.transforms();
+    for (name, tr) in [("x", t.x), ("y", t.y), ("z", t.z)] {
+        if !(tr.scale.is_finite() && tr.scale != 0.0 && tr.offset.is_finite()) {
+            return Err(fail(format!(
+                "the {name} scale ({}) must be finite and non-zero and the offset ({}) finite",
+                tr.scale, tr.offset
+            )));
+        }
+    }
+    let n = usize::try_from(total).map_err(|_| fail(format!("{total} points is too many")))?;
+    let mut cloud = PointCloud::default();
+    reserve(&mut cloud.positions, n, path)?;
+    reserve(&mut cloud.colors, n, path)?;
+    let mut classes = Vec::new();
+    reserve(&mut classes, n, path)?;
+    // With RGB the intensity is kept as well, until the RGB is known not
+    // to be all zero.
+    let mut intensities = Vec::new();
+    if format.has_color {
+        reserve(&mut intensities, n, path)?;
+    }
+
+    // The positions hold each point's integer codes (through bytemuck, in
+    // place) until the whole file is read: then the codes' exact range
+    // gives the origin, and one pass turns them into f32.
+    let mut data: PointData = PointDataBuilder::new().for_header(&header).build();
+    let mut code_lo = [i32::MAX; 3];
+    let mut code_hi = [i32::MIN; 3];
+    let (mut rgb_max, mut int_lo, mut int_hi) = (0u16, u16::MAX, 0u16);
+    let mut done = 0u64;
+    while done < total {
+        let got = reader
+            .fill_points(CHUNK_POINTS.min(total - done), &mut data)
+            .map_err(|e| match (format.is_compressed, ends_early(&e)) {
+                (true, true) => fail(format!(
+                    "the compressed data ends before the {total} points its header declares \
+                     (after {done}): corrupt data or a wrong point count"
+                )),
+                (true, false) => fail(format!(
+                    "corrupt LAZ data after point {done}: {}",
+                    e.to_string().replace('\n', " ")
+                )),
+                (false, _) => las_error(path, e),
+            })?;
+        if got == 0 {
+            return Err(fail(format!(
+                "truncated: the header declares {total} points, the data ends after {done}"
+            )));
+        }
+        let at = cloud.positions.len();
+        cloud.positions.resize(at + data.len(), Vec3::ZERO);
+        let codes: &mut [[i32; 3]] = bytemuck::cast_slice_mut(&mut cloud.positions[at..]);
+        fill_axis(codes, 0, data.x_raw(), &mut code_lo[0], &mut code_hi[0]);
+        fill_axis(codes, 1, data.y_raw(), &mut code_lo[1], &mut code_hi[1]);
+        fill_axis(codes, 2, data.z_raw(), &mut code_lo[2], &mut code_hi[2]);
+        classes.extend(data.classification());
+        match data.rgb() {
+            Some(rgb) => {
+                for (r, g, b) in rgb {
+                    rgb_max = rgb_max.max(r).max(g).max(b);
+                    cloud
+                        .colors
+                        .push(Vec3::new(f32::from(r), f32::from(g), f32::from(b)));
+                }
+                for i in data.intensity() {
+                    (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
+                    intensities.push(i);
+                }
+            }
+            None => {
+                for i in data.intensity() {
+                    (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
+                    cloud.colors.push(Vec3::splat(f32::from(i)));
+                }
+            }
+        }
+        done += got;
+        progress(done, total);
+    }
+
+    // Colors, now that the file's ranges are known: a table per code.
+    let table = |f: &dyn Fn(u16) -> f32| -> Vec<f32> { (0..=u16::MAX).map(f).collect() };
+    let grey = |lo: u16, hi: u16| {
+        move |i: u16| linear_from_code(f64::from(i.saturating_sub(lo)), f64::from(hi - lo))
+    };
+    let color_source;
+    if format.has_color && rgb_max > 0 {
+        let max_code = if rgb_max <= 255 { 255.0 } else { 65535.0 };
+        color_source = if rgb_max <= 255 {
+            "rgb (8-bit values in 16-bit fields)"
+        } else {
+            "rgb (16-bit)"
+        };
+        let lut = table(&|v| linear_from_code(f64::from(v), max_code));
+        map_colors(&mut cloud.colors, &|c| {
+            Vec3::new(lut[c.x as usize], lut[c.y as usize], lut[c.z as usize])
+        });
+        cloud.has_colors = true;
+    } else if int_lo < int_hi && total > 0 {
+        color_source = if format.has_color {
+            "intensity as grey (the rgb is all zero)"
+        } else {
+            "intensity as grey"
+        };
+        let lut = table(&grey(int_lo, int_hi));
+        if format.has_color {
+            for (c, &i) in cloud.colors.iter_mut().zip(&intensities) {
+                *c = Vec3::splat(lut[usize::from(i)]);
+            }
+        } else {
+            map_colors(&mut cloud.colors, &|c| Vec3::splat(lut[c.x as usize]));
+        }
+        cloud.has_colors = true;
+    } else {
+        color_source = "none (no rgb, constant intensity)";
+        cloud.colors.fill(DEFAULT_COLOR);
+    }
+    drop(intensities);
+
+    let tr = [t.x, t.y, t.z];
+    let mut axes = [Axis::new(1.0, 0.0, 0.0, 0.0); 3];
+    for k in 0..3 {
+        let range = if total > 0 {
+            (f64::from(code_lo[k]), f64::from(code_hi[k]))
+        } else {
+            (0.0, 0.0)
+        };
+        axes[k] = axis(tr[k].scale, tr[k].offset, origin.map(|o| o[k]), range).map_err(fail)?;
+    }
+    to_scene(&mut cloud.positions, &axes).map_err(fail)?;
+    cloud.origin = DVec3::new(axes[0].origin, axes[1].origin, axes[2].origin);
+    cloud.classifications = Some(classes);
+    cloud.attributes = attributes(&format);
+    cloud.file_info = file_info(
+        &header,
+        &facts,
+        &axes,
+        (total > 0).then_some((code_lo, code_hi)),
+        color_source,
+    );
+    Ok(cloud)
+}
+
+/// Reserves room for exactly `n` more elements, or a clear error (a lying
+/// point count must not abort the process).
+fn reserve<T>(v: &mut Vec<T>, n: usize, path: &Path) -> Result<()> {
+    v.try_reserve_exact(n).map_err(|_| Error::Las {
+        path: path.to_path_buf(),
+        msg: format!(
+            "cannot allocate memory for the {n} points its header declares ({:.1} GB)",
+            (n as f64) * std::mem::size_of::<T>() as f64 / 1e9
+        ),
+    })
+}
+
+/// Writes axis `k` of the codes and widens its range.
+fn fill_axis(
+    codes: &mut [[i32; 3]],
+    k: usize,
+    column: impl Iterator<Item = i32>,
+    lo: &mut i32,
+    hi: &mut i32,
+) {
+    for (slot, c) in codes.iter_mut().zip(column) {
+        slot[k] = c;
+        (*lo, *hi) = ((*lo).min(c), (*hi).max(c));
+    }
+}
+
+/// Turns the integer codes that `positions` hold (bit for bit) into scene
+/// coordinates, split over the cores; an error when one does not fit f32.
+fn to_scene(positions: &mut [Vec3], axes: &[Axis; 3]) -> Result<(), String> {
+    let chunk = positions
+        .len()
+        .div_ceil(crate::available_threads())
+        .max(1 << 16);
+    let failures: Vec<Option<String>> = std::thread::scope(|scope| {
+        let parts: Vec<_> = positions
+            .chunks_mut(chunk)
+            .map(|part| {
+                scope.spawn(move || {
+                    let slots: &mut [[u32; 3]] = bytemuck::cast_slice_mut(part);
+                    for slot in slots {
+                        let code = slot.map(|b| b as i32);
+                        let p: [f32; 3] = std::array::from_fn(|k| axes[k].local(code[k]));
+                        if !p.iter().all(|v| v.is_finite()) {
+                            let file: [f64; 3] = std::array::from_fn(|k| axes[k].file(code[k]));
+                            return Some(format!(
+                                "a point at {file:?} does not fit in f32 after re-centring on the origin"
+                            ));
+                        }
+                        *slot = p.map(f32::to_bits);
+                    }
+                    None
+                })
+            })
+            .collect();
+        parts
+            .into_iter()
+            .map(|h| h.join().expect("no panic"))
+            .collect()
+    });
+    match failures.into_iter().flatten().next() {
+        Some(msg) => Err(msg),
+        None => Ok(()),
+    }
+}
+
+/// Applies `f` to every color, split over the cores.
+fn map_colors(colors: &mut [Vec3], f: &(dyn Fn(Vec3) -> Vec3 + Sync)) {
+    let chunk = colors
+        .len()
+        .div_ceil(crate::available_threads())
+        .max(1 << 16);
+    std::thread::scope(|scope| {
+        for part in colors.chunks_mut(chunk) {
+            scope.spawn(move || part.iter_mut().for_each(|c| *c = f(*c)));
+        }
+    });
+}
+
+/// The dimensions a point format holds, in record order, as `info` lists them.
+fn attributes(format: &las::point::Format) -> Vec<String> {
+    let mut names: Vec<&str> = vec![
+        "x",
+        "y",
+        "z",
+        "intensity",
+        "return_number",
+        "number_of_returns",
+        "classification",
+        "scan_angle",
+        "user_data",
+        "point_source_id",
+    ];
+    if format.has_gps_time {
+        names.push("gps_time");
+    }
+    if format.has_color {
+        names.extend(["red", "green", "blue"]);
+    }
+    if format.has_nir {
+        names.push("nir");
+    }
+    if format.has_waveform {
+        names.push("waveform_packet");
+    }
+    let mut names: Vec<String> = names.into_iter().map(String::from).collect();
+    if format.extra_bytes > 0 {
+        names.push(format!("extra_bytes({})", format.extra_bytes));
+    }
+    names
+}
+
+/// What `info` prints about a LAS file beyond the cloud's own lines.
+fn file_info(
+    header: &las::Header,
+    facts: &Preflight,
+    axes: &[Axis; 3],
+    codes: Option<([i32; 3], [i32; 3])>,
+    color_source: &str,
+) -> Vec<(String, String)> {
+    let format = header.point_format();
+    let is_copc = header.vlrs().iter().any(|v| v.is_copc_info());
+    let kind = match (format.is_compressed, is_copc) {
+        (true, true) => "COPC (LAZ)",
+        (true, false) => "LAZ",
+        (false, _) => "LAS",
+    };
+    let version = header.version();
+    let number = format.to_u8().map_or("?".to_string(), |n| n.to_string());
+    let v3 = |f: &dyn Fn(&Axis) -> f64| format!("{} {} {}", f(&axes[0]), f(&axes[1]), f(&axes[2]));
+    let mut lines = vec![
+        ("format".to_string(), kind.to_string()),
+        (
+            "las_version".to_string(),
+            format!("{}.{}", version.major, version.minor),
+        ),
+        (
+            "point_format".to_string(),
+            format!("{number} ({} bytes per record)", facts.record_len),
+        ),
+        ("scale".to_string(), v3(&|a| a.scale)),
+        ("offset".to_string(), v3(&|a| a.offset)),
+    ];
+    if let Some((lo, hi)) = codes {
+        let corner = |c: [i32; 3]| {
+            let v: Vec<String> = (0..3).map(|k| display_coord(axes[k].file(c[k]))).collect();
+            v.join(" ")
+        };
+        lines.push(("file_bounds_min".to_string(), corner(lo)));
+        lines.push(("file_bounds_max".to_string(), corner(hi)));
+    }
+    lines.push(("crs".to_string(), crs_text(header)));
+    lines.push(("color_source".to_string(), color_source.to_string()));
+    let software = header
+        .generating_software()
+        .trim_matches(char::from(0))
+        .trim();
+    if !software.is_empty() {
+        lines.push(("generating_software".to_string(), software.to_string()));
+    }
+    lines
+}
+
+/// The file's coordinate reference system as one line: the WKT when the
+/// file carries one, else the GeoTIFF keys' EPSG codes, else "none".
+fn crs_text(header: &las::Header) -> String {
+    if let Some(wkt) = header.get_wkt_crs_bytes() {
+        let text = String::from_utf8_lossy(wkt);
+        let text = text.trim_matches(char::from(0)).trim();
+        if !text.is_empty() {
+            return format!(
+                "WKT {}",
+                text.split_whitespace().collect::<Vec<_>>().join(" ")
+            );
+        }
+    }
+    match header.get_geotiff_crs() {
+        Ok(Some(geo)) => {
+            let mut parts = Vec::new();
+            if let Some(code) = geo.get_projected_crs_geo_key_value() {
+                parts.push(format!("projected EPSG:{code}"));
+            }
+            if let Some(code) = geo.get_geodetic_crs_geo_key_value() {
+                parts.push(format!("geographic EPSG:{code}"));
+            }
+            if let Some(code) = geo.get_vertical_crs_geo_key_value() {
+                parts.push(format!("vertical EPSG:{code}"));
+            }
+            if parts.is_empty() {
+                format!("GeoTIFF keys ({} entries, no EPSG code)", geo.entries.len())
+            } else {
+                format!("GeoTIFF {}", parts.join(", "))
+            }
+        }
+        Ok(None) => "none".to_string(),
+        Err(e) => format!("unreadable GeoTIFF keys ({e})"),
+    }
+}

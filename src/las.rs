@@ -152,6 +152,13 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
         }
         data_end = start;
     }
+    // Waveform packets stored in the file (LAS 1.3+) follow the points.
+    if let Some(w) = raw
+        .start_of_waveform_data_packet_record
+        .filter(|&w| w > offset && w < data_end)
+    {
+        data_end = w;
+    }
     file.rewind().map_err(io)?;
     let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
     let points = header.number_of_points();
@@ -335,6 +342,9 @@ pub fn load_las(
                 tr.scale, tr.offset
             )));
         }
+    }
+    if total == 0 {
+        return Err(fail("the cloud is empty (0 points)".to_string()));
     }
     let n = usize::try_from(total).map_err(|_| fail(format!("{total} points is too many")))?;
     let mut cloud = PointCloud::default();

@@ -698,3 +698,17 @@ fn origin_and_coordinates_flags_are_checked() {
     assert!(psnr > 40.0, "{psnr}");
     assert!(ia.pixels.iter().any(|p| p[0] > 0.1));
 }
+
+#[test]
+fn a_file_of_no_points_is_an_error_as_an_empty_ply_is() {
+    let dir = scratch("las-empty");
+    let path = dir.path().join("empty.laz");
+    write_las(&path, 3, &[], 0.01, DVec3::new(5e6, 0.0, 0.0));
+    let err = load_cloud(&path, None, &mut |_, _| {}).unwrap_err();
+    assert!(err.to_string().contains("empty"), "{err}");
+    let p = path.display().to_string();
+    let out = dir.path().join("out.png");
+    let out_s = out.display().to_string();
+    assert_fails(&["render", &p, "-o", &out_s], "the cloud is empty", &out);
+    assert_fails(&["info", &p], "the cloud is empty", &out);
+}

@@ -163,7 +163,7 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
     let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
     let points = header.number_of_points();
     if header.point_format().is_compressed {
-        check_chunk_table(path, file, offset, data_end, points, &header)?;
+        check_chunk_table(path, file, (offset, data_end, file_len), points, &header)?;
     } else {
         let room = data_end - offset;
         let need = points.saturating_mul(record_len);
@@ -185,14 +185,14 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
 
 /// Checks a LAZ file's chunk table against the file and the header: its
 /// offset (the first 8 bytes of the point data, or the file's last 8 where
-/// those are −1) inside the data, version 0, no more chunks than bytes of
+/// those are −1; `data_end` is where the points end: the first EVLR or the
+/// file's end) inside the data, version 0, no more chunks than bytes of
 /// compressed data or points, and, for chunks of a fixed size, a point
 /// count the chunks can hold.
 fn check_chunk_table(
     path: &Path,
     file: &mut File,
-    data_start: u64,
-    data_end: u64,
+    (data_start, data_end, file_len): (u64, u64, u64),
     points: u64,
     header: &las::Header,
 ) -> Result<()> {
@@ -221,7 +221,8 @@ fn check_chunk_table(
     }
     let mut table = read_u64_at(data_start)?;
     if table as i64 == -1 {
-        table = read_u64_at(data_end - 8)?;
+        // Written last, as LASzip does when it cannot seek back.
+        table = read_u64_at(file_len - 8)?;
     }
     if table < data_start + 8 || table > data_end.saturating_sub(8) {
         return Err(fail(format!(

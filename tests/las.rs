@@ -712,3 +712,21 @@ fn a_file_of_no_points_is_an_error_as_an_empty_ply_is() {
     assert_fails(&["render", &p, "-o", &out_s], "the cloud is empty", &out);
     assert_fails(&["info", &p], "the cloud is empty", &out);
 }
+
+#[test]
+fn a_laz_chunk_table_offset_written_at_the_end_is_followed() {
+    // LASzip writers that cannot seek back write −1 where the chunk
+    // table's offset goes and the offset itself as the file's last 8 bytes.
+    let dir = scratch("las-chunk-offset");
+    let recs = records(1200, 9, 255, 255);
+    let path = dir.path().join("seek.laz");
+    write_las(&path, 3, &recs, 0.01, DVec3::ZERO);
+    let mut bytes = std::fs::read(&path).unwrap();
+    let data = u32::from_le_bytes(bytes[96..100].try_into().unwrap()) as usize;
+    let offset: [u8; 8] = bytes[data..data + 8].try_into().unwrap();
+    bytes[data..data + 8].copy_from_slice(&(-1i64).to_le_bytes());
+    bytes.extend(offset);
+    let moved = dir.path().join("moved.laz");
+    std::fs::write(&moved, bytes).unwrap();
+    assert_same_points(&load(&moved, None), &load(&path, None), "offset at the end");
+}

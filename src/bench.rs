@@ -31,6 +31,59 @@ use crate::vk::{Context, FrameTimings};
 /// Lens samples of the quality reference (`--quality`).
 pub const REFERENCE_SAMPLES: u32 = 256;
 
+/// The matrix `bench` runs when none is given, chosen by the device: the
+/// full one (Zhao's Table 1 extended) on a GPU, one that finishes in a few
+/// minutes on a CPU implementation such as lavapipe (where the full one
+/// takes hours).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DefaultMatrix {
+    pub methods: &'static str,
+    pub models: &'static str,
+    pub resolutions: Vec<(u32, u32)>,
+    pub runs: u32,
+    pub warmup: u32,
+}
+
+impl DefaultMatrix {
+    /// The default for a device of this type.
+    pub fn for_device(device_type: ash::vk::PhysicalDeviceType) -> DefaultMatrix {
+        if device_type == ash::vk::PhysicalDeviceType::CPU {
+            DefaultMatrix {
+                methods: "pinhole,fast,rdb9,layered4",
+                models: "bunny",
+                resolutions: vec![(640, 480)],
+                runs: 3,
+                warmup: 1,
+            }
+        } else {
+            DefaultMatrix {
+                methods: BenchMethod::DEFAULT,
+                models: BenchModel::DEFAULT,
+                resolutions: vec![(640, 480), (1920, 1080)],
+                runs: 5,
+                warmup: 2,
+            }
+        }
+    }
+
+    /// One line saying what was picked.
+    pub fn describe(&self) -> String {
+        let resolutions: Vec<String> = self
+            .resolutions
+            .iter()
+            .map(|(w, h)| format!("{w}x{h}"))
+            .collect();
+        format!(
+            "methods {}, models {}, {}, {} runs after {} warm-up",
+            self.methods,
+            self.models,
+            resolutions.join(" and "),
+            self.runs,
+            self.warmup
+        )
+    }
+}
+
 /// A method of the matrix, as named on the command line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchMethod {

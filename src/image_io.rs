@@ -347,6 +347,130 @@ fn encode(img: &LinearImage, format: FileFormat, file: File, path: &Path) -> Res
 
 /// The PNG's pixels: RGB, sRGB-encoded to 8 bits ([`linear_to_srgb8`]),
 /// alpha dropped.
+/// One channel of an EXR file: its name and `width · height` samples, row
+/// by row from the top.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExrChannel {
+    pub name: String,
+    pub samples: Vec<f32>,
+}
+
+/// Writes named 32-bit float channels as one single-part EXR (lossless ZIP
+/// compression), atomically as [`write_image`]: what `--passes` writes
+/// (`R`, `G`, `B`, `A`, `Z`, `CoC`; compositors read `R G B A` as the
+/// image and `Z` as its depth). Errors name `path`.
+pub fn write_exr_channels(
+    path: &Path,
+    width: u32,
+    height: u32,
+    channels: &[ExrChannel],
+) -> Result<()> {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes, Vec2,
+        WritableImage,
+    };
+    if FileFormat::from_path(path)? != FileFormat::Exr {
+        return Err(Error::InvalidArgument(format!(
+            "{}: channels other than R, G, B are written as EXR only",
+            path.display()
+        )));
+    }
+    let expected = width as usize * height as usize;
+    if let Some(c) = channels.iter().find(|c| c.samples.len() != expected) {
+        return Err(Error::InvalidArgument(format!(
+            "{}: channel {} has {} samples, a {width}x{height} image needs {expected}",
+            path.display(),
+            c.name,
+            c.samples.len()
+        )));
+    }
+    let list = channels
+        .iter()
+        .map(|c| AnyChannel::new(c.name.as_str(), FlatSamples::F32(c.samples.clone())))
+        .collect();
+    let layer = Layer::new(
+        Vec2(width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    let image = Image::from_layer(layer);
+    write_atomically(path, |file| {
+        let mut out = BufWriter::new(file);
+        image
+            .write()
+            .to_buffered(&mut out)
+            .map_err(|e| Error::Image {
+                path: path.to_owned(),
+                msg: format!("EXR encoding: {e}"),
+            })?;
+        sync_buffered(out, path)
+    })
+}
+
+/// Reads every channel of the first part of an EXR file as 32-bit floats
+/// (half and unsigned samples converted), sorted by name: the size and the
+/// channels.
+pub fn read_exr_channels(path: &Path) -> Result<(u32, u32, Vec<ExrChannel>)> {
+    use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers};
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| Error::Image {
+            path: path.to_owned(),
+            msg: format!("EXR decoding: {e}"),
+        })?;
+    let layer = image.layer_data;
+    let size = layer.size;
+    let channels = layer
+        .channel_data
+        .list
+        .into_iter()
+        .map(|c| ExrChannel {
+            name: c.name.to_string(),
+            samples: match c.sample_data {
+                FlatSamples::F32(v) => v,
+                FlatSamples::F16(v) => v.into_iter().map(f32::from).collect(),
+                FlatSamples::U32(v) => v.into_iter().map(|u| u as f32).collect(),
+            },
+        })
+        .collect();
+    Ok((size.0 as u32, size.1 as u32, channels))
+}
+
+/// Writes a premultiplied linear RGBA image as an 8-bit PNG with alpha:
+/// straight (un-premultiplied) color, sRGB-encoded, and alpha = A·255
+/// rounded (`--background transparent`). Atomic as [`write_image`].
+pub fn write_png_rgba(img: &LinearImage, path: &Path) -> Result<()> {
+    check_png_path(path)?;
+    let rgba: Vec<u8> = img
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            let a = p[3].clamp(0.0, 1.0);
+            let straight = |c: f32| if a > 0.0 { (c / a).min(1.0) } else { 0.0 };
+            let alpha = (a * 255.0).round() as u8;
+            [
+                linear_to_srgb8(straight(p[0])),
+                linear_to_srgb8(straight(p[1])),
+                linear_to_srgb8(straight(p[2])),
+                alpha,
+            ]
+        })
+        .collect();
+    write_atomically(path, |file| {
+        let mut out = BufWriter::new(file);
+        PngEncoder::new(&mut out)
+            .write_image(&rgba, img.width, img.height, ExtendedColorType::Rgba8)
+            .map_err(|e| encoding_error(e, path, FileFormat::Png))?;
+        sync_buffered(out, path)
+    })
+}
+
 fn srgb8_rgb(img: &LinearImage) -> Vec<u8> {
     img.pixels
         .iter()

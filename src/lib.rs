@@ -27,6 +27,7 @@ pub mod ply;
 pub mod reference;
 pub mod render;
 pub mod report;
+pub mod sequence;
 pub mod synth;
 pub mod tree;
 #[allow(unsafe_code)]

@@ -3,6 +3,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
@@ -16,7 +18,8 @@ use pointlens::chart;
 use pointlens::cloud::load_cloud;
 use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{
-    check_output_path, check_png_path, is_png_path, read_image, write_atomically, write_image,
+    check_output_path, check_png_path, is_png_path, read_image, write_atomically,
+    write_exr_channels, write_image, write_png_rgba, ExrChannel,
 };
 use pointlens::metrics;
 use pointlens::options::{
@@ -26,24 +29,65 @@ use pointlens::options::{
 };
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
+use pointlens::sequence::{CameraPath, FramePattern, FrameRange, Motion};
 use pointlens::tree::Lod;
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
+use signal_hook::consts::{SIGINT, SIGTERM};
 
 #[derive(Parser)]
 #[command(
     name = "pointlens",
     version,
-    about = "Offline point-cloud renderer with physically based depth of field (Vulkan)"
+    about = "Offline point-cloud renderer with physically based depth of field (Vulkan)",
+    after_help = "Start with: pointlens render data/bunny_colored.ply -o bunny.png \
+                  (depth of field by the ray distribution buffer). \
+                  'pointlens render --help' has worked examples.",
+    subcommand_required = false,
+    arg_required_else_help = true
 )]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    /// List the Vulkan devices (the default one marked) and exit; pick one
+    /// with --device NAME.
+    #[arg(long)]
+    list_devices: bool,
+    /// More messages on stderr: -v what is done, -vv details (RUST_LOG, as
+    /// `RUST_LOG=pointlens=debug`, wins over both).
+    #[arg(short, long, action = clap::ArgAction::Count, global = true, conflicts_with = "quiet")]
+    verbose: u8,
+    /// Errors only: no progress bars, no warnings.
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
+
+/// Worked examples of `render --help`.
+const RENDER_EXAMPLES: &str = "\
+Examples:
+  Depth of field, focused on what pixel 320,240 sees:
+    pointlens render data/bunny_colored.ply -o bunny.png --focus-pixel 320,240
+  A camera of a real lens (50 mm at f/2 on a 36 mm wide sensor, scene in metres):
+    pointlens render scan.ply -o out.png --focal-length-mm 50 --sensor-width-mm 36 \\
+        --f-number 2 --units-per-mm 0.001 --eye 0,0,2 --target 0,0,0 --focus-distance 2
+  A turntable of 120 frames with a focus pull, as numbered PNGs:
+    pointlens render data/bunny_colored.ply -o turn/bunny_%04d.png --frames 120 \\
+        --orbit 360 --focus-from 0.15 --focus-to 0.3
+  A camera path (JSON keyframes) to EXR with depth and CoC passes:
+    pointlens render scan.ply -o shot/f_%04d.exr --path path.json --passes z,coc
+  A LiDAR tile, camera in the file's coordinates (UTM metres):
+    pointlens render tile.laz -o tile.png --coordinates file \\
+        --eye 637000,851000,700 --target 637200,851200,400
+  One machine's share of a sequence on a render farm (frames 101-200, resumable):
+    pointlens render scene.ply -o shot/f_%04d.png --path path.json \\
+        --frame-range 101-200 --skip-existing
+See docs/SEQUENCES.md for sequences and render farms.";
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float) image.
+    /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float)
+    /// image, or a sequence of them.
+    #[command(after_help = RENDER_EXAMPLES)]
     Render(Box<RenderArgs>),
     /// Compare two images (PNG or EXR) of the same size: PSNR (dB) and max
     /// absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
@@ -89,21 +133,27 @@ struct BenchArgs {
     #[arg(long, requires = "width")]
     height: Option<u32>,
     /// Comma-separated methods: pinhole, fast, fast-uniform, fast-fixed,
-    /// rdbN, rdbN-pairs, layeredK, accumS.
-    #[arg(long, default_value = BenchMethod::DEFAULT)]
-    methods: String,
-    /// Comma-separated models: bunny, mug, synthetic, or PLY, LAS or LAZ files.
-    #[arg(long, default_value = BenchModel::DEFAULT)]
-    models: String,
+    /// rdbN, rdbN-pairs, layeredK, accumS (default: by the device, see
+    /// below).
+    #[arg(long)]
+    methods: Option<String>,
+    /// Comma-separated models: bunny, mug, synthetic, or PLY, LAS or LAZ
+    /// files. Without --methods, --models, --width/--height and --runs the
+    /// matrix is the device's default: on a GPU pinhole,fast,rdb5,rdb9,
+    /// accum64 × bunny,mug,synthetic × 640x480 and 1920x1080, 5 runs; on a
+    /// CPU device (lavapipe) pinhole,fast,rdb9,layered4 × bunny × 640x480,
+    /// 3 runs, minutes instead of hours. It is printed on stderr.
+    #[arg(long)]
+    models: Option<String>,
     /// Points of the synthetic model.
     #[arg(long, default_value_t = 1_000_000)]
     points: usize,
-    /// Timed runs per cell.
-    #[arg(long, default_value_t = 5)]
-    runs: u32,
-    /// Untimed runs before them.
-    #[arg(long, default_value_t = 2)]
-    warmup: u32,
+    /// Timed runs per cell (default: the device's matrix's).
+    #[arg(long)]
+    runs: Option<u32>,
+    /// Untimed runs before them (default: the device's matrix's).
+    #[arg(long)]
+    warmup: Option<u32>,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
@@ -151,7 +201,8 @@ struct BenchArgs {
 struct RenderArgs {
     /// PLY (ASCII or binary), LAS or LAZ (COPC included) file.
     input: PathBuf,
-    /// Output image: .png (sRGB 8-bit) or .exr (linear float).
+    /// Output image: .png (sRGB 8-bit) or .exr (linear float); for a
+    /// sequence with a frame number, `shot_%04d.png`.
     #[arg(short, long)]
     output: PathBuf,
     /// Camera file (JSON, DESIGN §2); the flags below override single fields.
@@ -161,8 +212,9 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole | fast | rdb | layered | accum.
-    #[arg(long, default_value = "pinhole", value_parser = method_kind)]
+    /// pinhole | fast | rdb | layered | accum (default rdb: the best image
+    /// for its cost, docs/BENCHMARKS.md).
+    #[arg(long, default_value = "rdb", value_parser = method_kind)]
     method: MethodKind,
     /// Weights of the fast method: area (by inverse CoC area) or uniform
     /// (the paper's plain mean).
@@ -209,12 +261,82 @@ struct RenderArgs {
     /// Lens aperture radius, scene units.
     #[arg(long, conflicts_with = "f_number", allow_negative_numbers = true)]
     aperture_radius: Option<f32>,
-    /// f-number (needs focal_length_mm and units_per_mm from a camera file).
+    /// f-number N: aperture radius f / 2N (needs --focal-length-mm and
+    /// --units-per-mm, or those fields of the camera file).
     #[arg(long, allow_negative_numbers = true)]
     f_number: Option<f32>,
+    /// Focal length, mm: with a sensor size gives the field of view, with
+    /// --f-number and --units-per-mm the aperture.
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    focal_length_mm: Option<f32>,
+    /// Sensor height, mm, fitted to the image's height (Blender's vertical
+    /// fit): vertical field of view 2·atan(h / 2f).
+    #[arg(
+        long,
+        value_name = "MM",
+        conflicts_with = "sensor_width_mm",
+        allow_negative_numbers = true
+    )]
+    sensor_height_mm: Option<f32>,
+    /// Sensor width, mm, fitted to the image's width (Blender's horizontal
+    /// fit): vertical field of view 2·atan(w·H / (2f·W)).
+    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    sensor_width_mm: Option<f32>,
+    /// Scene units per millimetre (0.001 for a scene in metres), to take
+    /// the focal length into scene units.
+    #[arg(long, value_name = "U", allow_negative_numbers = true)]
+    units_per_mm: Option<f32>,
     /// Depth of the plane in focus along the view axis, scene units.
     #[arg(long, allow_negative_numbers = true)]
     focus_distance: Option<f32>,
+    /// A sequence of N frames (numbered 1 to N) changed by --orbit,
+    /// --focus-from/--focus-to, --aperture-from/--aperture-to.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    frames: Option<u32>,
+    /// Turn the eye about the target by DEG over the sequence, around the
+    /// up axis: frame i at DEG·(i−1)/N (360 loops without a repeated frame).
+    #[arg(
+        long,
+        value_name = "DEG",
+        requires = "frames",
+        allow_negative_numbers = true
+    )]
+    orbit: Option<f64>,
+    /// Focus pull: focus distance at frame 1 (linear to --focus-to at frame N).
+    #[arg(long, value_name = "S", requires_all = ["frames", "focus_to"],
+          conflicts_with_all = ["focus_distance", "focus_pixel"], allow_negative_numbers = true)]
+    focus_from: Option<f32>,
+    /// Focus distance at frame N.
+    #[arg(
+        long,
+        value_name = "S",
+        requires = "focus_from",
+        allow_negative_numbers = true
+    )]
+    focus_to: Option<f32>,
+    /// Aperture pull: aperture radius at frame 1 (linear to --aperture-to).
+    #[arg(long, value_name = "R", requires_all = ["frames", "aperture_to"],
+          conflicts_with_all = ["aperture_radius", "f_number"], allow_negative_numbers = true)]
+    aperture_from: Option<f32>,
+    /// Aperture radius at frame N.
+    #[arg(
+        long,
+        value_name = "R",
+        requires = "aperture_from",
+        allow_negative_numbers = true
+    )]
+    aperture_to: Option<f32>,
+    /// A camera path: JSON keyframes of camera-file fields with a frame
+    /// number each (docs/SEQUENCES.md); renders its first to last frame.
+    #[arg(long, value_name = "PATH.json", conflicts_with = "frames")]
+    path: Option<PathBuf>,
+    /// Render only frames A to B of the sequence (or frame A): any range
+    /// gives the same images as the whole run.
+    #[arg(long, value_name = "A-B", value_parser = frame_range)]
+    frame_range: Option<FrameRange>,
+    /// Leave frames whose output file exists (to resume a sequence).
+    #[arg(long)]
+    skip_existing: bool,
     /// Eye position X,Y,Z (in the coordinates `--coordinates` names).
     #[arg(long, value_parser = parse_dvec3, allow_hyphen_values = true)]
     eye: Option<[f64; 3]>,
@@ -240,9 +362,16 @@ struct RenderArgs {
     /// Every splat a P×P pixel square.
     #[arg(long, allow_negative_numbers = true)]
     splat_px: Option<f32>,
-    /// Background color R,G,B, sRGB values in [0, 1] (default black).
-    #[arg(long, value_parser = parse_vec3)]
-    background: Option<[f32; 3]>,
+    /// Background color R,G,B, sRGB values in [0, 1] (default black), or
+    /// `transparent`: alpha is the coverage (blurred with the image) and
+    /// the color premultiplied by it (EXR), or straight (PNG with alpha).
+    #[arg(long, value_name = "R,G,B|transparent", value_parser = parse_background)]
+    background: Option<Background>,
+    /// Extra EXR channels, comma-separated: `z` (channel Z: eye depth of
+    /// the nearest surface, scene units, +inf on background) and `coc`
+    /// (channel CoC: its circle of confusion, pixels). docs/SEQUENCES.md.
+    #[arg(long, value_name = "z,coc", value_parser = parse_passes)]
+    passes: Option<Passes>,
     /// Level of detail: draw a node of the splat hierarchy as one splat
     /// when it projects to at most P pixels (0: every point, no culling).
     #[arg(long, value_name = "P", default_value_t = 1.0, allow_negative_numbers = true,
@@ -301,9 +430,49 @@ fn checked_f32(
     }
 }
 
+/// `--frame-range`: the library's parser.
+fn frame_range(s: &str) -> Result<FrameRange, String> {
+    FrameRange::parse(s).map_err(|e| e.to_string())
+}
+
 /// `--method`: the library's parser, whose error names the methods.
 fn method_kind(s: &str) -> Result<MethodKind, String> {
     MethodKind::parse(s).map_err(|e| e.to_string())
+}
+
+/// `--background`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Background {
+    Transparent,
+    Srgb([f32; 3]),
+}
+
+fn parse_background(s: &str) -> Result<Background, String> {
+    if s.trim().eq_ignore_ascii_case("transparent") {
+        return Ok(Background::Transparent);
+    }
+    parse_vec3(s)
+        .map(Background::Srgb)
+        .map_err(|e| format!("{e} (or 'transparent')"))
+}
+
+/// `--passes`: the EXR channels beside R, G, B, A.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Passes {
+    z: bool,
+    coc: bool,
+}
+
+fn parse_passes(s: &str) -> Result<Passes, String> {
+    let mut passes = Passes::default();
+    for name in s.split(',') {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "z" => passes.z = true,
+            "coc" => passes.coc = true,
+            other => return Err(format!("unknown pass '{other}' (known: z, coc)")),
+        }
+    }
+    Ok(passes)
 }
 
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
@@ -362,12 +531,16 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    init_logging(cli.verbose, cli.quiet);
+    let quiet = cli.quiet;
     let result = match cli.command {
-        Command::Render(args) => render(*args),
-        Command::Compare { a, b, diff } => compare(&a, &b, diff.as_deref()),
-        Command::Info { input, origin } => info(&input, origin),
-        Command::Bench(args) => bench(*args),
-        Command::Synth { points, output } => synth(points, &output),
+        _ if cli.list_devices => list_devices(),
+        Some(Command::Render(args)) => render(*args, quiet),
+        Some(Command::Compare { a, b, diff }) => compare(&a, &b, diff.as_deref()),
+        Some(Command::Info { input, origin }) => info(&input, origin, quiet),
+        Some(Command::Bench(args)) => bench(*args, quiet),
+        Some(Command::Synth { points, output }) => synth(points, &output, quiet),
+        None => Err(anyhow::anyhow!("no command given (see 'pointlens --help')")),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -389,6 +562,56 @@ fn main() -> ExitCode {
     }
 }
 
+/// Logging through `log` to stderr: warnings by default, -v info, -vv
+/// debug, -q errors only; `RUST_LOG` wins when set.
+fn init_logging(verbose: u8, quiet: bool) {
+    let level = match (quiet, verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, _) => "debug",
+    };
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
+        .format(|buf, record| {
+            let level = record.level().as_str().to_ascii_lowercase();
+            writeln!(buf, "pointlens: {level}: {}", record.args())
+        })
+        .init();
+}
+
+/// A progress bar on stderr (drawn only when stderr is a terminal), or
+/// none with `-q`.
+fn progress(len: u64, template: &str, quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(len)
+        .with_style(ProgressStyle::with_template(template).expect("a valid template"))
+}
+
+fn list_devices() -> Result<()> {
+    let devices = Context::list_devices()?;
+    if devices.is_empty() {
+        bail!("the Vulkan loader reports no device");
+    }
+    for d in devices {
+        let mark = if d.default { "*" } else { " " };
+        let unusable = d
+            .unusable
+            .map(|u| format!(", unusable: {u}"))
+            .unwrap_or_default();
+        println!(
+            "{mark} {} [{}, Vulkan {}, {} MiB device-local{unusable}]",
+            d.description,
+            d.kind,
+            d.api_version,
+            d.heap_bytes >> 20
+        );
+    }
+    println!("(* the default; choose another with --device NAME, any part of its name or driver)");
+    Ok(())
+}
+
 /// Fails early when `path`'s directory does not exist, so a long run does
 /// not end without a place for its result.
 fn check_parent_dir(path: &Path, flag: &str) -> Result<()> {
@@ -400,7 +623,7 @@ fn check_parent_dir(path: &Path, flag: &str) -> Result<()> {
     }
 }
 
-fn bench(args: BenchArgs) -> Result<()> {
+fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
     for (path, flag) in [(&args.json, "--json"), (&args.csv, "--csv")] {
         if let Some(p) = path {
             check_parent_dir(p, flag)?;
@@ -412,7 +635,7 @@ fn bench(args: BenchArgs) -> Result<()> {
     }
     let report = match &args.from_json {
         Some(path) => read_bench_report(path)?,
-        None => measure(&args)?,
+        None => measure(&args, quiet)?,
     };
     print!("{}", report.to_markdown());
     if let Some(path) = &args.json {
@@ -436,16 +659,33 @@ fn read_bench_report(path: &Path) -> Result<bench::BenchReport> {
 }
 
 /// Runs the matrix the flags describe.
-fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
-    let methods = BenchMethod::parse_list(&args.methods)?;
-    let models = BenchModel::parse_list(&args.models)?;
+fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    let default = bench::DefaultMatrix::for_device(ctx.info.device_type);
+    let chosen = args.methods.is_none()
+        && args.models.is_none()
+        && args.width.is_none()
+        && args.runs.is_none();
+    if chosen && !quiet {
+        eprintln!(
+            "bench: no matrix given; for {} ({:?}): {} (choose with --methods, --models, --width/--height, --runs)",
+            ctx.info.describe(),
+            ctx.info.device_type,
+            default.describe()
+        );
+    }
+    let methods = BenchMethod::parse_list(args.methods.as_deref().unwrap_or(default.methods))?;
+    let models = BenchModel::parse_list(args.models.as_deref().unwrap_or(default.models))?;
     if args.points == 0 && models.contains(&BenchModel::Synthetic) {
         bail!("--points must be at least 1 for the synthetic model");
     }
     let resolutions = match (args.width, args.height) {
         (Some(0), _) | (_, Some(0)) => bail!("--width and --height must be at least 1"),
         (Some(w), Some(h)) => vec![(w, h)],
-        _ => vec![(640, 480), (1920, 1080)],
+        _ => default.resolutions.clone(),
     };
     for model in &models {
         if let BenchModel::File(p) = model {
@@ -464,8 +704,8 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
         models,
         resolutions,
         points: args.points,
-        runs: args.runs,
-        warmup: args.warmup,
+        runs: args.runs.unwrap_or(default.runs),
+        warmup: args.warmup.unwrap_or(default.warmup),
         ssaa: args.ssaa,
         samples_per_pass: args.samples_per_pass,
         quality: args.quality,
@@ -482,13 +722,10 @@ fn measure(args: &BenchArgs) -> Result<bench::BenchReport> {
             .collect::<anyhow::Result<Vec<f32>>>()?,
         data_dir,
     };
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    let bar = ProgressBar::new(bench::frame_count(&options)).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} frames, {elapsed} {msg}")
-            .expect("a valid template"),
+    let bar = progress(
+        bench::frame_count(&options),
+        "{bar:30} {pos}/{len} frames, {elapsed} {msg}",
+        quiet,
     );
     let report = bench::run(&ctx, &options, &mut |done, _, what| {
         bar.set_position(done);
@@ -513,34 +750,36 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
 
 /// Loads a cloud of any format, with a progress bar on stderr while a
 /// LAS/LAZ file streams in (drawn only when stderr is a terminal).
-fn load(input: &Path, origin: Option<[f64; 3]>) -> Result<PointCloud> {
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("loading {bar:30} {pos}/{len} points, {elapsed}")
-            .expect("a valid template"),
-    );
+fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointCloud> {
+    let bar = progress(0, "loading {bar:30} {pos}/{len} points, {elapsed}", quiet);
+    let started = Instant::now();
     let cloud = load_cloud(input, origin.map(DVec3::from_array), &mut |done, total| {
         bar.set_length(total);
         bar.set_position(done);
     });
     bar.finish_and_clear();
-    Ok(cloud?)
+    let cloud = cloud?;
+    log::info!(
+        "{}: {} points loaded in {:.2} s",
+        input.display(),
+        cloud.len(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(cloud)
 }
 
-fn info(input: &Path, origin: Option<[f64; 3]>) -> Result<()> {
-    let cloud = load(input, origin)?;
+fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
+    let cloud = load(input, origin, quiet)?;
     print!("{}", cloud.info_text(input));
     Ok(())
 }
 
-fn synth(points: u64, output: &Path) -> Result<()> {
+fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
     if points == 0 {
         bail!("--points must be at least 1");
     }
     check_parent_dir(output, "-o")?;
-    let bar = ProgressBar::new(points).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} points, {elapsed}")
-            .expect("a valid template"),
-    );
+    let bar = progress(points, "{bar:30} {pos}/{len} points, {elapsed}", quiet);
     let t = Instant::now();
     let written = if pointlens::las::has_las_extension(output) {
         pointlens::synth::write_las(output, points, &mut |done| bar.set_position(done))
@@ -578,7 +817,52 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-fn render(args: RenderArgs) -> Result<()> {
+/// What `render` makes: one image, or a sequence of numbered ones.
+enum Shot {
+    Single,
+    Motion(Motion),
+    Path(CameraPath),
+}
+
+impl Shot {
+    fn of(args: &RenderArgs) -> Result<Shot> {
+        if let Some(path) = &args.path {
+            return Ok(Shot::Path(CameraPath::from_json_file(path)?));
+        }
+        let Some(frames) = args.frames else {
+            return Ok(Shot::Single);
+        };
+        let motion = Motion {
+            frames,
+            orbit_deg: args.orbit,
+            focus: args.focus_from.zip(args.focus_to).map(|(a, b)| [a, b]),
+            aperture: args
+                .aperture_from
+                .zip(args.aperture_to)
+                .map(|(a, b)| [a, b]),
+        };
+        motion.check()?;
+        Ok(Shot::Motion(motion))
+    }
+
+    /// The frame numbers, first and last.
+    fn frames(&self) -> (u32, u32) {
+        match self {
+            Shot::Single => (1, 1),
+            Shot::Motion(m) => m.frames(),
+            Shot::Path(p) => p.frames(),
+        }
+    }
+}
+
+/// A frame to render: its number, camera and output file.
+struct FrameJob {
+    number: u32,
+    camera: camera::Camera,
+    output: PathBuf,
+}
+
+fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     let method = args.method.with(
         FastOptions {
             weights: args.fast_weights,
@@ -599,6 +883,35 @@ fn render(args: RenderArgs) -> Result<()> {
         },
     );
     check_output_path(&args.output)?;
+    let shot = Shot::of(&args)?;
+    let pattern = FramePattern::parse(&args.output)?;
+    let sequence = !matches!(shot, Shot::Single);
+    match (&pattern, sequence) {
+        (None, true) => bail!(
+            "-o {}: a sequence needs a frame number in the output name, e.g. shot_%04d.png",
+            args.output.display()
+        ),
+        (Some(_), false) => bail!(
+            "-o {}: a frame number pattern, but one frame to render (add --frames N or --path FILE)",
+            args.output.display()
+        ),
+        _ => {}
+    }
+    if !sequence && (args.frame_range.is_some() || args.skip_existing) {
+        bail!("--frame-range and --skip-existing are for sequences (--frames N or --path FILE)");
+    }
+    let range = match args.frame_range {
+        Some(r) => r.within(shot.frames())?,
+        None => {
+            let (first, last) = shot.frames();
+            FrameRange { first, last }
+        }
+    };
+    let output_of = |frame: u32| match &pattern {
+        Some(p) => p.path(frame),
+        None => args.output.clone(),
+    };
+    check_parent_dir(&output_of(range.first), "-o")?;
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
         bail!("--splat-size must be a positive number, not {w}");
     }
@@ -606,15 +919,27 @@ fn render(args: RenderArgs) -> Result<()> {
         bail!("--splat-px must be a positive number, not {p}");
     }
     let background = match args.background {
-        Some(c) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
+        Some(Background::Srgb(c)) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
             bail!("--background takes sRGB values in [0, 1], got {c:?}")
         }
-        Some(c) => Vec3::from_array(c.map(srgb_to_linear)),
-        None => Vec3::ZERO,
+        Some(Background::Srgb(c)) => Vec3::from_array(c.map(srgb_to_linear)),
+        Some(Background::Transparent) | None => Vec3::ZERO,
     };
+    let written = Written {
+        transparent: args.background == Some(Background::Transparent),
+        passes: args.passes.unwrap_or_default(),
+    };
+    if args.passes.is_some() && is_png_path(&args.output)? {
+        bail!("--passes writes EXR channels: use an .exr output");
+    }
+    let lod = Lod {
+        px: args.lod_px,
+        blur: args.lod_blur,
+    };
+    check_lod(&lod)?;
 
     let t_load = Instant::now();
-    let cloud = load(&args.input, args.origin)?;
+    let cloud = load(&args.input, args.origin, quiet)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
 
     let flags = CameraSpec {
@@ -625,25 +950,75 @@ fn render(args: RenderArgs) -> Result<()> {
         target: args.target,
         up: args.up,
         fovy_deg: args.fovy_deg,
+        focal_length_mm: args.focal_length_mm,
+        sensor_height_mm: args.sensor_height_mm,
+        sensor_width_mm: args.sensor_width_mm,
         aperture_radius: args.aperture_radius,
         f_number: args.f_number,
+        units_per_mm: args.units_per_mm,
         focus_distance: args.focus_distance,
         ..CameraSpec::default()
     };
-    let spec = match &args.camera {
-        Some(path) => {
-            let spec = CameraSpec::from_json_file(path)?.overridden_by(&flags);
+    let file = match &args.camera {
+        Some(path) => Some((path, CameraSpec::from_json_file(path)?)),
+        None => None,
+    };
+    // The fields of frame `frame`: camera file, then the path's, then flags.
+    let spec_of = |frame: u32| -> Result<CameraSpec> {
+        let mut spec = file.as_ref().map(|(_, s)| s.clone()).unwrap_or_default();
+        if let Shot::Path(path) = &shot {
+            spec = spec.overridden_by(&path.spec_at(frame));
+        }
+        let spec = spec.overridden_by(&flags);
+        if let Some((path, _)) = &file {
             spec.require_complete()
                 .with_context(|| path.display().to_string())?;
-            spec
         }
-        None => flags,
+        Ok(spec)
     };
-    let coordinates = spec.coordinates.unwrap_or_default();
     let origin = cloud.origin;
-    let spec = spec.in_scene(origin)?;
     let (lo, hi) = cloud.bounds();
-    let mut cam = camera::resolve(&spec, lo, hi, &cloud.positions)?;
+    let resolve = |spec: &CameraSpec| -> Result<camera::Camera> {
+        let in_scene = spec.in_scene(origin)?;
+        Ok(camera::resolve(&in_scene, lo, hi, &cloud.positions)?)
+    };
+    // Every frame's camera before any is rendered: a bad keyframe fails
+    // the run before the first frame.
+    let first_spec = spec_of(range.first)?;
+    let coordinates = first_spec.coordinates.unwrap_or_default();
+    let base = resolve(&first_spec)?;
+    let mut jobs = Vec::new();
+    for number in range.first..=range.last {
+        let camera = match &shot {
+            Shot::Single => base,
+            Shot::Motion(motion) => motion.camera(&base, number),
+            Shot::Path(_) => resolve(&spec_of(number)?)
+                .with_context(|| format!("frame {number} of {}", path_name(&args)))?,
+        };
+        jobs.push(FrameJob {
+            number,
+            camera,
+            output: output_of(number),
+        });
+    }
+    let all = jobs.len();
+    if args.skip_existing {
+        jobs.retain(|job| {
+            let exists = job.output.exists();
+            if exists {
+                log::info!(
+                    "frame {}: {} exists, skipped",
+                    job.number,
+                    job.output.display()
+                );
+            }
+            !exists
+        });
+        if jobs.is_empty() {
+            log::warn!("nothing to render: the {all} frames' files exist");
+            return Ok(());
+        }
+    }
 
     let splat = match (args.splat_size, args.splat_px) {
         (Some(w), _) => SplatSize::World(w),
@@ -654,66 +1029,241 @@ fn render(args: RenderArgs) -> Result<()> {
         args.validate,
         args.device.clone(),
     ))?;
+    log::info!("device: {}", ctx.info.describe());
     let renderer = Renderer::new(&ctx)?;
     let scene = renderer.upload(&cloud, splat)?;
     let points = cloud.len();
     drop(cloud); // The hierarchy holds the points from here on.
-    let lod = Lod {
-        px: args.lod_px,
-        blur: args.lod_blur,
-    };
-    check_lod(&lod)?;
-    if let Some([x, y]) = args.focus_pixel {
-        cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, lod, x, y)?;
-    }
-    if args.print_camera {
-        println!("{}", cam.to_spec_in(coordinates, origin).to_json());
-    }
-    let options = RenderOptions {
-        camera: cam,
-        method,
-        ssaa: args.ssaa,
-        samples_per_pass: args.samples_per_pass,
-        background,
-        lod,
-    };
-    // PNG pixels are encoded on the device; EXR gets the linear floats.
-    let (rendered, encode_ms) = if is_png_path(&args.output)? {
-        let rendered = renderer.render_srgb8(&scene, &options)?;
-        let t_encode = Instant::now();
-        rendered.image.write_png(&args.output)?;
-        (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3)
-    } else {
-        let rendered = renderer.render(&scene, &options)?;
-        let t_encode = Instant::now();
-        write_image(&rendered.image, &args.output)?;
-        (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3)
-    };
 
-    let report = FrameReport {
-        samples_per_pass: rendered.samples_per_pass,
-        counts: rendered.counts.clone(),
-        lod: rendered.lod,
-        load_ms,
-        encode_ms,
-        ..FrameReport::new(
-            &ctx.info,
-            method.short_name(),
-            (cam.width, cam.height),
-            args.ssaa,
-            points,
-            rendered.guard,
-            &rendered.timings,
-            scene.upload,
-        )
+    // SIGINT or SIGTERM ends a sequence after the frame being rendered
+    // (its file complete); a second one ends it at once.
+    let stop = Arc::new(AtomicBool::new(false));
+    if sequence {
+        for signal in [SIGINT, SIGTERM] {
+            signal_hook::flag::register_conditional_shutdown(signal, 130, stop.clone())
+                .context("installing a signal handler")?;
+            signal_hook::flag::register(signal, stop.clone())
+                .context("installing a signal handler")?;
+        }
+    }
+    let bar = match sequence {
+        true => progress(
+            jobs.len() as u64,
+            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
+            quiet,
+        ),
+        false => ProgressBar::hidden(),
     };
-    if args.timings {
-        eprint!("{}", report.text());
+    let mut printed = Vec::new();
+    let mut reports = Vec::new();
+    for (done, job) in jobs.iter().enumerate() {
+        if stop.load(Ordering::SeqCst) {
+            bar.abandon();
+            bail!(
+                "interrupted: {done} of {} frames written, frame {} and later not rendered \
+                 (run again with --skip-existing to resume)",
+                jobs.len(),
+                job.number
+            );
+        }
+        let t_frame = Instant::now();
+        let mut cam = job.camera;
+        if let Some([x, y]) = args.focus_pixel {
+            cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, lod, x, y)?;
+        }
+        let spec = cam.to_spec_in(coordinates, origin);
+        if args.print_camera && !sequence {
+            println!("{}", spec.to_json());
+        }
+        printed.push((job.number, spec));
+        let options = RenderOptions {
+            camera: cam,
+            method,
+            ssaa: args.ssaa,
+            samples_per_pass: args.samples_per_pass,
+            background,
+            lod,
+        };
+        let report = render_frame(&renderer, &scene, &options, &job.output, written)?;
+        let report = FrameReport {
+            load_ms,
+            ..report.into_report(&ctx, method.short_name(), args.ssaa, points, &scene)
+        };
+        log::info!(
+            "frame {}: {} in {:.2} s",
+            job.number,
+            job.output.display(),
+            t_frame.elapsed().as_secs_f64()
+        );
+        bar.set_message(format!("{:.2} s/frame", t_frame.elapsed().as_secs_f64()));
+        bar.inc(1);
+        if args.timings {
+            if sequence {
+                eprintln!("frame {}:", job.number);
+            }
+            eprint!("{}", report.text());
+        }
+        reports.push(report);
+    }
+    bar.finish_and_clear();
+    if args.print_camera && sequence {
+        println!("{}", CameraPath::of_frames(printed).to_json());
     }
     if let Some(path) = &args.timings_json {
-        write_text(path, &report.to_json())?;
+        let text = match (sequence, reports.as_slice()) {
+            (false, [one]) => one.to_json(),
+            _ => format!(
+                "[\n{}\n]",
+                reports
+                    .iter()
+                    .map(FrameReport::to_json)
+                    .collect::<Vec<_>>()
+                    .join(",\n")
+            ),
+        };
+        write_text(path, &text)?;
     }
     drop(scene);
     drop(renderer);
     Ok(ctx.check_validation()?)
+}
+
+fn path_name(args: &RenderArgs) -> String {
+    args.path
+        .as_deref()
+        .map_or_else(String::new, |p| p.display().to_string())
+}
+
+/// The G-buffer's eye depth of each output pixel (guard band cropped).
+fn output_depths(g: &pointlens::render::HostGBuffer, width: u32, height: u32) -> Vec<f32> {
+    let mut depth = Vec::with_capacity(width as usize * height as usize);
+    for y in 0..height {
+        let row = ((y + g.guard) * g.width + g.guard) as usize;
+        depth.extend(g.eye[row..row + width as usize].iter().map(|e| e[2]));
+    }
+    depth
+}
+
+/// What one frame's render measured, before it becomes a [`FrameReport`].
+struct FrameMeasure {
+    rendered: pointlens::render::Rendered<()>,
+    camera: camera::Camera,
+    encode_ms: f64,
+}
+
+impl FrameMeasure {
+    fn into_report(
+        self,
+        ctx: &Context,
+        method: String,
+        ssaa: u32,
+        points: usize,
+        scene: &pointlens::render::Scene,
+    ) -> FrameReport {
+        let r = self.rendered;
+        FrameReport {
+            samples_per_pass: r.samples_per_pass,
+            counts: r.counts.clone(),
+            lod: r.lod,
+            encode_ms: self.encode_ms,
+            ..FrameReport::new(
+                &ctx.info,
+                method,
+                (self.camera.width, self.camera.height),
+                ssaa,
+                points,
+                r.guard,
+                &r.timings,
+                scene.upload,
+            )
+        }
+    }
+}
+
+/// What a frame's file holds besides the color.
+#[derive(Debug, Clone, Copy)]
+struct Written {
+    /// Alpha = coverage (else opaque).
+    transparent: bool,
+    passes: Passes,
+}
+
+/// Renders one frame and writes it to `output` (atomically).
+fn render_frame(
+    renderer: &Renderer,
+    scene: &pointlens::render::Scene,
+    options: &RenderOptions,
+    output: &Path,
+    written: Written,
+) -> Result<FrameMeasure> {
+    let png = is_png_path(output)?;
+    if png && written.transparent {
+        let rendered = renderer.render(scene, options)?;
+        let t_encode = Instant::now();
+        write_png_rgba(&rendered.image, output)?;
+        return Ok(FrameMeasure {
+            rendered: rendered.map(|_| ()),
+            camera: options.camera,
+            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
+        });
+    }
+    if !png {
+        // EXR: R, G, B, A and the passes asked for.
+        let Passes { z, coc } = written.passes;
+        let (rendered, gbuffer) = match z || coc {
+            true => {
+                let (r, g) = renderer.render_with_gbuffer(scene, options)?;
+                (r, Some(g))
+            }
+            false => (renderer.render(scene, options)?, None),
+        };
+        let t_encode = Instant::now();
+        let image = &rendered.image;
+        let channel = |name: &str, samples: Vec<f32>| ExrChannel {
+            name: name.to_string(),
+            samples,
+        };
+        let component = |i: usize| image.pixels.iter().map(|p| p[i]).collect::<Vec<f32>>();
+        let mut channels = vec![
+            channel("R", component(0)),
+            channel("G", component(1)),
+            channel("B", component(2)),
+            channel(
+                "A",
+                match written.transparent {
+                    true => component(3),
+                    false => vec![1.0; image.pixels.len()],
+                },
+            ),
+        ];
+        if let Some(g) = gbuffer {
+            let depth = output_depths(&g, image.width, image.height);
+            if coc {
+                let cam = &options.camera;
+                channels.push(channel(
+                    "CoC",
+                    depth.iter().map(|&d| cam.coc_px(d)).collect(),
+                ));
+            }
+            if z {
+                channels.push(channel("Z", depth));
+            }
+        }
+        write_exr_channels(output, image.width, image.height, &channels)?;
+        return Ok(FrameMeasure {
+            rendered: rendered.map(|_| ()),
+            camera: options.camera,
+            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
+        });
+    }
+    // PNG pixels are encoded on the device.
+    let rendered = renderer.render_srgb8(scene, options)?;
+    let t_encode = Instant::now();
+    rendered.image.write_png(output)?;
+    let (rendered, encode_ms) = (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3);
+    Ok(FrameMeasure {
+        rendered,
+        camera: options.camera,
+        encode_ms,
+    })
 }

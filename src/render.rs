@@ -501,6 +501,9 @@ impl Renderer {
             ));
         }
         check_lod(&options.lod)?;
+        // What the frame before last left and the last one did not take is
+        // freed; the rest is this frame's to take (`vk::pool`).
+        self.ctx.next_frame();
         let started = Instant::now();
         let method = self.methods.get(&options.method);
         let (splats, lod_report, view) =

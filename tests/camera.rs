@@ -353,6 +353,7 @@ fn camera_file_parses_every_field_and_ignores_unknown_ones() {
             fovy_deg: Some(35.5),
             focal_length_mm: Some(50.0),
             sensor_height_mm: Some(24.0),
+            sensor_width_mm: None,
             aperture_radius: Some(0.25),
             f_number: Some(2.8),
             units_per_mm: Some(0.001),
@@ -459,6 +460,7 @@ fn flags_override_single_fields() {
         fovy_deg: Some(6.0),
         focal_length_mm: Some(7.0),
         sensor_height_mm: Some(8.0),
+        sensor_width_mm: Some(14.0),
         aperture_radius: Some(9.0),
         f_number: Some(10.0),
         units_per_mm: Some(11.0),
@@ -575,6 +577,61 @@ fn focal_length_gives_the_field_of_view() {
         ..spec
     };
     assert_eq!(resolve(&spec).unwrap().fovy_deg, 60.0);
+}
+
+#[test]
+fn a_sensor_width_is_fitted_to_the_image_width() {
+    let spec = CameraSpec {
+        fovy_deg: None,
+        width: Some(640),
+        height: Some(480),
+        focal_length_mm: Some(50.0),
+        sensor_width_mm: Some(36.0),
+        ..complete()
+    };
+    // The sensor's 36 mm span the 640 pixels: the height sees 36·480/640 =
+    // 27 mm, θ = 2·atan(27 / 100) = 30.21915°.
+    assert_close(resolve(&spec).unwrap().fovy_deg, 30.21915, 1e-3);
+    // A portrait image: the width still spans the sensor's width.
+    let portrait = CameraSpec {
+        width: Some(480),
+        height: Some(640),
+        ..spec.clone()
+    };
+    let expected = (2.0 * (36.0f64 * 640.0 / 480.0 / 100.0).atan()).to_degrees();
+    assert_close(resolve(&portrait).unwrap().fovy_deg, expected as f32, 1e-3);
+    // The sensor height gives the same camera where it is the width's share.
+    let by_height = CameraSpec {
+        sensor_width_mm: None,
+        sensor_height_mm: Some(27.0),
+        ..spec.clone()
+    };
+    assert_close(
+        resolve(&by_height).unwrap().fovy_deg,
+        resolve(&spec).unwrap().fovy_deg,
+        1e-5,
+    );
+    // Both sizes: an error naming the field (which side would they fit?).
+    let both = CameraSpec {
+        sensor_height_mm: Some(24.0),
+        ..spec.clone()
+    };
+    camera_error(resolve(&both), "sensor_width_mm");
+    // A sensor width is a field of view for the completeness check.
+    CameraSpec {
+        fovy_deg: None,
+        sensor_height_mm: None,
+        ..spec
+    }
+    .require_complete()
+    .unwrap();
+    camera_error(
+        resolve(&CameraSpec {
+            sensor_width_mm: Some(-1.0),
+            ..complete()
+        }),
+        "sensor_width_mm",
+    );
 }
 
 #[test]

@@ -71,9 +71,15 @@ pub struct CameraSpec {
     /// with `units_per_mm` and `f_number` the aperture.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focal_length_mm: Option<f32>,
-    /// Sensor height in mm (with `focal_length_mm`).
+    /// Sensor height in mm (with `focal_length_mm`): the sensor fitted to
+    /// the image's height (Blender's vertical sensor fit).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_height_mm: Option<f32>,
+    /// Sensor width in mm (with `focal_length_mm`), instead of the height:
+    /// the sensor fitted to the image's width (Blender's horizontal fit),
+    /// θ = 2·atan(w·H / (2f·W)).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_width_mm: Option<f32>,
     /// Aperture radius in scene units; wins over `f_number`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub aperture_radius: Option<f32>,
@@ -121,6 +127,7 @@ impl CameraSpec {
             fovy_deg: flags.fovy_deg.or(self.fovy_deg),
             focal_length_mm: flags.focal_length_mm.or(self.focal_length_mm),
             sensor_height_mm: flags.sensor_height_mm.or(self.sensor_height_mm),
+            sensor_width_mm: flags.sensor_width_mm.or(self.sensor_width_mm),
             aperture_radius: flags.aperture_radius.or(self.aperture_radius),
             f_number: flags.f_number.or(self.f_number),
             units_per_mm: flags.units_per_mm.or(self.units_per_mm),
@@ -196,7 +203,10 @@ impl CameraSpec {
             return missing("target", "missing from the camera file");
         }
         if self.fovy_deg.is_none() {
-            match (self.focal_length_mm, self.sensor_height_mm) {
+            match (
+                self.focal_length_mm,
+                self.sensor_height_mm.or(self.sensor_width_mm),
+            ) {
                 (Some(_), Some(_)) => {}
                 (Some(_), None) => {
                     return missing(
@@ -296,6 +306,13 @@ pub(super) fn validate(spec: &CameraSpec) -> Result<()> {
     }
     check_positive("focal_length_mm", spec.focal_length_mm)?;
     check_positive("sensor_height_mm", spec.sensor_height_mm)?;
+    check_positive("sensor_width_mm", spec.sensor_width_mm)?;
+    if spec.sensor_height_mm.is_some() && spec.sensor_width_mm.is_some() {
+        return Err(camera_error(
+            "sensor_width_mm",
+            "give sensor_height_mm or sensor_width_mm, not both: the one given is fitted to the image's height or width",
+        ));
+    }
     check_positive("units_per_mm", spec.units_per_mm)?;
     check_positive("f_number", spec.f_number)?;
     if let Some(r) = spec.aperture_radius {
@@ -310,14 +327,21 @@ pub(super) fn validate(spec: &CameraSpec) -> Result<()> {
     Ok(())
 }
 
-/// The vertical field of view in degrees: `fovy_deg`, else
-/// θ = 2·atan(h / 2f) from `focal_length_mm` and `sensor_height_mm`, else 40°.
-pub(super) fn resolve_fovy(spec: &CameraSpec) -> Result<f32> {
+/// The vertical field of view in degrees for a `width` × `height` image:
+/// `fovy_deg`, else θ = 2·atan(h / 2f) from `focal_length_mm` and
+/// `sensor_height_mm`, or θ = 2·atan(w·H / (2f·W)) from `sensor_width_mm`
+/// (the sensor's width fitted to the image's), else 40°.
+pub(super) fn resolve_fovy(spec: &CameraSpec, width: u32, height: u32) -> Result<f32> {
     if let Some(a) = spec.fovy_deg {
         return Ok(a);
     }
-    match (spec.focal_length_mm, spec.sensor_height_mm) {
-        (Some(f), Some(h)) => Ok((2.0 * (h / (2.0 * f)).atan()).to_degrees()),
+    let sensor_h = match (spec.sensor_height_mm, spec.sensor_width_mm) {
+        (Some(h), _) => Some(f64::from(h)),
+        (None, Some(w)) => Some(f64::from(w) * f64::from(height) / f64::from(width)),
+        (None, None) => None,
+    };
+    match (spec.focal_length_mm, sensor_h) {
+        (Some(f), Some(h)) => Ok((2.0 * (h / (2.0 * f64::from(f))).atan()).to_degrees() as f32),
         (Some(_), None) => Err(camera_error(
             "sensor_height_mm",
             "missing: focal_length_mm needs sensor_height_mm to give the field of view (or give fovy_deg)",

@@ -123,7 +123,7 @@ pub fn resolve(
     }
     let width = spec.width.unwrap_or(DEFAULT_WIDTH);
     let height = spec.height.unwrap_or(DEFAULT_HEIGHT);
-    let fovy_deg = resolve_fovy(spec)?;
+    let fovy_deg = resolve_fovy(spec, width, height)?;
     let up = spec.up.map_or(Vec3::Y, Vec3::from_array);
 
     let diagonal = (cloud_max - cloud_min).length();

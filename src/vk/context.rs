@@ -8,6 +8,8 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
+use super::pool::{Key, Parts, Pool};
+
 use crate::error::{Error, Result, VkContext};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
@@ -126,6 +128,8 @@ pub struct Context {
     queue_submit: Mutex<()>,
     pub(super) queue_family: u32,
     allocator: ManuallyDrop<Mutex<Allocator>>,
+    /// The last frames' dropped images and buffers, for the next frame.
+    pool: Mutex<Pool>,
     pub info: DeviceInfo,
     validation: bool,
 }
@@ -332,6 +336,7 @@ impl Context {
             queue_submit: Mutex::new(()),
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            pool: Mutex::new(Pool::default()),
             info,
             validation: options.validation,
         };
@@ -404,8 +409,95 @@ impl Context {
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
-    /// Names of the allocations still alive (empty when every resource was freed).
+    /// The pool of dropped images and buffers, locked.
+    pub(super) fn pool(&self) -> MutexGuard<'_, Pool> {
+        self.pool
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Destroys the objects of a pooled image or buffer and frees its memory.
+    pub(super) fn destroy(&self, parts: Parts) {
+        match parts {
+            Parts::Image {
+                raw,
+                view,
+                allocation,
+            } => {
+                // SAFETY: pooled objects are unused: they were dropped after
+                // the GPU finished with them (see `Image`'s drop), and the
+                // pool gave them to no one. View before image before memory.
+                unsafe {
+                    self.device.destroy_image_view(view, None);
+                    self.device.destroy_image(raw, None);
+                }
+                let _ = self.allocator().free(allocation);
+            }
+            Parts::Buffer { raw, allocation } => {
+                // SAFETY: as for images above.
+                unsafe { self.device.destroy_buffer(raw, None) };
+                let _ = self.allocator().free(allocation);
+            }
+        }
+    }
+
+    /// Takes the objects of a dropped image or buffer: into the pool when
+    /// it was made completely (and the pool is on), else destroyed.
+    pub(super) fn recycle(&self, key: &Key, parts: Parts, complete: bool) {
+        let unpooled = match complete {
+            true => self.pool().give(key.clone(), parts),
+            false => Some(parts),
+        };
+        if let Some(parts) = unpooled {
+            self.destroy(parts);
+        }
+    }
+
+    /// Starts a frame: frees the pooled images and buffers that neither of
+    /// the last two frames took (see `vk::pool`). Call before allocating a
+    /// frame's resources.
+    pub fn next_frame(&self) {
+        let stale = self.pool().next_frame();
+        for parts in stale {
+            self.destroy(parts);
+        }
+    }
+
+    /// Frees every pooled image and buffer (they are kept for the next
+    /// frame otherwise).
+    pub fn release_pool(&self) {
+        let all = self.pool().drain();
+        for parts in all {
+            self.destroy(parts);
+        }
+    }
+
+    /// Turns the recycling of images and buffers between frames on (the
+    /// default) or off (every frame makes its own and destroys them after:
+    /// for measuring what the recycling saves).
+    pub fn set_frame_pool(&self, on: bool) {
+        self.pool().disabled = !on;
+        if !on {
+            self.release_pool();
+        }
+    }
+
+    /// The pool's counts: (objects created anew, objects reused, objects
+    /// pooled now), for tests and reports.
+    pub fn pool_counts(&self) -> (u64, u64, usize) {
+        let pool = self.pool();
+        (pool.created, pool.reused, pool.len())
+    }
+
+    /// Bytes of device memory allocated now (pooled objects included).
+    pub fn allocated_bytes(&self) -> u64 {
+        self.allocator().generate_report().total_allocated_bytes
+    }
+
+    /// Names of the allocations still alive (empty when every resource was
+    /// freed), after freeing the pool.
     pub fn live_allocations(&self) -> Vec<String> {
+        self.release_pool();
         self.allocator()
             .generate_report()
             .allocations
@@ -449,6 +541,10 @@ impl Drop for Context {
         // messenger, instance.
         unsafe {
             let _ = self.device.device_wait_idle();
+        }
+        self.release_pool();
+        // SAFETY: as above; the pool is empty now.
+        unsafe {
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
             if let Some(m) = self.messenger.take() {
@@ -559,6 +655,108 @@ fn gbuffer_sample_counts(
     counts | vk::SampleCountFlags::TYPE_1
 }
 
+/// One Vulkan device as `--list-devices` shows it.
+#[derive(Debug, Clone)]
+pub struct DeviceListing {
+    /// `name (driver driver_info)`.
+    pub description: String,
+    /// `discrete GPU`, `integrated GPU`, `CPU`, …
+    pub kind: String,
+    /// Vulkan version, `1.3.230`.
+    pub api_version: String,
+    /// The largest device-local heap, bytes.
+    pub heap_bytes: u64,
+    /// Why pointlens cannot use it, if it cannot.
+    pub unusable: Option<String>,
+    /// Whether pointlens picks it when no `--device` is given.
+    pub default: bool,
+}
+
+impl Context {
+    /// Every Vulkan device the loader reports, with the one pointlens picks
+    /// by default marked (`--list-devices`).
+    pub fn list_devices() -> Result<Vec<DeviceListing>> {
+        // SAFETY: as in `Context::new`: the entry outlives the instance,
+        // destroyed before returning.
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| {
+            Error::VulkanSetup(format!(
+                "cannot load the Vulkan loader ({e}); {INSTALL_HINT}"
+            ))
+        })?;
+        let app_info = vk::ApplicationInfo::default()
+            .application_name(c"pointlens")
+            .api_version(vk::API_VERSION_1_3);
+        let info = vk::InstanceCreateInfo::default().application_info(&app_info);
+        // SAFETY: valid create info of locals.
+        let instance = unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")?;
+        let listed = list_with(&instance);
+        // SAFETY: nothing was created from the instance but queries.
+        unsafe { instance.destroy_instance(None) };
+        listed
+    }
+}
+
+/// The size of the largest device-local memory heap of `pd`, bytes.
+fn largest_local_heap(instance: &ash::Instance, pd: vk::PhysicalDevice) -> u64 {
+    // SAFETY: `pd` comes from this instance; a plain read.
+    let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
+    mem.memory_heaps[..mem.memory_heap_count as usize]
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0)
+}
+
+fn list_with(instance: &ash::Instance) -> Result<Vec<DeviceListing>> {
+    let chosen = pick_device(instance, None)
+        .ok()
+        .map(|(_, _, info)| info.name);
+    // SAFETY: valid instance; plain reads.
+    let devices =
+        unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+    let mut out = Vec::new();
+    for pd in devices {
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        // SAFETY: `pd` comes from this instance; one core 1.1 struct chained.
+        unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
+        let props = props2.properties;
+        let text = |s: std::result::Result<&CStr, _>| {
+            s.map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default()
+        };
+        let name = text(props.device_name_as_c_str());
+        let heap_bytes = largest_local_heap(instance, pd);
+        let v = props.api_version;
+        out.push(DeviceListing {
+            description: format!(
+                "{name} ({} {})",
+                text(driver.driver_name_as_c_str()),
+                text(driver.driver_info_as_c_str())
+            ),
+            kind: match props.device_type {
+                vk::PhysicalDeviceType::DISCRETE_GPU => "discrete GPU",
+                vk::PhysicalDeviceType::INTEGRATED_GPU => "integrated GPU",
+                vk::PhysicalDeviceType::VIRTUAL_GPU => "virtual GPU",
+                vk::PhysicalDeviceType::CPU => "CPU",
+                _ => "other",
+            }
+            .to_string(),
+            api_version: format!(
+                "{}.{}.{}",
+                vk::api_version_major(v),
+                vk::api_version_minor(v),
+                vk::api_version_patch(v)
+            ),
+            heap_bytes,
+            unusable: (v < vk::API_VERSION_1_3).then(|| "needs Vulkan 1.3".to_string()),
+            default: chosen.as_deref() == Some(name.as_str()),
+        });
+    }
+    Ok(out)
+}
+
 fn pick_device(
     instance: &ash::Instance,
     wanted: Option<&str>,
@@ -608,14 +806,7 @@ fn pick_device(
         }) else {
             continue;
         };
-        // SAFETY: as above.
-        let mem = unsafe { instance.get_physical_device_memory_properties(pd) };
-        let device_local_heap_bytes = mem.memory_heaps[..mem.memory_heap_count as usize]
-            .iter()
-            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
-            .map(|h| h.size)
-            .max()
-            .unwrap_or(0);
+        let device_local_heap_bytes = largest_local_heap(instance, pd);
         let gbuffer_sample_counts = gbuffer_sample_counts(instance, pd, &props);
         let mut features12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut features2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut features12);

@@ -8,11 +8,14 @@
 mod context;
 mod frame;
 mod pipeline;
+mod pool;
 mod reflect;
 mod resources;
 mod sync;
 
-pub use context::{Context, ContextOptions, DeviceInfo, MessageLog, ValidationMessage};
+pub use context::{
+    Context, ContextOptions, DeviceInfo, DeviceListing, MessageLog, ValidationMessage,
+};
 pub use frame::{texel_bytes, Frame, FrameTimings, PassTiming, Recorder};
 pub use pipeline::{
     check_push_layout, groups, Bind, Binding, ComputePipeline, PointPipeline, PointPipelineDesc,

@@ -7,6 +7,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 
+use super::pool::{Key, Parts};
 use super::Context;
 use crate::error::{Error, Result, VkContext};
 
@@ -16,6 +17,10 @@ pub struct Buffer {
     pub(super) raw: vk::Buffer,
     size: u64,
     allocation: Option<Allocation>,
+    /// What it was made with: where it goes back to the pool.
+    key: Key,
+    /// Made completely (bound, viewed): may go back to the pool.
+    complete: bool,
 }
 
 impl Buffer {
@@ -28,6 +33,24 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
         location: MemoryLocation,
     ) -> Result<Buffer> {
+        let key = Key::Buffer {
+            name: name.to_owned(),
+            size,
+            usage,
+            location: location.into(),
+        };
+        let pooled = ctx.pool().take(&key);
+        if let Some(Parts::Buffer { raw, allocation }) = pooled {
+            return Ok(Buffer {
+                ctx: ctx.clone(),
+                raw,
+                size,
+                allocation: Some(allocation),
+                key,
+                complete: true,
+            });
+        }
+        ctx.pool().created += 1;
         let info = vk::BufferCreateInfo::default()
             .size(size.max(4))
             .usage(usage)
@@ -36,13 +59,16 @@ impl Buffer {
         let raw = unsafe { ctx.device.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
         // SAFETY: `raw` was just created on this device.
         let requirements = unsafe { ctx.device.get_buffer_memory_requirements(raw) };
-        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
-            name,
-            requirements,
-            location,
-            linear: true,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        });
+        let allocation = allocate(
+            ctx,
+            &AllocationCreateDesc {
+                name,
+                requirements,
+                location,
+                linear: true,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            },
+        );
         let allocation = match allocation {
             Ok(a) => a,
             Err(e) => {
@@ -51,11 +77,13 @@ impl Buffer {
                 return Err(Error::Allocation(format!("{name} ({size} bytes): {e}")));
             }
         };
-        let buffer = Buffer {
+        let mut buffer = Buffer {
             ctx: ctx.clone(),
             raw,
             size,
             allocation: Some(allocation),
+            key,
+            complete: false,
         };
         let a = buffer.allocation.as_ref().expect("just set");
         // SAFETY: the allocation satisfies the buffer's requirements; bound once.
@@ -65,6 +93,7 @@ impl Buffer {
                 .vk("vkBindBufferMemory")?
         };
         ctx.set_name(raw, name);
+        buffer.complete = true;
         Ok(buffer)
     }
 
@@ -120,12 +149,30 @@ impl Buffer {
 
 impl Drop for Buffer {
     fn drop(&mut self) {
-        // SAFETY: the owner waited for the GPU before dropping (all submits
-        // in pointlens wait on a fence), so the buffer is not in use.
-        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
-        if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.allocator().free(a);
+        // The owner waited for the GPU before dropping (all submits in
+        // pointlens wait on a fence), so the buffer is not in use: the pool
+        // may hand it out again, or destroy it.
+        if let Some(allocation) = self.allocation.take() {
+            let parts = Parts::Buffer {
+                raw: self.raw,
+                allocation,
+            };
+            self.ctx.recycle(&self.key, parts, self.complete);
         }
+    }
+}
+
+/// Allocates memory; when the allocator refuses, frees the pool (what
+/// earlier frames left for later ones) and tries once more.
+fn allocate(ctx: &Context, desc: &AllocationCreateDesc<'_>) -> gpu_allocator::Result<Allocation> {
+    let first = ctx.allocator().allocate(desc);
+    match first {
+        Ok(a) => Ok(a),
+        Err(_) if ctx.pool_counts().2 > 0 => {
+            ctx.release_pool();
+            ctx.allocator().allocate(desc)
+        }
+        Err(e) => Err(e),
     }
 }
 
@@ -141,6 +188,10 @@ pub struct Image {
     /// Samples per pixel (1 unless made by [`Image::new_multisampled`]).
     samples: u32,
     allocation: Option<Allocation>,
+    /// What it was made with: where it goes back to the pool.
+    key: Key,
+    /// Made completely (bound, viewed): may go back to the pool.
+    complete: bool,
 }
 
 impl Image {
@@ -185,6 +236,35 @@ impl Image {
             samples.is_power_of_two() && samples <= 64,
             "{samples} samples per pixel"
         );
+        let key = Key::Image {
+            name: name.to_owned(),
+            format,
+            extent: [width, height, layers],
+            samples,
+            usage,
+        };
+        let pooled = ctx.pool().take(&key);
+        if let Some(Parts::Image {
+            raw,
+            view,
+            allocation,
+        }) = pooled
+        {
+            return Ok(Image {
+                ctx: ctx.clone(),
+                raw,
+                view,
+                format,
+                width,
+                height,
+                layers,
+                samples,
+                allocation: Some(allocation),
+                key,
+                complete: true,
+            });
+        }
+        ctx.pool().created += 1;
         let info = vk::ImageCreateInfo::default()
             .image_type(vk::ImageType::TYPE_2D)
             .format(format)
@@ -204,13 +284,16 @@ impl Image {
         let raw = unsafe { ctx.device.create_image(&info, None) }.vk("vkCreateImage")?;
         // SAFETY: `raw` was just created on this device.
         let requirements = unsafe { ctx.device.get_image_memory_requirements(raw) };
-        let allocation = ctx.allocator().allocate(&AllocationCreateDesc {
-            name,
-            requirements,
-            location: MemoryLocation::GpuOnly,
-            linear: false,
-            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-        });
+        let allocation = allocate(
+            ctx,
+            &AllocationCreateDesc {
+                name,
+                requirements,
+                location: MemoryLocation::GpuOnly,
+                linear: false,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            },
+        );
         let allocation = match allocation {
             Ok(a) => a,
             Err(e) => {
@@ -231,6 +314,8 @@ impl Image {
             layers,
             samples,
             allocation: Some(allocation),
+            key,
+            complete: false,
         };
         let a = image.allocation.as_ref().expect("just set");
         // SAFETY: the allocation satisfies the image's requirements; bound once.
@@ -253,6 +338,7 @@ impl Image {
             unsafe { ctx.device.create_image_view(&view_info, None) }.vk("vkCreateImageView")?;
         ctx.set_name(raw, name);
         ctx.set_name(image.view, name);
+        image.complete = true;
         Ok(image)
     }
 
@@ -307,13 +393,14 @@ impl Image {
 
 impl Drop for Image {
     fn drop(&mut self) {
-        // SAFETY: not in use (see Buffer::drop); view before image before memory.
-        unsafe {
-            self.ctx.device.destroy_image_view(self.view, None);
-            self.ctx.device.destroy_image(self.raw, None);
-        }
-        if let Some(a) = self.allocation.take() {
-            let _ = self.ctx.allocator().free(a);
+        // Not in use (see Buffer::drop): to the pool.
+        if let Some(allocation) = self.allocation.take() {
+            let parts = Parts::Image {
+                raw: self.raw,
+                view: self.view,
+                allocation,
+            };
+            self.ctx.recycle(&self.key, parts, self.complete);
         }
     }
 }

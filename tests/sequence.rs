@@ -244,6 +244,46 @@ fn a_transparent_png_has_alpha_and_an_opaque_exr_has_alpha_one() {
     let rgba = decoded.to_rgba8();
     assert_eq!(rgba.get_pixel(0, 0)[3], 0, "a corner sees no point");
     assert!(rgba.pixels().any(|p| p[3] == 255), "the bunny is opaque");
+    // Methods whose blur does not carry coverage refuse, rather than
+    // write alpha 1 everywhere.
+    let (b, t) = (bunny(), dir.join("r.png"));
+    let t_s = t.display().to_string();
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &t_s,
+            "--background",
+            "transparent",
+            "--method",
+            "rdb",
+        ],
+        "does not carry coverage",
+        &t,
+    );
+    // Layered and accum carry it: alpha between 0 and 1 on blurred edges.
+    for method in ["layered", "accum"] {
+        let exr = dir.join(format!("{method}.exr"));
+        render(
+            &exr,
+            &[
+                "--background",
+                "transparent",
+                "--method",
+                method,
+                "--samples",
+                "8",
+            ],
+        );
+        let (_, _, channels) = read_exr_channels(&exr).unwrap();
+        let a = &channels.iter().find(|c| c.name == "A").unwrap().samples;
+        assert!(a.contains(&0.0), "{method}: no transparent pixel");
+        assert!(
+            a.iter().any(|&v| v > 0.0 && v < 1.0),
+            "{method}: no blurred edge"
+        );
+    }
     let exr = dir.join("o.exr");
     render(&exr, &["--background", "0.2,0.3,0.4"]);
     let (_, _, channels) = read_exr_channels(&exr).unwrap();

@@ -1,12 +1,12 @@
 #version 460
 // Fast DOF, pass 4 (Zhao §3.3, DESIGN §4): each output pixel Q averages the
-// colors of the pixels P with |p − q| <= c_P / 2 and z_P <= z_Q, weighted
+// colors (and, as alpha, the coverage) of the pixels P with |p − q| <= c_P / 2 and z_P <= z_Q, weighted
 // by P's weight, gathering only as far as its tile's dilated radius. Where
 // that window holds only background (the tile's flag), every P has Q's own
 // CoC, weight and color: the same sums are formed from those, in the same
 // order, without loading each P — bitwise the plain gather's result; for a
-// black background every product and sum is +0 and the mean is +0, so
-// there is no loop at all.
+// black background (coverage 0) every product and sum is +0 and the mean
+// is +0, so there is no loop at all.
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -33,15 +33,15 @@ void main() {
     int r = int(floor(tile.x));
     // precise: no contraction into fused multiply-adds and no hoisting of
     // the products, so that both paths round alike on every compiler.
-    precise vec3 sum = vec3(0.0);
+    precise vec4 sum = vec4(0.0);
     precise float weight = 0.0;
     if (tile.y == 0.0) {
         // Only background around: z_P = z_Q = +inf passes the z test, and
         // c_P, w_P and the color are Q's.
         vec2 cw = imageLoad(coc_weight, q).xy;
-        vec3 color = imageLoad(gbuffer_color, q).rgb;
-        if (all(equal(color, vec3(0.0)))) {
-            imageStore(result, q, vec4(0.0, 0.0, 0.0, 1.0));
+        vec4 color = imageLoad(gbuffer_color, q);
+        if (all(equal(color, vec4(0.0)))) {
+            imageStore(result, q, vec4(0.0));
             return;
         }
         for (int dy = -r; dy <= r; ++dy) {
@@ -58,7 +58,7 @@ void main() {
                 weight += cw.y;
             }
         }
-        imageStore(result, q, vec4(sum / weight, 1.0));
+        imageStore(result, q, sum / weight);
         return;
     }
     for (int dy = -r; dy <= r; ++dy) {
@@ -75,10 +75,11 @@ void main() {
             if (imageLoad(gbuffer_eye, p).z > zq) {
                 continue;
             }
-            sum += cw.y * imageLoad(gbuffer_color, p).rgb;
+            sum += cw.y * imageLoad(gbuffer_color, p);
             weight += cw.y;
         }
     }
     // Q itself always takes part (distance 0, same depth): weight > 0.
-    imageStore(result, q, vec4(sum / weight, 1.0));
+    // Alpha: the contributors' coverage, weighted as their color.
+    imageStore(result, q, sum / weight);
 }

@@ -17,16 +17,17 @@ void main() {
         return;
     }
     ivec2 q = pc.tile_origin + t;
-    vec3 sum = vec3(0.0);
+    vec4 sum = vec4(0.0);
     float n = 0.0;
     for (int b = 0; b < pc.bins * pc.bins; ++b) {
         uint source = imageLoad(rdb_source, ivec3(t, b)).x;
         if (source != 0xFFFFFFFFu) {
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
-            sum += imageLoad(gbuffer_color, p).rgb;
+            sum += imageLoad(gbuffer_color, p);
             n += 1.0;
         }
     }
-    vec3 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin).rgb;
-    imageStore(result, q + pc.origin, vec4(color, 1.0));
+    // Alpha: the mean coverage of the sources, as the color.
+    vec4 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin);
+    imageStore(result, q + pc.origin, color);
 }

@@ -21,17 +21,18 @@ void main() {
     ivec2 q = pc.tile_origin + t;
     int n2 = pc.bins * pc.bins;
     uint first = uint((t.y * pc.tile_size.x + t.x) * n2);
-    vec3 sum = vec3(0.0);
+    vec4 sum = vec4(0.0);
     float n = 0.0;
     for (int b = 0; b < n2; ++b) {
         uint64_t word = bins64[first + uint(b)];
         if (bin_filled(word, pc.step)) {
             uint source = bin_source(word);
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
-            sum += imageLoad(gbuffer_color, p).rgb;
+            sum += imageLoad(gbuffer_color, p);
             n += 1.0;
         }
     }
-    vec3 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin).rgb;
-    imageStore(result, q + pc.origin, vec4(color, 1.0));
+    // Alpha: the mean coverage of the sources, as the color.
+    vec4 color = n > 0.0 ? sum / n : imageLoad(gbuffer_color, q + pc.origin);
+    imageStore(result, q + pc.origin, color);
 }

@@ -25,7 +25,7 @@ use pointlens::metrics;
 use pointlens::options::{
     check_layers, check_lod, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
     check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
-    LayeredOptions, Method, MethodKind, RdbAtomics, RdbMode, RdbOptions,
+    LayeredOptions, MethodKind, RdbAtomics, RdbMode, RdbOptions,
 };
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
@@ -929,13 +929,6 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         transparent: args.background == Some(Background::Transparent),
         passes: args.passes.unwrap_or_default(),
     };
-    if written.transparent && matches!(method, Method::Fast(_) | Method::Rdb(_)) {
-        bail!(
-            "--background transparent: --method {} does not carry coverage through its blur yet \
-             (its alpha would be 1 everywhere); use --method layered, accum or pinhole",
-            args.method.name()
-        );
-    }
     if args.passes.is_some() && is_png_path(&args.output)? {
         bail!("--passes writes EXR channels: use an .exr output");
     }

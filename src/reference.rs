@@ -43,7 +43,7 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
         for x in 0..camera.width as i64 {
             let (qx, qy) = (x + g, y + g);
             let zq = gbuffer.eye[(qy * w + qx) as usize][2];
-            let mut sum = [0.0f64; 3];
+            let mut sum = [0.0f64; 4];
             let mut total = 0.0f64;
             for py in 0..h {
                 for px in 0..w {
@@ -59,8 +59,8 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
                     total += weight[i] as f64;
                 }
             }
-            let mean = sum.map(|s| (s / total) as f32);
-            out.set(x as u32, y as u32, [mean[0], mean[1], mean[2], 1.0]);
+            // Alpha: the contributors' coverage, weighted as the color.
+            out.set(x as u32, y as u32, sum.map(|s| (s / total) as f32));
         }
     }
     out
@@ -159,11 +159,11 @@ pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> 
             let filled: Vec<u32> = (0..bins * bins)
                 .filter_map(|b| buffer.winner(x, y, b))
                 .collect();
+            // Alpha: the sources' mean coverage, as the color.
             let color = if filled.is_empty() {
-                let c = gbuffer.color[((y + g) * gw + x + g) as usize];
-                [c[0], c[1], c[2]]
+                gbuffer.color[((y + g) * gw + x + g) as usize]
             } else {
-                let mut sum = [0.0f32; 3];
+                let mut sum = [0.0f32; 4];
                 for s in &filled {
                     for (acc, v) in sum.iter_mut().zip(&gbuffer.color[*s as usize]) {
                         *acc += v;
@@ -171,7 +171,7 @@ pub fn rdb(gbuffer: &HostGBuffer, camera: &Camera, bins: u32, mode: RdbMode) -> 
                 }
                 sum.map(|v| v / filled.len() as f32)
             };
-            out.set(x, y, [color[0], color[1], color[2], 1.0]);
+            out.set(x, y, color);
         }
     }
     out

@@ -72,7 +72,8 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                 );
                 let mut worst = 0.0f32;
                 for (a, b) in gpu.image.pixels.iter().zip(&cpu.pixels) {
-                    for c in 0..3 {
+                    // Color and alpha (the coverage, weighted as the color).
+                    for c in 0..4 {
                         // The GPU stores rgba16f: a relative error of 2^-11.
                         let err = (a[c] - b[c]).abs() / b[c].abs().max(0.05);
                         worst = worst.max(err);
@@ -263,7 +264,7 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
                 .pixels
                 .iter()
                 .zip(&cpu.pixels)
-                .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
+                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
                 .fold(0.0f32, f32::max);
             assert!(worst < 2e-3, "{weights:?}: GPU and CPU differ by {worst}");
             // Tiles (16 px) whose square 16 px apron holds no point: the

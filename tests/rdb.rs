@@ -64,7 +64,8 @@ fn gpu_rdb_equals_the_cpu_reference_on_a_crop_of_a_real_scan_and_is_deterministi
                 "{bins}×{bins} {mode:?}: two runs differ"
             );
             let cpu = reference::rdb(&gbuffer, &cam, bins, mode);
-            // The result is stored as rgba16f: every channel within 1e-3
+            // The result is stored as rgba16f: every channel (alpha, the
+            // sources' mean coverage, included) within 1e-3
             // relative (0.05 absolute floor) and within one fp16 step of a
             // value below 1 (2^-11) of the reference; a ray landing in
             // another pixel would move a whole bin's share (≥ 1/N² of a
@@ -76,7 +77,7 @@ fn gpu_rdb_equals_the_cpu_reference_on_a_crop_of_a_real_scan_and_is_deterministi
                 .pixels
                 .iter()
                 .zip(&cpu.pixels)
-                .filter(|(a, b)| (0..3).any(|c| (a[c] - b[c]).abs() > 1e-3 * b[c].abs().max(0.05)))
+                .filter(|(a, b)| (0..4).any(|c| (a[c] - b[c]).abs() > 1e-3 * b[c].abs().max(0.05)))
                 .count();
             assert_eq!(differ, 0, "{bins}×{bins} {mode:?}: {differ} pixels differ");
             let worst = gpu
@@ -84,7 +85,7 @@ fn gpu_rdb_equals_the_cpu_reference_on_a_crop_of_a_real_scan_and_is_deterministi
                 .pixels
                 .iter()
                 .zip(&cpu.pixels)
-                .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
                 .fold(0.0f32, f32::max);
             assert!(
                 worst <= 1.0 / 2048.0,

@@ -244,26 +244,15 @@ fn a_transparent_png_has_alpha_and_an_opaque_exr_has_alpha_one() {
     let rgba = decoded.to_rgba8();
     assert_eq!(rgba.get_pixel(0, 0)[3], 0, "a corner sees no point");
     assert!(rgba.pixels().any(|p| p[3] == 255), "the bunny is opaque");
-    // Methods whose blur does not carry coverage refuse, rather than
-    // write alpha 1 everywhere.
-    let (b, t) = (bunny(), dir.join("r.png"));
-    let t_s = t.display().to_string();
-    assert_fails(
-        &[
-            "render",
-            &b,
-            "-o",
-            &t_s,
-            "--background",
-            "transparent",
-            "--method",
-            "rdb",
-        ],
-        "does not carry coverage",
-        &t,
-    );
-    // Layered and accum carry it: alpha between 0 and 1 on blurred edges.
-    for method in ["layered", "accum"] {
+    // Every method's blur carries coverage: alpha 0 away from the points,
+    // between 0 and 1 on blurred edges.
+    // Against accum's (the reference, 64 lens samples) the approximate
+    // methods' alpha differs as their color does: a mean absolute
+    // difference under 0.05 (measured 0.014–0.019 on lavapipe: the blur's
+    // shape; an alpha of 1 everywhere would differ by the whole share of
+    // background in the frame).
+    let mut alphas = Vec::new();
+    for method in ["accum", "fast", "rdb", "layered"] {
         let exr = dir.join(format!("{method}.exr"));
         render(
             &exr,
@@ -273,15 +262,34 @@ fn a_transparent_png_has_alpha_and_an_opaque_exr_has_alpha_one() {
                 "--method",
                 method,
                 "--samples",
-                "8",
+                "64",
             ],
         );
         let (_, _, channels) = read_exr_channels(&exr).unwrap();
-        let a = &channels.iter().find(|c| c.name == "A").unwrap().samples;
+        let a = channels
+            .into_iter()
+            .find(|c| c.name == "A")
+            .unwrap()
+            .samples;
         assert!(a.contains(&0.0), "{method}: no transparent pixel");
         assert!(
             a.iter().any(|&v| v > 0.0 && v < 1.0),
             "{method}: no blurred edge"
+        );
+        alphas.push((method, a));
+    }
+    let reference = &alphas[0].1;
+    for (method, a) in &alphas[1..] {
+        let mean = a
+            .iter()
+            .zip(reference)
+            .map(|(x, y)| (x - y).abs())
+            .sum::<f32>()
+            / a.len() as f32;
+        eprintln!("{method}: alpha differs from accum's by {mean} on average");
+        assert!(
+            mean < 0.05,
+            "{method}: alpha differs from accum's by {mean}"
         );
     }
     let exr = dir.join("o.exr");

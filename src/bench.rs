@@ -49,8 +49,8 @@ impl DefaultMatrix {
     pub fn for_device(device_type: ash::vk::PhysicalDeviceType) -> DefaultMatrix {
         if device_type == ash::vk::PhysicalDeviceType::CPU {
             DefaultMatrix {
-                methods: "pinhole,fast,rdb9,layered4",
-                models: "bunny",
+                methods: "pinhole,fast,rdb9,layered4,accum16",
+                models: "bunny,mug",
                 resolutions: vec![(640, 480)],
                 runs: 3,
                 warmup: 1,

@@ -141,8 +141,8 @@ struct BenchArgs {
     /// files. Without --methods, --models, --width/--height and --runs the
     /// matrix is the device's default: on a GPU pinhole,fast,rdb5,rdb9,
     /// accum64 × bunny,mug,synthetic × 640x480 and 1920x1080, 5 runs; on a
-    /// CPU device (lavapipe) pinhole,fast,rdb9,layered4 × bunny × 640x480,
-    /// 3 runs, minutes instead of hours. It is printed on stderr.
+    /// CPU device (lavapipe) pinhole,fast,rdb9,layered4,accum16 × bunny,mug
+    /// × 640x480, 3 runs, about a minute instead of hours. It is printed on stderr.
     #[arg(long)]
     models: Option<String>,
     /// Points of the synthetic model.
@@ -523,6 +523,11 @@ fn main() -> ExitCode {
             if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
                 let _ = e.print();
                 return ExitCode::SUCCESS;
+            }
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                // `pointlens` alone: the help, and a failure status.
+                let _ = e.print();
+                return ExitCode::from(2);
             }
             // One line: clap's first line, without its usage block.
             let text = e.render().to_string();

@@ -445,3 +445,30 @@ fn bench_fails_on_any_validation_message() {
         "{err}"
     );
 }
+
+#[test]
+fn the_default_matrix_depends_on_the_device_and_the_cpu_one_is_small() {
+    use pointlens::bench::DefaultMatrix;
+    let gpu = DefaultMatrix::for_device(ash::vk::PhysicalDeviceType::DISCRETE_GPU);
+    let cpu = DefaultMatrix::for_device(ash::vk::PhysicalDeviceType::CPU);
+    // Both name methods and models the parsers know.
+    for m in [&gpu, &cpu] {
+        BenchMethod::parse_list(m.methods).unwrap();
+        BenchModel::parse_list(m.models).unwrap();
+    }
+    // The CPU matrix: one resolution, 640×480, no cell of the GPU matrix's
+    // costliest kinds (1080p, the synthetic million points, accum64), and
+    // fewer frames in all.
+    assert_eq!(cpu.resolutions, [(640, 480)]);
+    assert!(!cpu.models.contains("synthetic"));
+    assert!(!cpu.methods.contains("accum64"));
+    let frames = |m: &DefaultMatrix| {
+        (m.runs + m.warmup) as usize
+            * m.methods.split(',').count()
+            * m.models.split(',').count()
+            * m.resolutions.len()
+    };
+    assert!(frames(&cpu) * 3 < frames(&gpu), "{cpu:?} vs {gpu:?}");
+    // What `bench` prints when it picks.
+    assert!(cpu.describe().contains("640x480"), "{}", cpu.describe());
+}

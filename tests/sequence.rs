@@ -636,3 +636,12 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
         }
     });
 }
+
+#[test]
+fn pointlens_alone_prints_its_help_and_fails() {
+    let o = pointlens(&[]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(err.contains("Usage: pointlens"), "{err}");
+    assert!(err.contains("--list-devices"), "{err}");
+}

@@ -645,3 +645,69 @@ fn pointlens_alone_prints_its_help_and_fails() {
     assert!(err.contains("Usage: pointlens"), "{err}");
     assert!(err.contains("--list-devices"), "{err}");
 }
+
+#[test]
+fn a_lidar_path_in_file_coordinates_with_autofocus_per_frame() {
+    // A fly-over of the Autzen tile with the keyframes in the file's
+    // coordinates (feet of a state plane): frame 1 equals the same camera
+    // rendered alone from a camera file, and --focus-pixel refocuses every
+    // frame on what the image centre sees.
+    let dir = scratch("seq-lidar");
+    let las = root().join("data/autzen_trim.las").display().to_string();
+    let key1 = r#""eye": [636300.0, 848700.0, 1100.0], "target": [636590.0, 849216.0, 460.0], "up": [0, 0, 1], "aperture_radius": 6.0, "focus_distance": 900, "fovy_deg": 50"#;
+    let key2 = r#""eye": [636900.0, 848700.0, 1000.0], "target": [636700.0, 849216.0, 460.0], "up": [0, 0, 1], "aperture_radius": 6.0, "focus_distance": 900, "fovy_deg": 50"#;
+    let path = dir.join("fly.json");
+    std::fs::write(
+        &path,
+        format!(
+            r#"{{"keyframes": [{{"frame": 1, "coordinates": "file", {key1}}}, {{"frame": 3, "coordinates": "file", {key2}}}]}}"#
+        ),
+    )
+    .unwrap();
+    let run = |out: &Path, extra: &[&str]| -> Output {
+        let out = out.display().to_string();
+        let mut args = vec!["render", las.as_str(), "-o", &out];
+        args.extend(SMALL);
+        args.extend(extra);
+        let o = pointlens(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        o
+    };
+    let path_s = path.display().to_string();
+    run(&dir.join("fly_%d.png"), &["--path", &path_s]);
+    let cam = dir.join("key1.json");
+    std::fs::write(&cam, format!(r#"{{"coordinates": "file", {key1}}}"#)).unwrap();
+    run(
+        &dir.join("alone.png"),
+        &["--camera", &cam.display().to_string()],
+    );
+    assert!(bytes(dir.join("fly_1.png")) == bytes(dir.join("alone.png")));
+    // Autofocus on the centre pixel, frame by frame: the printed path's
+    // focus distances are the depths seen there, not the keyframes' 900.
+    let o = run(
+        &dir.join("af_%d.png"),
+        &[
+            "--path",
+            &path_s,
+            "--focus-pixel",
+            "24,18",
+            "--print-camera",
+        ],
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let focus: Vec<f64> = printed["keyframes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k["focus_distance"].as_f64().unwrap())
+        .collect();
+    assert_eq!(focus.len(), 3);
+    assert!(focus.iter().all(|f| (*f - 900.0).abs() > 1.0), "{focus:?}");
+    assert!(focus[0] != focus[2], "{focus:?}");
+    // The printed path keeps the file's coordinates.
+    assert_eq!(printed["keyframes"][0]["coordinates"], "file");
+    assert_eq!(
+        printed["keyframes"][0]["eye"][0].as_f64().unwrap(),
+        636300.0
+    );
+}

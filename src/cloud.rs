@@ -63,18 +63,42 @@ pub fn load_cloud(
     origin: Option<DVec3>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> crate::Result<PointCloud> {
-    if is_las(path) {
-        return crate::las::load_las(path, origin, progress);
-    }
-    let mut cloud = crate::ply::load_ply(path)?;
-    if let Some(origin) = origin {
-        cloud.recentre(origin).map_err(|msg| crate::Error::Ply {
-            path: path.to_path_buf(),
-            msg,
-        })?;
+    let cloud = if is_las(path) {
+        crate::las::load_las(path, origin, progress)?
+    } else {
+        let mut cloud = crate::ply::load_ply(path)?;
+        if let Some(origin) = origin {
+            cloud.recentre(origin).map_err(|msg| crate::Error::Ply {
+                path: path.to_path_buf(),
+                msg,
+            })?;
+        }
+        cloud
+    };
+    if let Some(i) = cloud
+        .positions
+        .iter()
+        .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+    {
+        let at = cloud.positions[i];
+        return Err(crate::Error::InvalidArgument(format!(
+            "{}: point {i} at ({:e}, {:e}, {:e}) is beyond ±{MAX_COORDINATE:e} scene units{}, where \
+             squared distances overflow f32; remove it, or rescale or re-centre the cloud (--origin)",
+            path.display(),
+            at.x,
+            at.y,
+            at.z,
+            if cloud.origin == DVec3::ZERO { "" } else { " from the origin" },
+        )));
     }
     Ok(cloud)
 }
+
+/// The largest coordinate magnitude a rendered point may have (after
+/// re-centring): squared distances of such points still fit f32
+/// (1e18² = 1e36 < 3.4e38), so depths, CoCs and the splat hierarchy's
+/// spheres stay finite.
+pub const MAX_COORDINATE: f32 = 1e18;
 
 /// Whether `path` holds a LAS or LAZ file: by its first four bytes where it
 /// is a regular file, else by its extension.

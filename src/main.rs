@@ -567,6 +567,29 @@ fn main() -> ExitCode {
     }
 }
 
+/// `print!` that does not panic when stdout is a closed pipe
+/// (`pointlens compare a b | head -1`): see [`emit`].
+macro_rules! out {
+    ($($arg:tt)*) => {
+        emit(&format!($($arg)*))
+    };
+}
+
+/// Writes `text` to stdout. A closed pipe is not a failure: the reader
+/// wanted no more, so the text is dropped and the command goes on (a render
+/// still writes its image); any other failure is an error.
+fn emit(text: &str) -> Result<()> {
+    let mut stdout = std::io::stdout().lock();
+    match stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+    {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(anyhow::anyhow!("writing to standard output: {e}")),
+    }
+}
+
 /// Logging through `log` to stderr: warnings by default, -v info, -vv
 /// debug, -q errors only; `RUST_LOG` wins when set.
 fn init_logging(verbose: u8, quiet: bool) {
@@ -605,15 +628,15 @@ fn list_devices() -> Result<()> {
             .unusable
             .map(|u| format!(", unusable: {u}"))
             .unwrap_or_default();
-        println!(
-            "{mark} {} [{}, Vulkan {}, {} MiB device-local{unusable}]",
+        out!(
+            "{mark} {} [{}, Vulkan {}, {} MiB device-local{unusable}]\n",
             d.description,
             d.kind,
             d.api_version,
             d.heap_bytes >> 20
-        );
+        )?;
     }
-    println!("(* the default; choose another with --device NAME, any part of its name or driver)");
+    out!("(* the default; choose another with --device NAME, any part of its name or driver)\n")?;
     Ok(())
 }
 
@@ -642,7 +665,7 @@ fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
         Some(path) => read_bench_report(path)?,
         None => measure(&args, quiet)?,
     };
-    print!("{}", report.to_markdown());
+    out!("{}", report.to_markdown())?;
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report)?;
         write_text(path, &text)?;
@@ -775,7 +798,7 @@ fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointClou
 
 fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
     let cloud = load(input, origin, quiet)?;
-    print!("{}", cloud.info_text(input));
+    out!("{}", cloud.info_text(input))?;
     Ok(())
 }
 
@@ -794,12 +817,12 @@ fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
     bar.finish_and_clear();
     written?;
     let bytes = std::fs::metadata(output).map_or(0, |m| m.len());
-    println!(
-        "{}: {points} points, {:.1} MB, {:.2} s",
+    out!(
+        "{}: {points} points, {:.1} MB, {:.2} s\n",
         output.display(),
         bytes as f64 / 1e6,
         t.elapsed().as_secs_f64()
-    );
+    )?;
     Ok(())
 }
 
@@ -816,9 +839,7 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
         write_image(&heat, d)?;
     }
     // Identical images: "psnr: inf" (Rust formats infinity so).
-    println!("psnr: {psnr:.4}");
-    println!("ssim: {ssim:.6}");
-    println!("max_abs_error: {max:.6}");
+    out!("psnr: {psnr:.4}\nssim: {ssim:.6}\nmax_abs_error: {max:.6}\n")?;
     Ok(())
 }
 
@@ -1078,7 +1099,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         }
         let spec = cam.to_spec_in(coordinates, origin);
         if args.print_camera && !sequence {
-            println!("{}", spec.to_json());
+            out!("{}\n", spec.to_json())?;
         }
         printed.push((job.number, spec));
         let options = RenderOptions {
@@ -1112,7 +1133,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     }
     bar.finish_and_clear();
     if args.print_camera && sequence {
-        println!("{}", CameraPath::of_frames(printed).to_json());
+        out!("{}\n", CameraPath::of_frames(printed).to_json())?;
     }
     if let Some(path) = &args.timings_json {
         let text = match (sequence, reports.as_slice()) {

@@ -656,9 +656,11 @@ impl Readback {
             return;
         };
         frame.pass("readback", |rec| {
+            // The method's passes read the G-buffer in compute shaders, and
+            // the layered method's depth peel in fragment shaders too.
             rec.barriers(&[
-                (input.color, Access::COMPUTE_READ_WRITE, Access::COPY_SRC),
-                (input.eye, Access::COMPUTE_READ_WRITE, Access::COPY_SRC),
+                (input.color, Access::SHADER_READ_WRITE, Access::COPY_SRC),
+                (input.eye, Access::SHADER_READ_WRITE, Access::COPY_SRC),
             ]);
             let full = [self.view.full_width(), self.view.full_height()];
             rec.copy_image_to_buffer(input.color, [0, 0], full, color);

@@ -63,6 +63,21 @@ impl Access {
         ),
         layout: vk::ImageLayout::GENERAL,
     };
+    /// Any storage access by compute or fragment shaders: the source scope
+    /// for an image whose last users differ by method (the G-buffer before
+    /// its readback: compute for most, the depth peel's fragment shader
+    /// reads it for `layered`).
+    pub const SHADER_READ_WRITE: Access = Access {
+        stage: vk::PipelineStageFlags2::from_raw(
+            vk::PipelineStageFlags2::COMPUTE_SHADER.as_raw()
+                | vk::PipelineStageFlags2::FRAGMENT_SHADER.as_raw(),
+        ),
+        access: vk::AccessFlags2::from_raw(
+            vk::AccessFlags2::SHADER_STORAGE_READ.as_raw()
+                | vk::AccessFlags2::SHADER_STORAGE_WRITE.as_raw(),
+        ),
+        layout: vk::ImageLayout::GENERAL,
+    };
     /// An image filled by [`Recorder::clear_u32`](super::Recorder::clear_u32).
     pub const CLEAR: Access = Access {
         stage: vk::PipelineStageFlags2::CLEAR,

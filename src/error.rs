@@ -27,8 +27,9 @@ pub enum Error {
     /// Encoding or decoding an image file.
     #[error("{path}: {msg}")]
     Image { path: PathBuf, msg: String },
-    /// A Vulkan call failed.
-    #[error("Vulkan: {call} failed: {result}")]
+    /// A Vulkan call failed (with what to do about the results a user
+    /// can act on).
+    #[error("Vulkan: {call} failed: {result:?}{}", vk_hint(*result))]
     Vulkan {
         call: &'static str,
         result: ash::vk::Result,
@@ -48,6 +49,22 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What a user can do about a failed Vulkan call's result.
+fn vk_hint(result: ash::vk::Result) -> &'static str {
+    use ash::vk::Result as R;
+    match result {
+        R::ERROR_DEVICE_LOST => {
+            " (the GPU was lost: a driver reset or a frame that ran too long; run again, \
+             with a smaller frame: --width/--height, --lod-px, --rdb-memory-mb, --samples)"
+        }
+        R::ERROR_OUT_OF_DEVICE_MEMORY | R::ERROR_OUT_OF_HOST_MEMORY => {
+            " (out of memory: a smaller frame needs less: --width/--height, --rdb-memory-mb, \
+             --rdb-bins, --layers, or --lod-px above 0)"
+        }
+        _ => "",
+    }
+}
 
 /// Wraps an `ash` result with the name of the call, for one-line errors.
 pub(crate) trait VkContext<T> {

@@ -1115,11 +1115,15 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
             load_ms,
             ..report.into_report(&ctx, method.short_name(), args.ssaa, points, &scene)
         };
+        let (rss, peak) = pointlens::report::host_memory_bytes().unwrap_or_default();
         log::info!(
-            "frame {}: {} in {:.2} s",
+            "frame {}: {} in {:.2} s (device memory {} B, host resident {} B, peak {} B)",
             job.number,
             job.output.display(),
-            t_frame.elapsed().as_secs_f64()
+            t_frame.elapsed().as_secs_f64(),
+            ctx.allocated_bytes(),
+            rss,
+            peak
         );
         bar.set_message(format!("{:.2} s/frame", t_frame.elapsed().as_secs_f64()));
         bar.inc(1);

@@ -213,3 +213,21 @@ impl FrameReport {
         serde_json::to_string_pretty(self).expect("a frame report always serialises") + "\n"
     }
 }
+
+/// This process's host memory, bytes: (resident now, peak resident), from
+/// `/proc/self/status` (Linux; None elsewhere). `render -v` logs it per
+/// frame, the long-run test reads it.
+pub fn host_memory_bytes() -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let field = |name: &str| -> Option<u64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kb: u64 = line[name.len()..]
+            .trim()
+            .trim_end_matches("kB")
+            .trim()
+            .parse()
+            .ok()?;
+        Some(kb * 1024)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}

@@ -655,6 +655,30 @@ fn gbuffer_sample_counts(
     counts | vk::SampleCountFlags::TYPE_1
 }
 
+/// A fault to inject for tests of the error paths: the environment
+/// variable `POINTLENS_INJECT_FAULT=CALL=RESULT` (e.g.
+/// `vkQueueSubmit=ERROR_DEVICE_LOST`, `vkAllocateMemory=ERROR_OUT_OF_DEVICE_MEMORY`,
+/// or `vkAllocateMemory@gbuffer color=…` for one resource's memory) makes
+/// that call fail with that result instead of being made. Read once.
+pub(crate) fn injected_fault(call: &str) -> Option<vk::Result> {
+    static FAULT: std::sync::OnceLock<Option<(String, vk::Result)>> = std::sync::OnceLock::new();
+    let fault = FAULT.get_or_init(|| {
+        let text = std::env::var("POINTLENS_INJECT_FAULT").ok()?;
+        let (name, result) = text.split_once('=')?;
+        let result = match result {
+            "ERROR_DEVICE_LOST" => vk::Result::ERROR_DEVICE_LOST,
+            "ERROR_OUT_OF_DEVICE_MEMORY" => vk::Result::ERROR_OUT_OF_DEVICE_MEMORY,
+            "ERROR_OUT_OF_HOST_MEMORY" => vk::Result::ERROR_OUT_OF_HOST_MEMORY,
+            _ => return None,
+        };
+        Some((name.to_string(), result))
+    });
+    match fault {
+        Some((name, result)) if name == call => Some(*result),
+        _ => None,
+    }
+}
+
 /// One Vulkan device as `--list-devices` shows it.
 #[derive(Debug, Clone)]
 pub struct DeviceListing {

@@ -220,6 +220,12 @@ impl<'r> Frame<'r> {
             // The queue is externally synchronised: one submission at a
             // time, whichever thread shares the context.
             let _queue = ctx.queue_lock();
+            if let Some(result) = super::context::injected_fault("vkQueueSubmit") {
+                return Err(crate::error::Error::Vulkan {
+                    call: "vkQueueSubmit",
+                    result,
+                });
+            }
             ctx.device
                 .queue_submit(ctx.queue, &[submit], self.fence)
                 .vk("vkQueueSubmit")?;

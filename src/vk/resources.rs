@@ -74,7 +74,7 @@ impl Buffer {
             Err(e) => {
                 // SAFETY: the buffer is unused and unbound.
                 unsafe { ctx.device.destroy_buffer(raw, None) };
-                return Err(Error::Allocation(format!("{name} ({size} bytes): {e}")));
+                return Err(allocation_error(name, size, &e));
             }
         };
         let mut buffer = Buffer {
@@ -162,9 +162,28 @@ impl Drop for Buffer {
     }
 }
 
+/// The error of an allocation that failed: the resource, its size, and for
+/// running out of memory, the flags that make a frame smaller.
+fn allocation_error(what: &str, bytes: u64, e: &gpu_allocator::AllocationError) -> Error {
+    let mib = bytes as f64 / f64::from(1 << 20);
+    match e {
+        gpu_allocator::AllocationError::OutOfMemory => Error::Allocation(format!(
+            "out of device memory for {what}, {mib:.1} MiB; a smaller frame needs less: \
+             --width/--height, --rdb-memory-mb (the RDB in tiles), --rdb-bins, --layers, \
+             or --lod-px above 0"
+        )),
+        e => Error::Allocation(format!("{what}, {mib:.1} MiB: {e}")),
+    }
+}
+
 /// Allocates memory; when the allocator refuses, frees the pool (what
 /// earlier frames left for later ones) and tries once more.
 fn allocate(ctx: &Context, desc: &AllocationCreateDesc<'_>) -> gpu_allocator::Result<Allocation> {
+    let injected = super::context::injected_fault("vkAllocateMemory")
+        .or_else(|| super::context::injected_fault(&format!("vkAllocateMemory@{}", desc.name)));
+    if injected.is_some() {
+        return Err(gpu_allocator::AllocationError::OutOfMemory);
+    }
     let first = ctx.allocator().allocate(desc);
     match first {
         Ok(a) => Ok(a),
@@ -299,9 +318,11 @@ impl Image {
             Err(e) => {
                 // SAFETY: the image is unused and unbound.
                 unsafe { ctx.device.destroy_image(raw, None) };
-                return Err(Error::Allocation(format!(
-                    "{name} ({width}x{height}x{layers}): {e}"
-                )));
+                return Err(allocation_error(
+                    &format!("{name} ({width}x{height}x{layers})"),
+                    requirements.size,
+                    &e,
+                ));
             }
         };
         let mut image = Image {

@@ -242,6 +242,33 @@ fn check_chunk_table(
         )));
     }
     let vlr = header.laz_vlr().map_err(|e| las_error(path, e))?;
+    // The entries: their byte counts must fit in the compressed data, and
+    // variable-size chunks' point counts add up to the header's (else the
+    // decompressor sizes its buffers from them: a fuzzed table made it
+    // overflow a capacity and abort).
+    file.seek(SeekFrom::Start(data_start)).map_err(io)?;
+    let entries = laz::laszip::ChunkTable::read_from(&mut *file, &vlr)
+        .map_err(|e| fail(format!("its entries cannot be read ({e})")))?;
+    let mut bytes_sum = 0u64;
+    let mut points_sum = 0u64;
+    for entry in &entries {
+        bytes_sum = bytes_sum.saturating_add(entry.byte_count);
+        points_sum = points_sum.saturating_add(entry.point_count);
+    }
+    if bytes_sum > data_bytes {
+        return Err(fail(format!(
+            "its chunks hold {bytes_sum} bytes, the compressed data {data_bytes}"
+        )));
+    }
+    if vlr.uses_variable_size_chunks() && points_sum != points {
+        return Err(Error::Las {
+            path: path.to_path_buf(),
+            msg: format!(
+                "the header declares {points} points, the LAZ chunk table's chunks hold {points_sum}: \
+                 a wrong point count or a corrupt chunk table"
+            ),
+        });
+    }
     if !vlr.uses_variable_size_chunks() {
         let size = u64::from(vlr.chunk_size());
         let chunks = u64::from(chunks);

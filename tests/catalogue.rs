@@ -4,7 +4,8 @@
 //! file created where there was none, and an existing output left as it
 //! was. A new input format, flag or command adds its rows here.
 //!
-//! Rows name files by placeholders: `{bunny}` the bundled PLY, `{dir}` the
+//! Rows name files by placeholders: `{bunny}` the bundled PLY, `{fuzz}`
+//! the inputs fuzzing found (`tests/data/fuzz`), `{dir}` the
 //! test's folder (where the bad files below are written), `{out}` the
 //! output the case must not touch.
 
@@ -265,6 +266,16 @@ fn catalogue() -> Vec<Case> {
             "chunk-table-outside.laz",
         ),
         case("render {dir}/not-las.las -o {out} R", "not-las.las"),
+        // Found by fuzzing (docs/FUZZING.md): chunk entries whose byte
+        // counts overflow made the LAZ decompressor abort.
+        case(
+            "render {fuzz}/chunk-entries-overflow.laz -o {out} R",
+            "its chunks hold",
+        ),
+        no_output(
+            "info {fuzz}/chunk-entries-overflow.laz",
+            "corrupt LAZ chunk table",
+        ),
         // compare.
         no_output("compare {dir}/no-such.png {bunny_png}", "no-such.png"),
         no_output("compare {bunny_png} {dir}/small.png", "size"),
@@ -440,6 +451,10 @@ fn every_bad_input_fails_with_one_clear_line_and_touches_no_output() {
             .replace(
                 "{bunny}",
                 &root().join("data/bunny_colored.ply").display().to_string(),
+            )
+            .replace(
+                "{fuzz}",
+                &root().join("tests/data/fuzz").display().to_string(),
             )
             .replace("{out}", &out.display().to_string())
             .replace("{dir}", &dir.display().to_string())

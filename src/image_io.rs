@@ -510,6 +510,7 @@ fn parent_dir(path: &Path) -> &Path {
 /// Creates a new, empty temporary file in the directory of `target`, named
 /// `.NAME.tmp-PID-N` after it, and returns its path and handle.
 fn create_temp_beside(target: &Path) -> io::Result<(PathBuf, File)> {
+    remove_stale_temps(parent_dir(target));
     static COUNTER: AtomicU32 = AtomicU32::new(0);
     let pid = std::process::id();
     let mut attempts = 0;
@@ -526,6 +527,51 @@ fn create_temp_beside(target: &Path) -> io::Result<(PathBuf, File)> {
             Err(e) => return Err(e),
         }
     }
+}
+
+/// Removes the temporary files (`.NAME.tmp-PID-N`) that processes killed
+/// mid-write (SIGKILL, a power cut) left in `dir`: those whose process no
+/// longer runs. Once per folder and process, at its first write there, so a
+/// sequence of many frames lists its folder once. Best effort, Linux only
+/// (where `/proc/PID` tells whether a process runs).
+fn remove_stale_temps(dir: &Path) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::collections::HashSet;
+        use std::sync::Mutex;
+        static CLEANED: Mutex<Option<HashSet<PathBuf>>> = Mutex::new(None);
+        let mut cleaned = CLEANED.lock().unwrap_or_else(|e| e.into_inner());
+        if !cleaned
+            .get_or_insert_with(HashSet::new)
+            .insert(dir.to_path_buf())
+        {
+            return;
+        }
+        let Ok(entries) = fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries.flatten() {
+            let name = entry.file_name();
+            let Some(name) = name.to_str() else { continue };
+            let Some(pid) = stale_temp_pid(name) else {
+                continue;
+            };
+            if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+                let _ = fs::remove_file(entry.path());
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = dir;
+}
+
+/// The process id in a temporary file's name `.NAME.tmp-PID-N`.
+fn stale_temp_pid(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let at = rest.rfind(".tmp-")?;
+    let (pid, n) = rest[at + 5..].split_once('-')?;
+    n.parse::<u32>().ok()?;
+    pid.parse().ok()
 }
 
 /// Makes the rename durable where the platform supports syncing a directory.

@@ -163,7 +163,14 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
     let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
     let points = header.number_of_points();
     if header.point_format().is_compressed {
-        check_chunk_table(path, file, (offset, data_end, file_len), points, &header)?;
+        check_chunk_table(
+            path,
+            file,
+            (offset, data_end, file_len),
+            points,
+            &header,
+            record_len,
+        )?;
     } else {
         let room = data_end - offset;
         let need = points.saturating_mul(record_len);
@@ -195,6 +202,7 @@ fn check_chunk_table(
     (data_start, data_end, file_len): (u64, u64, u64),
     points: u64,
     header: &las::Header,
+    record_len: u64,
 ) -> Result<()> {
     let fail = |msg: String| Error::Las {
         path: path.to_path_buf(),
@@ -242,6 +250,19 @@ fn check_chunk_table(
         )));
     }
     let vlr = header.laz_vlr().map_err(|e| las_error(path, e))?;
+    // The compressed items must make the header's records (the
+    // decompressor asserts so; summed here in u64, as the items' u16 sizes
+    // may overflow in the laz crate's own sum).
+    let items: u64 = vlr.items().iter().map(|i| u64::from(i.size())).sum();
+    if items != record_len {
+        return Err(Error::Las {
+            path: path.to_path_buf(),
+            msg: format!(
+                "the LAZ items make records of {items} bytes, the header declares {record_len}: \
+                 a corrupt LAZ description or point record length"
+            ),
+        });
+    }
     // The entries: their byte counts must fit in the compressed data, and
     // variable-size chunks' point counts add up to the header's (else the
     // decompressor sizes its buffers from them: a fuzzed table made it

@@ -292,6 +292,15 @@ fn check_chunk_table(
     }
     if !vlr.uses_variable_size_chunks() {
         let size = u64::from(vlr.chunk_size());
+        // The decompressor makes room for a whole last chunk: a chunk size
+        // far beyond the file's points (fuzzing found 4 billion, 111 GB)
+        // would exhaust the memory before any point is read.
+        if size > points && size.saturating_mul(record_len) > 1 << 30 {
+            return Err(fail(format!(
+                "chunks of {size} points ({} MiB each) for a file of {points} points",
+                size.saturating_mul(record_len) >> 20
+            )));
+        }
         let chunks = u64::from(chunks);
         if points > chunks * size || (chunks > 0 && points <= (chunks - 1) * size) {
             return Err(Error::Las {

@@ -173,7 +173,7 @@ impl FileFormat {
 ///
 /// Any other extension is an [`Error::InvalidArgument`] before anything is
 /// written. The write is atomic: the image is encoded into a temporary file
-/// beside the target (`.NAME.tmp-PID-N`), synced, then renamed over the
+/// beside the target (`.NAME.tmp-HOST-PID-N`), synced, then renamed over the
 /// target (a symbolic link at `path` is replaced, not followed). On failure
 /// the temporary file is removed and the target is left as it was (an
 /// existing file keeps its old content, a missing one stays missing). Errors
@@ -197,13 +197,22 @@ pub fn write_image(img: &LinearImage, path: &Path) -> Result<()> {
 }
 
 /// Writes a file atomically: `write` fills a new temporary file beside
-/// `path` (`.NAME.tmp-PID-N`) and must sync it; the temporary is then renamed
-/// over `path`. On any failure the temporary is removed and `path` is left as
-/// it was. Used for every file pointlens writes.
+/// `path` (`.NAME.tmp-HOST-PID-N`) and must sync it; the temporary is then
+/// renamed over `path`. On any failure the temporary is removed and `path`
+/// is left as it was. Used for every file pointlens writes. While it is
+/// written the temporary is listed for [`abandon_writes`], which a signal
+/// handler calls.
 pub fn write_atomically(path: &Path, write: impl FnOnce(File) -> Result<()>) -> Result<()> {
     let (tmp_path, file) = create_temp_beside(path).map_err(|source| io_err(path, source))?;
-    let result = write(file)
-        .and_then(|()| fs::rename(&tmp_path, path).map_err(|source| io_err(path, source)));
+    let result = write(file).and_then(|()| {
+        stall_for_tests();
+        // Under the list's lock: once `abandon_writes` holds it, no
+        // temporary becomes a file.
+        let mut in_flight = in_flight();
+        let renamed = fs::rename(&tmp_path, path).map_err(|source| io_err(path, source));
+        in_flight.retain(|p| *p != tmp_path);
+        renamed
+    });
     match result {
         Ok(()) => {
             sync_parent_dir(path);
@@ -211,10 +220,50 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(File) -> Result<()>) -> 
         }
         Err(e) => {
             // Best effort: the original error is the one worth reporting.
+            let mut in_flight = in_flight();
             let _ = fs::remove_file(&tmp_path);
+            in_flight.retain(|p| *p != tmp_path);
             Err(e)
         }
     }
+}
+
+/// For the signal tests: `POINTLENS_INJECT_WRITE_STALL_MS=N` holds every
+/// write N milliseconds with its temporary complete and not yet renamed,
+/// the moment a signal must not turn into a partial file. Read once; unset,
+/// nothing waits.
+fn stall_for_tests() {
+    static STALL: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    let stall = STALL.get_or_init(|| {
+        std::env::var("POINTLENS_INJECT_WRITE_STALL_MS")
+            .ok()?
+            .parse()
+            .ok()
+    });
+    if let Some(ms) = *stall {
+        std::thread::sleep(std::time::Duration::from_millis(ms));
+    }
+}
+
+/// The temporary files being written now, by any thread.
+fn in_flight() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    static IN_FLIGHT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    IN_FLIGHT.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes the temporary files of the writes in progress and keeps any
+/// write from finishing afterwards (their renames wait for ever): for a
+/// signal handler that ends the process next, so that an interrupted write
+/// leaves neither its file nor its temporary. Returns how many were removed.
+pub fn abandon_writes() -> usize {
+    let in_flight = in_flight();
+    for tmp in in_flight.iter() {
+        let _ = fs::remove_file(tmp);
+    }
+    let removed = in_flight.len();
+    // Held until the process ends.
+    std::mem::forget(in_flight);
+    removed
 }
 
 /// Checks that `path` names an output format `write_image` supports, so a
@@ -508,32 +557,63 @@ fn parent_dir(path: &Path) -> &Path {
 }
 
 /// Creates a new, empty temporary file in the directory of `target`, named
-/// `.NAME.tmp-PID-N` after it, and returns its path and handle.
+/// `.NAME.tmp-HOST-PID-N` after it, lists it as in flight, and returns its
+/// path and handle.
 fn create_temp_beside(target: &Path) -> io::Result<(PathBuf, File)> {
     remove_stale_temps(parent_dir(target));
     static COUNTER: AtomicU32 = AtomicU32::new(0);
     let pid = std::process::id();
+    let host = host_name();
     let mut attempts = 0;
     loop {
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         let mut name = OsString::from(".");
         name.push(target.file_name().unwrap_or_default());
-        name.push(format!(".tmp-{pid}-{n}"));
+        name.push(format!(".tmp-{host}-{pid}-{n}"));
         let tmp = parent_dir(target).join(name);
+        // Listed before it exists, so that a signal between the two finds it.
+        in_flight().push(tmp.clone());
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
             Ok(file) => return Ok((tmp, file)),
-            // A leftover of an earlier process with the same id: try the next name.
-            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && attempts < 100 => attempts += 1,
-            Err(e) => return Err(e),
+            Err(e) => {
+                in_flight().retain(|p| *p != tmp);
+                match e.kind() {
+                    // A leftover of an earlier process with the same id: try the next name.
+                    io::ErrorKind::AlreadyExists if attempts < 100 => attempts += 1,
+                    _ => return Err(e),
+                }
+            }
         }
     }
 }
 
-/// Removes the temporary files (`.NAME.tmp-PID-N`) that processes killed
-/// mid-write (SIGKILL, a power cut) left in `dir`: those whose process no
-/// longer runs. Once per folder and process, at its first write there, so a
-/// sequence of many frames lists its folder once. Best effort, Linux only
-/// (where `/proc/PID` tells whether a process runs).
+/// This machine's name as temporary files carry it (letters, digits, `.`
+/// and `-` as they are, anything else as `_`; `localhost` where it cannot
+/// be read).
+fn host_name() -> String {
+    let name = fs::read_to_string("/proc/sys/kernel/hostname")
+        .ok()
+        .map(|h| h.trim().to_string())
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "localhost".to_string());
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '.' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Removes the temporary files (`.NAME.tmp-HOST-PID-N`) that processes
+/// killed mid-write (SIGKILL, a power cut) left in `dir`: those written on
+/// this machine (a folder shared by a render farm holds other machines'
+/// writes in progress) whose process no longer runs. Once per folder and
+/// process, at its first write there, so a sequence of many frames lists
+/// its folder once. Best effort, Linux only (where `/proc/PID` tells
+/// whether a process runs).
 fn remove_stale_temps(dir: &Path) {
     #[cfg(target_os = "linux")]
     {
@@ -550,13 +630,17 @@ fn remove_stale_temps(dir: &Path) {
         let Ok(entries) = fs::read_dir(dir) else {
             return;
         };
+        let host = host_name();
         for entry in entries.flatten() {
             let name = entry.file_name();
             let Some(name) = name.to_str() else { continue };
-            let Some(pid) = stale_temp_pid(name) else {
+            let Some((writer_host, pid)) = temp_writer(name) else {
                 continue;
             };
-            if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            if writer_host == host
+                && pid != std::process::id()
+                && !Path::new(&format!("/proc/{pid}")).exists()
+            {
                 let _ = fs::remove_file(entry.path());
             }
         }
@@ -565,13 +649,14 @@ fn remove_stale_temps(dir: &Path) {
     let _ = dir;
 }
 
-/// The process id in a temporary file's name `.NAME.tmp-PID-N`.
-fn stale_temp_pid(name: &str) -> Option<u32> {
+/// The host and process id in a temporary file's name `.NAME.tmp-HOST-PID-N`.
+fn temp_writer(name: &str) -> Option<(&str, u32)> {
     let rest = name.strip_prefix('.')?;
     let at = rest.rfind(".tmp-")?;
-    let (pid, n) = rest[at + 5..].split_once('-')?;
+    let (rest, n) = rest[at + 5..].rsplit_once('-')?;
+    let (host, pid) = rest.rsplit_once('-')?;
     n.parse::<u32>().ok()?;
-    pid.parse().ok()
+    Some((host, pid.parse().ok()?))
 }
 
 /// Makes the rename durable where the platform supports syncing a directory.

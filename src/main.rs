@@ -49,8 +49,8 @@ use signal_hook::consts::{SIGINT, SIGTERM};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
-    /// List the Vulkan devices (the default one marked) and exit; pick one
-    /// with --device NAME.
+    /// List the Vulkan devices, numbered (the default one marked), and
+    /// exit; pick one with --device N or --device NAME.
     #[arg(long)]
     list_devices: bool,
     /// More messages on stderr: -v what is done, -vv details (RUST_LOG, as
@@ -87,7 +87,9 @@ See docs/SEQUENCES.md for sequences and render farms.";
 enum Command {
     /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float)
     /// image, or a sequence of them.
-    #[command(after_help = RENDER_EXAMPLES)]
+    // Negative numbers are values (`--height -3` is a bad height, not an
+    // unknown flag `-3`).
+    #[command(after_help = RENDER_EXAMPLES, allow_negative_numbers = true)]
     Render(Box<RenderArgs>),
     /// Compare two images (PNG or EXR) of the same size: PSNR (dB) and max
     /// absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
@@ -101,6 +103,7 @@ enum Command {
     },
     /// Time a matrix of methods × models × resolutions (Zhao's Table 1,
     /// extended): per-pass GPU times and frame wall time, min/median/max.
+    #[command(allow_negative_numbers = true)]
     Bench(Box<BenchArgs>),
     /// Print point count, bounds and attributes of a point cloud (for LAS
     /// and LAZ also the version, point format, scale, offset, bounds in the
@@ -115,6 +118,7 @@ enum Command {
     /// Write the bench's synthetic scene (a wavy wall and five spheres) as
     /// a binary little-endian PLY, or LAS / LAZ (by the extension),
     /// streamed: any size in bounded memory.
+    #[command(allow_negative_numbers = true)]
     Synth {
         /// Number of points.
         #[arg(long)]
@@ -182,8 +186,9 @@ struct BenchArgs {
     /// Directory of the bundled clouds (default: ./data, else the source tree's).
     #[arg(long, value_name = "DIR")]
     data: Option<PathBuf>,
-    /// Use the Vulkan device whose name or driver contains NAME.
-    #[arg(long, value_name = "NAME")]
+    /// Use the Vulkan device numbered N in --list-devices, or the first
+    /// whose name or driver contains NAME.
+    #[arg(long, value_name = "N|NAME")]
     device: Option<String>,
     /// Enable the validation layer (also POINTLENS_VALIDATION=1).
     #[arg(long)]
@@ -388,8 +393,9 @@ struct RenderArgs {
     /// Print the effective camera as a camera file (JSON) on stdout.
     #[arg(long)]
     print_camera: bool,
-    /// Use the Vulkan device whose name or driver contains NAME.
-    #[arg(long, value_name = "NAME")]
+    /// Use the Vulkan device numbered N in --list-devices, or the first
+    /// whose name or driver contains NAME.
+    #[arg(long, value_name = "N|NAME")]
     device: Option<String>,
     /// Enable the Khronos validation layer with synchronization validation
     /// (also POINTLENS_VALIDATION=1); any message fails the command.
@@ -529,10 +535,19 @@ fn main() -> ExitCode {
                 let _ = e.print();
                 return ExitCode::from(2);
             }
-            // One line: clap's first line, without its usage block.
+            // One line: clap's message up to its usage block, its lines
+            // joined (a list of missing arguments follows its first line).
             let text = e.render().to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments");
-            eprintln!("{first} (see 'pointlens --help')");
+            let message: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+                .collect();
+            let message = match message.join(" ") {
+                m if m.is_empty() => "invalid arguments".to_string(),
+                m => m,
+            };
+            eprintln!("{message} (see 'pointlens --help')");
             return ExitCode::from(2);
         }
     };
@@ -629,14 +644,42 @@ fn list_devices() -> Result<()> {
             .map(|u| format!(", unusable: {u}"))
             .unwrap_or_default();
         out!(
-            "{mark} {} [{}, Vulkan {}, {} MiB device-local{unusable}]\n",
+            "{mark} {}: {} [{}, Vulkan {}, {} MiB device-local{unusable}]\n",
+            d.index,
             d.description,
             d.kind,
             d.api_version,
             d.heap_bytes >> 20
         )?;
     }
-    out!("(* the default; choose another with --device NAME, any part of its name or driver)\n")?;
+    out!(
+        "(* the default; choose another with --device N, its number here, \
+         or --device NAME, any part of its name or driver)\n"
+    )?;
+    Ok(())
+}
+
+/// Handles SIGINT and SIGTERM on a thread of their own. In a sequence the
+/// first sets `stop`, and the frame loop ends after the frame in flight;
+/// otherwise (a single image, or a second signal) the temporary files of
+/// the writes in progress are removed and the process ends as the signal's
+/// default action would (its status says which signal), so no partial
+/// file, not even a hidden temporary, is left.
+fn watch_signals(sequence: bool, stop: Arc<AtomicBool>) -> Result<()> {
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
+        .context("installing a signal handler")?;
+    std::thread::spawn(move || {
+        for signal in signals.forever() {
+            if sequence && !stop.swap(true, Ordering::SeqCst) {
+                continue;
+            }
+            let removed = pointlens::image_io::abandon_writes();
+            log::debug!("signal {signal}: {removed} file(s) in writing removed");
+            // Ends the process (terminate is these signals' default).
+            let _ = signal_hook::low_level::emulate_default_handler(signal);
+            std::process::exit(128 + signal);
+        }
+    });
     Ok(())
 }
 
@@ -938,6 +981,9 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         None => args.output.clone(),
     };
     check_parent_dir(&output_of(range.first), "-o")?;
+    if let Some(p) = &args.timings_json {
+        check_parent_dir(p, "--timings-json")?;
+    }
     if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
         bail!("--splat-size must be a positive number, not {w}");
     }
@@ -963,6 +1009,12 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         blur: args.lod_blur,
     };
     check_lod(&lod)?;
+
+    // SIGINT or SIGTERM ends a sequence after the frame being rendered
+    // (its file complete); a second one, or one during a single image,
+    // ends the process at once, removing the file being written.
+    let stop = Arc::new(AtomicBool::new(false));
+    watch_signals(sequence, stop.clone())?;
 
     let t_load = Instant::now();
     let cloud = load(&args.input, args.origin, quiet)?;
@@ -1027,6 +1079,16 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
             output: output_of(number),
         });
     }
+    // Every frame's folder, before any is rendered (a pattern may number
+    // folders: out_%02d/f.png).
+    let mut last_dir = None;
+    for job in &jobs {
+        let dir = job.output.parent();
+        if dir != last_dir {
+            check_parent_dir(&job.output, "-o")?;
+            last_dir = dir;
+        }
+    }
     let all = jobs.len();
     if args.skip_existing {
         jobs.retain(|job| {
@@ -1061,17 +1123,6 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     let points = cloud.len();
     drop(cloud); // The hierarchy holds the points from here on.
 
-    // SIGINT or SIGTERM ends a sequence after the frame being rendered
-    // (its file complete); a second one ends it at once.
-    let stop = Arc::new(AtomicBool::new(false));
-    if sequence {
-        for signal in [SIGINT, SIGTERM] {
-            signal_hook::flag::register_conditional_shutdown(signal, 130, stop.clone())
-                .context("installing a signal handler")?;
-            signal_hook::flag::register(signal, stop.clone())
-                .context("installing a signal handler")?;
-        }
-    }
     let bar = match sequence {
         true => progress(
             jobs.len() as u64,

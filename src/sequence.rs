@@ -13,6 +13,11 @@ use serde::{Deserialize, Serialize};
 use crate::camera::{Camera, CameraSpec};
 use crate::error::{Error, Result};
 
+/// The largest frame number a sequence may have (Blender's, 1,048,574):
+/// every frame's camera is resolved before the first is rendered, so a
+/// mistyped count fails here instead of filling the memory.
+pub const MAX_FRAME: u32 = 1_048_574;
+
 /// Frames made by flags (`--frames N` with `--orbit`, `--focus-from/-to`,
 /// `--aperture-from/-to`), numbered 1 to N, each a change of one resolved
 /// base camera.
@@ -50,6 +55,12 @@ impl Motion {
     pub fn check(&self) -> Result<()> {
         if self.frames == 0 {
             return Err(invalid("--frames must be at least 1"));
+        }
+        if self.frames > MAX_FRAME {
+            return Err(invalid(format!(
+                "--frames {} is more than a sequence may have ({MAX_FRAME})",
+                self.frames
+            )));
         }
         if let Some(d) = self.orbit_deg.filter(|d| !d.is_finite()) {
             return Err(invalid(format!("--orbit must be a finite number, not {d}")));
@@ -153,6 +164,12 @@ impl CameraPath {
         let k = &self.keyframes;
         if k.is_empty() {
             return Err(invalid("a camera path needs at least one keyframe"));
+        }
+        if let Some(key) = k.iter().find(|f| f.frame > MAX_FRAME) {
+            return Err(invalid(format!(
+                "keyframe frame {} is above the largest frame number ({MAX_FRAME})",
+                key.frame
+            )));
         }
         for pair in k.windows(2) {
             if pair[1].frame <= pair[0].frame {

@@ -552,6 +552,45 @@ fn list_devices_marks_the_default() {
     let marked: Vec<&str> = text.lines().filter(|l| l.starts_with("* ")).collect();
     assert_eq!(marked.len(), 1, "{text}");
     assert!(text.contains("llvmpipe"), "{text}");
+    // `--device N` takes the number the list gives the device: the marked
+    // one renders by its number, and a number past the list fails naming
+    // the devices.
+    let number = marked[0][2..].split(':').next().unwrap().to_string();
+    let dir = scratch("seq-device-number");
+    let o = pointlens(&[
+        "render",
+        &bunny(),
+        "-o",
+        dir.join("n.png").to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--method",
+        "pinhole",
+        "--device",
+        &number,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = pointlens(&[
+        "render",
+        &bunny(),
+        "-o",
+        dir.join("m.png").to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--device",
+        "4000",
+    ]);
+    let err = stderr(&o);
+    assert!(
+        !o.status.success() && err.contains("no Vulkan 1.3 device matches '4000'"),
+        "{err}"
+    );
+    assert!(err.contains(&format!("{number}: llvmpipe")), "{err}");
+    assert!(!dir.join("m.png").exists());
 }
 
 #[test]
@@ -635,6 +674,34 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
             );
         }
     });
+}
+
+#[test]
+fn render_without_a_method_is_the_rdb_and_its_help_gives_the_common_tasks() {
+    let dir = scratch("seq-default-method");
+    let out = |name: &str| dir.join(name);
+    render(&out("default.png"), &[]);
+    render(&out("rdb.png"), &["--method", "rdb"]);
+    render(&out("pinhole.png"), &["--method", "pinhole"]);
+    assert_eq!(bytes(out("default.png")), bytes(out("rdb.png")));
+    // Not a method whose image would equal any other's here.
+    assert_ne!(bytes(out("default.png")), bytes(out("pinhole.png")));
+    let o = pointlens(&["render", "--help"]);
+    assert!(o.status.success());
+    let help = String::from_utf8_lossy(&o.stdout);
+    for task in [
+        "--focus-pixel",
+        "--orbit 360",
+        "--focus-from",
+        "tile.laz",
+        "--frame-range 101-200 --skip-existing",
+        "default: rdb",
+    ] {
+        assert!(
+            help.contains(task),
+            "'{task}' not in render --help:\n{help}"
+        );
+    }
 }
 
 #[test]

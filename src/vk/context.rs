@@ -19,8 +19,10 @@ const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 pub struct ContextOptions {
     /// Enable `VK_LAYER_KHRONOS_validation` with synchronization validation.
     pub validation: bool,
-    /// Pick the first device whose name or driver name contains this
-    /// (case-insensitive); otherwise discrete > integrated > virtual > CPU.
+    /// Pick the device at this place in the loader's list (a number, as
+    /// `--list-devices` numbers them), or the first whose name or driver
+    /// name contains this (case-insensitive); otherwise discrete >
+    /// integrated > virtual > CPU.
     pub device: Option<String>,
 }
 
@@ -68,6 +70,8 @@ impl MessageLog {
 /// What the program reports about the device it runs on.
 #[derive(Debug, Clone)]
 pub struct DeviceInfo {
+    /// Its place in the loader's list of devices (`--list-devices`, `--device N`).
+    pub index: u32,
     pub name: String,
     pub driver_name: String,
     pub driver_info: String,
@@ -657,7 +661,8 @@ fn gbuffer_sample_counts(
 
 /// A fault to inject for tests of the error paths: the environment
 /// variable `POINTLENS_INJECT_FAULT=CALL=RESULT` (e.g.
-/// `vkQueueSubmit=ERROR_DEVICE_LOST`, `vkAllocateMemory=ERROR_OUT_OF_DEVICE_MEMORY`,
+/// `vkQueueSubmit=ERROR_DEVICE_LOST`, `vkWaitForFences=ERROR_DEVICE_LOST`
+/// (after the real wait), `vkAllocateMemory=ERROR_OUT_OF_DEVICE_MEMORY`,
 /// or `vkAllocateMemory@gbuffer color=…` for one resource's memory) makes
 /// that call fail with that result instead of being made. Read once.
 pub(crate) fn injected_fault(call: &str) -> Option<vk::Result> {
@@ -682,6 +687,8 @@ pub(crate) fn injected_fault(call: &str) -> Option<vk::Result> {
 /// One Vulkan device as `--list-devices` shows it.
 #[derive(Debug, Clone)]
 pub struct DeviceListing {
+    /// Its place in the loader's list, what `--device N` takes.
+    pub index: u32,
     /// `name (driver driver_info)`.
     pub description: String,
     /// `discrete GPU`, `integrated GPU`, `CPU`, …
@@ -735,12 +742,12 @@ fn largest_local_heap(instance: &ash::Instance, pd: vk::PhysicalDevice) -> u64 {
 fn list_with(instance: &ash::Instance) -> Result<Vec<DeviceListing>> {
     let chosen = pick_device(instance, None)
         .ok()
-        .map(|(_, _, info)| info.name);
+        .map(|(_, _, info)| info.index);
     // SAFETY: valid instance; plain reads.
     let devices =
         unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
     let mut out = Vec::new();
-    for pd in devices {
+    for (index, pd) in (0u32..).zip(devices) {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
         // SAFETY: `pd` comes from this instance; one core 1.1 struct chained.
@@ -754,6 +761,7 @@ fn list_with(instance: &ash::Instance) -> Result<Vec<DeviceListing>> {
         let heap_bytes = largest_local_heap(instance, pd);
         let v = props.api_version;
         out.push(DeviceListing {
+            index,
             description: format!(
                 "{name} ({} {})",
                 text(driver.driver_name_as_c_str()),
@@ -775,7 +783,7 @@ fn list_with(instance: &ash::Instance) -> Result<Vec<DeviceListing>> {
             ),
             heap_bytes,
             unusable: (v < vk::API_VERSION_1_3).then(|| "needs Vulkan 1.3".to_string()),
-            default: chosen.as_deref() == Some(name.as_str()),
+            default: chosen == Some(index),
         });
     }
     Ok(out)
@@ -790,7 +798,10 @@ fn pick_device(
         unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
     let mut candidates = Vec::new();
     let mut seen = Vec::new();
-    for pd in devices {
+    // `--device 1`: the second device in the loader's list; any other text
+    // is a part of a name.
+    let wanted_index = wanted.and_then(|w| w.trim().parse::<u32>().ok());
+    for (index, pd) in (0u32..).zip(devices) {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
         let mut maintenance3 = vk::PhysicalDeviceMaintenance3Properties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default()
@@ -812,11 +823,15 @@ fn pick_device(
             .driver_info_as_c_str()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        seen.push(name.clone());
+        seen.push(format!("{index}: {name}"));
         if props.api_version < vk::API_VERSION_1_3 {
             continue;
         }
-        if let Some(w) = wanted {
+        if let Some(i) = wanted_index {
+            if i != index {
+                continue;
+            }
+        } else if let Some(w) = wanted {
             let w = w.to_lowercase();
             if !name.to_lowercase().contains(&w) && !driver_name.to_lowercase().contains(&w) {
                 continue;
@@ -841,6 +856,7 @@ fn pick_device(
         let buffer_int64_atomics =
             core.shader_int64 == vk::TRUE && features12.shader_buffer_int64_atomics == vk::TRUE;
         let info = DeviceInfo {
+            index,
             name,
             driver_name,
             driver_info,

@@ -232,6 +232,15 @@ impl<'r> Frame<'r> {
             ctx.device
                 .wait_for_fences(&[self.fence], true, u64::MAX)
                 .vk("vkWaitForFences")?;
+            // Injected after the real wait, so the work is done and the
+            // frame's resources are free to destroy, as after a device lost
+            // while waiting.
+            if let Some(result) = super::context::injected_fault("vkWaitForFences") {
+                return Err(crate::error::Error::Vulkan {
+                    call: "vkWaitForFences",
+                    result,
+                });
+            }
         }
         let wall_ms = self.started.elapsed().as_secs_f64() * 1e3;
         if let Some(e) = self.deferred_error.take() {

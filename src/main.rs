@@ -980,7 +980,16 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         Some(p) => p.path(frame),
         None => args.output.clone(),
     };
-    check_parent_dir(&output_of(range.first), "-o")?;
+    // Every frame's folder, before the cloud loads (a pattern may number
+    // folders: out_%02d/f.png).
+    let mut last_dir = None;
+    for number in range.first..=range.last {
+        let output = output_of(number);
+        if output.parent() != last_dir.as_deref() {
+            check_parent_dir(&output, "-o")?;
+            last_dir = output.parent().map(Path::to_path_buf);
+        }
+    }
     if let Some(p) = &args.timings_json {
         check_parent_dir(p, "--timings-json")?;
     }
@@ -1078,16 +1087,6 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
             camera,
             output: output_of(number),
         });
-    }
-    // Every frame's folder, before any is rendered (a pattern may number
-    // folders: out_%02d/f.png).
-    let mut last_dir = None;
-    for job in &jobs {
-        let dir = job.output.parent();
-        if dir != last_dir {
-            check_parent_dir(&job.output, "-o")?;
-            last_dir = dir;
-        }
     }
     let all = jobs.len();
     if args.skip_existing {

@@ -13,7 +13,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{pointlens, root, scratch};
+use common::{file_names, pointlens, root, scratch};
 
 /// What the output path of a case is, for the "no file, old file intact"
 /// checks.
@@ -415,14 +415,6 @@ fn catalogue() -> Vec<Case> {
     ]
 }
 
-/// The names in `dir`.
-fn names_in(dir: &Path) -> std::collections::BTreeSet<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect()
-}
-
 /// Writes the bad inputs the rows name into `dir`.
 fn write_inputs(dir: &Path) {
     let w = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).unwrap();
@@ -609,7 +601,7 @@ fn every_bad_input_fails_with_one_clear_line_and_touches_no_output() {
                     std::fs::write(t, b"old").unwrap();
                 }
             }
-            let before = names_in(&dir);
+            let before = file_names(&dir);
             let o = pointlens(&argv);
             let err = String::from_utf8_lossy(&o.stderr).into_owned();
             let mut problems = Vec::new();
@@ -632,7 +624,10 @@ fn every_bad_input_fails_with_one_clear_line_and_touches_no_output() {
             }
             // Nothing new in the folder: no output (whatever its name: a
             // frame of a pattern, a report), no temporary file.
-            let created: Vec<String> = names_in(&dir).difference(&before).cloned().collect();
+            let created: Vec<String> = file_names(&dir)
+                .into_iter()
+                .filter(|n| !before.contains(n))
+                .collect();
             if !created.is_empty() {
                 problems.push(format!("created {created:?}"));
             }

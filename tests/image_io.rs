@@ -11,17 +11,7 @@ use pointlens::image_io::{
 use pointlens::Error;
 
 mod common;
-use common::scratch;
-
-/// The names in `dir`, sorted.
-fn entries(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = fs::read_dir(dir)
-        .expect("read scratch directory")
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
+use common::{file_names, scratch};
 
 /// A small image with varied, in-range linear values and alpha.
 fn gradient(width: u32, height: u32) -> LinearImage {
@@ -181,7 +171,7 @@ fn png_round_trip_within_one_8_bit_step() {
         // Alpha is dropped: the PNG is opaque.
         assert_eq!(q[3], 1.0);
     }
-    assert_eq!(entries(&dir), ["out.png"]);
+    assert_eq!(file_names(&dir), ["out.png"]);
 }
 
 #[test]
@@ -195,7 +185,7 @@ fn exr_round_trip_is_exact() {
     write_image(&img, &path).unwrap();
     let back = read_image(&path).unwrap();
     assert_eq!(back, img);
-    assert_eq!(entries(&dir), ["out.exr"]);
+    assert_eq!(file_names(&dir), ["out.exr"]);
 }
 
 #[test]
@@ -300,7 +290,7 @@ fn unsupported_extension_errors_and_writes_nothing() {
         msg.ends_with("unsupported output format '.xyz' (use .png or .exr)"),
         "{msg}"
     );
-    assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+    assert!(file_names(&dir).is_empty(), "{:?}", file_names(&dir));
 }
 
 #[test]
@@ -310,7 +300,7 @@ fn wrong_pixel_count_errors_and_writes_nothing() {
     img.pixels.pop();
     let err = write_image(&img, &dir.join("out.png")).unwrap_err();
     assert!(matches!(err, Error::InvalidArgument(_)), "{err:?}");
-    assert!(entries(&dir).is_empty());
+    assert!(file_names(&dir).is_empty());
 }
 
 #[test]
@@ -322,7 +312,7 @@ fn missing_directory_errors_naming_the_path_and_leaves_nothing() {
     assert!(matches!(err, Error::Io { .. }), "{err:?}");
     assert!(msg.starts_with(&path.display().to_string()), "{msg}");
     assert!(!msg.contains('\n'), "{msg}");
-    assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+    assert!(file_names(&dir).is_empty(), "{:?}", file_names(&dir));
 }
 
 #[test]
@@ -333,7 +323,7 @@ fn overwriting_replaces_the_target_and_leaves_no_temporary() {
     let img = LinearImage::new(2, 2, [0.5, 0.5, 0.5, 1.0]);
     write_image(&img, &path).unwrap();
     assert_eq!(raw_png(&path).1, [188; 12]);
-    assert_eq!(entries(&dir), ["out.png"]);
+    assert_eq!(file_names(&dir), ["out.png"]);
 }
 
 #[test]
@@ -352,12 +342,12 @@ fn failed_encode_keeps_the_old_target_and_leaves_no_temporary() {
         assert!(err.to_string().contains("cannot encode"), "{err}");
         assert_eq!(fs::read(&path).unwrap(), b"old content");
     }
-    assert_eq!(entries(&dir), ["out.exr", "out.png"]);
+    assert_eq!(file_names(&dir), ["out.exr", "out.png"]);
 
     // A missing target stays missing.
     let path = dir.join("new.png");
     write_image(&LinearImage::new(0, 3, [0.0; 4]), &path).unwrap_err();
-    assert_eq!(entries(&dir), ["out.exr", "out.png"]);
+    assert_eq!(file_names(&dir), ["out.exr", "out.png"]);
 }
 
 #[test]
@@ -375,7 +365,7 @@ fn failed_rename_keeps_the_target_and_leaves_no_temporary() {
     );
     assert!(path.is_dir());
     assert_eq!(fs::read(path.join("keep.txt")).unwrap(), b"keep");
-    assert_eq!(entries(&dir), ["out.png"]);
+    assert_eq!(file_names(&dir), ["out.png"]);
 }
 
 #[test]

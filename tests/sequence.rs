@@ -8,7 +8,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::{assert_fails, pointlens, root, scratch};
+use common::{assert_fails, file_names, pointlens, root, scratch};
 use pointlens::camera::{self, CameraSpec};
 use pointlens::image_io::{read_exr_channels, read_image};
 
@@ -37,16 +37,6 @@ fn render(out: &Path, extra: &[&str]) -> Output {
     o
 }
 
-/// The files of `dir`, sorted by name.
-fn files(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 fn bytes(p: PathBuf) -> Vec<u8> {
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -60,7 +50,7 @@ fn an_orbit_writes_its_frames_and_any_split_into_ranges_gives_the_same_bytes() {
     let orbit = ["--frames", "3", "--orbit", "90"];
     render(&whole.join("o_%04d.png"), &orbit);
     assert_eq!(
-        files(&whole),
+        file_names(&whole),
         ["o_0001.png", "o_0002.png", "o_0003.png"],
         "the frames, numbered from 1, and nothing else"
     );
@@ -68,7 +58,7 @@ fn an_orbit_writes_its_frames_and_any_split_into_ranges_gives_the_same_bytes() {
     let mut args = orbit.to_vec();
     args.extend(["--frame-range", "2"]);
     render(&split.join("o_%04d.png"), &args);
-    assert_eq!(files(&split), ["o_0002.png"]);
+    assert_eq!(file_names(&split), ["o_0002.png"]);
     let mut args = orbit.to_vec();
     args.extend(["--frame-range", "1-3", "--skip-existing"]);
     render(&split.join("o_%04d.png"), &args);
@@ -103,7 +93,7 @@ fn frame_2_of_a_focus_pull_is_the_frame_at_the_mid_focus() {
         "0.01",
     ];
     render(&dir.join("p_%d.png"), &pull);
-    assert_eq!(files(&dir), ["p_1.png", "p_2.png", "p_3.png"]);
+    assert_eq!(file_names(&dir), ["p_1.png", "p_2.png", "p_3.png"]);
     // Frame 2 of 3 focuses halfway: 0.3, rendered alone as one image.
     let mut single: Vec<&str> = pull[6..].to_vec();
     single.extend(["--focus-distance", "0.3"]);
@@ -135,7 +125,7 @@ fn a_path_reproduces_its_keyframes_exactly() {
         &["--path", &path_s, "--print-camera"],
     );
     assert_eq!(
-        files(&dir),
+        file_names(&dir),
         ["k_01.png", "k_02.png", "k_03.png", "k_04.png", "path.json"]
     );
     // --print-camera of a sequence: a path with every frame, whose
@@ -428,7 +418,7 @@ fn a_terminated_sequence_leaves_only_complete_frames() {
     assert!(!o.status.success(), "a stopped sequence fails");
     assert!(err.contains("interrupted"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
-    let names = files(&dir);
+    let names = file_names(&dir);
     assert!(names.len() < 40, "it stopped early: {names:?}");
     for (i, name) in names.iter().enumerate() {
         // Only frames, numbered in order from 1, each a complete PNG.

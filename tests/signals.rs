@@ -21,22 +21,13 @@ use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{root, scratch};
+use common::{file_names, root, scratch};
 
 const SIGINT: i32 = 2;
 const SIGTERM: i32 = 15;
 
 fn bunny() -> String {
     root().join("data/bunny_colored.ply").display().to_string()
-}
-
-fn names(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 fn pointlens() -> Command {
@@ -72,9 +63,9 @@ fn wait(child: &mut Child, limit: Duration) -> ExitStatus {
 /// Waits until a temporary file (`.NAME.tmp-…`) is in `dir`.
 fn wait_for_temporary(dir: &Path, child: &mut Child) {
     let started = Instant::now();
-    while !names(dir).iter().any(|n| n.contains(".tmp-")) {
+    while !file_names(dir).iter().any(|n| n.contains(".tmp-")) {
         if let Some(s) = child.try_wait().unwrap() {
-            panic!("ended ({s}) before writing: {:?}", names(dir));
+            panic!("ended ({s}) before writing: {:?}", file_names(dir));
         }
         assert!(
             started.elapsed() < Duration::from_secs(120),
@@ -116,7 +107,7 @@ fn a_signal_during_a_render_leaves_no_file() {
         std::thread::spawn(move || lines.for_each(drop));
         let status = wait(&mut child, Duration::from_secs(60));
         assert_eq!(status.signal(), Some(signal), "{status}, log {log:?}");
-        assert!(names(&dir).is_empty(), "left {:?}", names(&dir));
+        assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
     }
 }
 
@@ -145,7 +136,7 @@ fn a_signal_while_the_file_is_written_leaves_neither_it_nor_its_temporary() {
         send(&child, signal);
         let status = wait(&mut child, Duration::from_secs(30));
         assert_eq!(status.signal(), Some(signal), "{status}");
-        assert!(names(&dir).is_empty(), "left {:?}", names(&dir));
+        assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
     }
 }
 
@@ -173,7 +164,7 @@ fn a_sequence_finishes_the_frame_being_written_on_one_signal_and_drops_it_on_two
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
     assert_eq!(status.code(), Some(1), "{status}: {err}");
     assert!(err.contains("interrupted: 1 of 5 frames written"), "{err}");
-    assert_eq!(names(&dir), ["s_01.png"]);
+    assert_eq!(file_names(&dir), ["s_01.png"]);
     let frame = pointlens::image_io::read_image(&dir.join("s_01.png")).unwrap();
     assert_eq!((frame.width, frame.height), (32, 24));
     // SIGINT and then SIGTERM while frame 1 is being written: it ends at
@@ -187,7 +178,7 @@ fn a_sequence_finishes_the_frame_being_written_on_one_signal_and_drops_it_on_two
     send(&child, SIGTERM);
     let status = wait(&mut child, Duration::from_secs(60));
     assert_eq!(status.signal(), Some(SIGTERM), "{status}");
-    assert!(names(&dir).is_empty(), "left {:?}", names(&dir));
+    assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
 }
 
 #[test]
@@ -236,7 +227,7 @@ fn a_killed_writers_temporary_file_is_removed_by_the_next_write() {
         "f.png".to_string(),
     ];
     expected.sort();
-    assert_eq!(names(&dir), expected);
+    assert_eq!(file_names(&dir), expected);
 }
 
 #[test]
@@ -277,7 +268,10 @@ fn two_processes_writing_one_path_leave_one_complete_image() {
         let started = Instant::now();
         let mut most = 0;
         while one.try_wait().unwrap().is_none() || two.try_wait().unwrap().is_none() {
-            let temps = names(&dir).iter().filter(|n| n.contains(".tmp-")).count();
+            let temps = file_names(&dir)
+                .iter()
+                .filter(|n| n.contains(".tmp-"))
+                .count();
             most = most.max(temps);
             assert!(started.elapsed() < Duration::from_secs(120), "hung");
             std::thread::sleep(Duration::from_millis(5));
@@ -291,8 +285,8 @@ fn two_processes_writing_one_path_leave_one_complete_image() {
         assert!(got == a || got == c, "round {round}: a mixture of the two");
     }
     assert!(
-        names(&dir).iter().all(|n| !n.contains(".tmp-")),
+        file_names(&dir).iter().all(|n| !n.contains(".tmp-")),
         "{:?}",
-        names(&dir)
+        file_names(&dir)
     );
 }

@@ -3,9 +3,7 @@
 
 mod common;
 
-use std::path::Path;
-
-use common::{assert_fails, pointlens, scratch};
+use common::{assert_fails, file_names, pointlens, scratch};
 use glam::Vec3;
 use pointlens::bench::synthetic_cloud;
 use pointlens::image_io::{linear_to_srgb8, srgb8_to_linear_lut};
@@ -76,16 +74,6 @@ fn the_generator_gives_the_bench_cloud_of_before_from_any_point_on() {
     assert_eq!(bits(&c), bits(&colors[54_321..54_400]));
 }
 
-/// The names in `dir`, sorted.
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 #[test]
 fn synth_writes_a_ply_that_loads_back_as_the_bench_cloud() {
     let dir = scratch("synth-cli");
@@ -93,7 +81,7 @@ fn synth_writes_a_ply_that_loads_back_as_the_bench_cloud() {
     let path_s = path.display().to_string();
     let o = pointlens(&["synth", "--points", "1000", "-o", &path_s]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(names(&dir), ["s.ply"], "a temporary file was left");
+    assert_eq!(file_names(&dir), ["s.ply"], "a temporary file was left");
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(
         bytes.len(),
@@ -171,7 +159,7 @@ fn synth_with_bad_input_fails_with_one_line_and_no_file() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(err.contains("taken.ply"), "{err}");
     assert!(taken.is_dir());
-    assert_eq!(names(&dir), ["taken.ply"]);
+    assert_eq!(file_names(&dir), ["taken.ply"]);
     // The library refuses an empty cloud too.
     let err = synth::write_ply(&file, 0, &mut |_| {}).unwrap_err();
     assert!(err.to_string().contains("at least 1 point"), "{err}");

@@ -94,6 +94,16 @@ impl Drop for Scratch {
     }
 }
 
+/// The names in `dir`, sorted.
+pub fn file_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 /// A fresh scratch directory for one test (see [`Scratch`]).
 pub fn scratch(name: &str) -> Scratch {
     let dir = std::env::temp_dir().join(format!("pointlens-test-{}-{name}", std::process::id()));

@@ -5,7 +5,7 @@
 //! `cargo run --release --example export_splats -- INPUT.ply OUT.bin [--splat-size W]`
 //!
 //! The splats are the leaves of the splat hierarchy that `Renderer::upload`
-//! builds (`tree::SplatTree`), in its Morton order: by default each
+//! builds (`render::splat_tree`), in its Morton order: by default each
 //! point's diameter is the tree's local spacing times
 //! `render::SPACING_TO_DIAMETER` (DESIGN §3); `--splat-size W` gives every
 //! point W, as `render --splat-size` does. Colors are the UNORM16 values
@@ -18,9 +18,9 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context as _};
-use pointlens::cloud::median;
-use pointlens::ply::load_ply;
-use pointlens::tree::{LeafSize, SplatTree};
+use pointlens::input::ply::load_ply;
+use pointlens::render::{splat_tree, SplatSize};
+use pointlens::tree::median;
 
 const MAGIC: &[u8; 8] = b"PLSPLAT1";
 
@@ -56,9 +56,8 @@ fn run() -> anyhow::Result<()> {
         bail!("usage: export_splats INPUT.ply OUT.bin [--splat-size W]");
     };
     let cloud = load_ply(input)?;
-    let size = splat_size.map_or(LeafSize::Spacing, LeafSize::World);
-    let threads = pointlens::available_threads();
-    let tree = SplatTree::build(&cloud, size, threads);
+    let splat = splat_size.map_or(SplatSize::Spacing, SplatSize::World);
+    let tree = splat_tree(&cloud, splat, pointlens::available_threads());
     let d: Vec<f32> = tree.leaves().iter().map(|v| v.position_size[3]).collect();
 
     let mut bytes = Vec::with_capacity(16 + cloud.len() * 28);

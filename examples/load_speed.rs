@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use pointlens::cloud::load_cloud;
+use pointlens::input::load_cloud;
 
 fn main() {
     let mut args = std::env::args().skip(1);

@@ -10,7 +10,7 @@ use std::io::Write;
 use std::time::Instant;
 
 use pointlens::bench::synthetic_cloud;
-use pointlens::ply::{load_ply, load_ply_general};
+use pointlens::input::ply::{load_ply, load_ply_general};
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -32,7 +32,7 @@ fn main() {
              property float nx\nproperty float ny\nproperty float nz\nend_header\n"
         )
     };
-    let srgb8 = |c: f32| (pointlens::cloud::linear_to_srgb(c) * 255.0).round() as u8;
+    let srgb8 = |c: f32| (pointlens::image_io::linear_to_srgb(c) * 255.0).round() as u8;
     let mut binary = header("binary_little_endian").into_bytes();
     let mut ascii = header("ascii").into_bytes();
     for (i, (p, c)) in cloud.positions.iter().zip(&cloud.colors).enumerate() {

@@ -7,9 +7,9 @@
 
 use glam::Vec3;
 use pointlens::bench::{synthetic_cloud, BenchModel};
+use pointlens::options::Lod;
 use pointlens::options::Method;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
-use pointlens::tree::Lod;
 use pointlens::vk::{Context, ContextOptions};
 
 fn main() {
@@ -27,7 +27,7 @@ fn main() {
             let path = std::path::PathBuf::from(&input);
             (
                 BenchModel::File(path.clone()),
-                pointlens::ply::load_ply(&path).expect("a PLY file"),
+                pointlens::input::ply::load_ply(&path).expect("a PLY file"),
             )
         }
     };

@@ -68,7 +68,7 @@ fn main() -> anyhow::Result<()> {
                 ssaa: 4,
                 samples_per_pass: None,
                 background: Vec3::ZERO,
-                lod: pointlens::tree::Lod::default(),
+                lod: pointlens::options::Lod::default(),
             };
             let image = renderer.render(&scene, &options)?.image;
             // The silhouette runs between columns 32 and 33.

@@ -25,7 +25,7 @@ fn main() {
     let rounds: usize = arg(3, "3").parse().expect("ROUNDS");
     let method = Method::parse_short(&arg(4, "rdb9")).expect("METHOD");
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/bunny_colored.ply");
-    let cloud = pointlens::cloud::load_cloud(&path, None, &mut |_, _| {}).expect("bunny");
+    let cloud = pointlens::input::load_cloud(&path, None, &mut |_, _| {}).expect("bunny");
     let ctx = Context::new(&ContextOptions::from_env(false, None)).expect("Vulkan");
     let renderer = Renderer::new(&ctx).expect("renderer");
     let scene = renderer.upload(&cloud, SplatSize::Spacing).expect("scene");

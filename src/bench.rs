@@ -20,12 +20,12 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::depth_range;
 use crate::image_io::{encode_png, LinearImage};
+use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
+use crate::options::Lod;
 use crate::options::{AccumOptions, Method};
-use crate::ply::load_ply;
 use crate::render::{RenderOptions, Renderer, SplatSize};
 pub use crate::report::{DeviceReport, LodReport, Upload};
-use crate::tree::Lod;
 use crate::vk::{Context, FrameTimings};
 
 /// Lens samples of the quality reference (`--quality`).
@@ -195,7 +195,7 @@ impl BenchModel {
             BenchModel::Bunny => load_ply(&data_dir.join("bunny_colored.ply")),
             BenchModel::Mug => load_ply(&data_dir.join("pcl_table_scene_mug_rgb.ply")),
             BenchModel::Synthetic => Ok(synthetic_cloud(points)),
-            BenchModel::File(p) => crate::cloud::load_cloud(p, None, &mut |_, _| {}),
+            BenchModel::File(p) => crate::input::load_cloud(p, None, &mut |_, _| {}),
         }
     }
 

@@ -46,6 +46,42 @@ pub enum Error {
     /// An argument with a value the program cannot use.
     #[error("{0}")]
     InvalidArgument(String),
+    /// A call to the operating system that names no file failed.
+    #[error("{what}: {source}")]
+    System {
+        what: &'static str,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A sequence stopped by a signal between frames (`job::watch_signals`):
+    /// the frames before `next` are complete.
+    #[error(
+        "interrupted: {written} of {total} frames written, frame {next} and later not rendered \
+         (run again with --skip-existing to resume)"
+    )]
+    Interrupted {
+        written: usize,
+        total: usize,
+        next: u32,
+    },
+    /// An error and where it happened (a file, a frame).
+    #[error("{context}: {source}")]
+    Within {
+        context: String,
+        #[source]
+        source: Box<Error>,
+    },
+}
+
+impl Error {
+    /// This error, said to have happened in `context` ("frame 3 of
+    /// path.json: …").
+    pub fn within(self, context: impl Into<String>) -> Error {
+        Error::Within {
+            context: context.into(),
+            source: Box::new(self),
+        }
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -228,6 +228,15 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(File) -> Result<()>) -> 
     }
 }
 
+/// Writes `text` to `path` atomically ([`write_atomically`]).
+pub fn write_text_atomically(path: &Path, text: &str) -> Result<()> {
+    write_atomically(path, |mut file| {
+        let io = |source| io_err(path, source);
+        file.write_all(text.as_bytes()).map_err(io)?;
+        file.sync_all().map_err(io)
+    })
+}
+
 /// For the signal tests: `POINTLENS_INJECT_WRITE_STALL_MS=N` holds every
 /// write N milliseconds with its temporary complete and not yet renamed,
 /// the moment a signal must not turn into a partial file. Read once; unset,
@@ -270,6 +279,17 @@ pub fn abandon_writes() -> usize {
 /// long render can fail before it starts.
 pub fn check_output_path(path: &Path) -> Result<()> {
     FileFormat::from_path(path).map(|_| ())
+}
+
+/// Fails when `path`'s folder does not exist (`flag` names the option), so
+/// that a long run does not end without a place for its result.
+pub fn check_parent_dir(path: &Path, flag: &str) -> Result<()> {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => Err(Error::InvalidArgument(
+            format!("{flag} {}: no directory {}", path.display(), dir.display()),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// The PNG bytes [`write_image`] would write for `img` (8-bit sRGB RGB),

@@ -1,8 +1,9 @@
 //! pointlens: an offline point-cloud renderer with physically based depth of
 //! field on Vulkan. See `docs/ARCHITECTURE.md` for the pipeline.
 //!
-//! The frame is one chain ([`render::Renderer`]): [`ply`] →
-//! [`cloud::PointCloud`] → upload → [`gbuffer`] (K×K splat raster samples,
+//! The frame is one chain ([`render::Renderer`]): [`input`] →
+//! [`cloud::PointCloud`] → [`tree`] (the splat hierarchy, per camera) →
+//! upload → [`gbuffer`] (K×K splat raster samples,
 //! resolved) → a depth-of-field method of [`passes`] (chosen by
 //! [`options::Method`]) → readback → [`image_io`].
 
@@ -19,11 +20,11 @@ pub mod cloud;
 pub mod error;
 pub mod gbuffer;
 pub mod image_io;
-pub mod las;
+pub mod input;
+pub mod job;
 pub mod metrics;
 pub mod options;
 pub mod passes;
-pub mod ply;
 pub mod reference;
 pub mod render;
 pub mod report;

@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -15,25 +15,22 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
 use pointlens::camera::{self, CameraSpec};
 use pointlens::chart;
-use pointlens::cloud::load_cloud;
-use pointlens::cloud::srgb_to_linear;
 use pointlens::image_io::{
-    check_output_path, check_png_path, is_png_path, read_image, write_atomically,
-    write_exr_channels, write_image, write_png_rgba, ExrChannel,
+    check_output_path, check_parent_dir, check_png_path, read_image, srgb_to_linear, write_image,
+    write_text_atomically,
 };
+use pointlens::input::load_cloud;
+use pointlens::job::{self, JobEvent, JobSpec, Outcome, Passes, Plan, RenderJob, Shot, Written};
 use pointlens::metrics;
 use pointlens::options::{
-    check_layers, check_lod, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
+    check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
     check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
-    LayeredOptions, MethodKind, RdbAtomics, RdbMode, RdbOptions,
+    LayeredOptions, Lod, Method, MethodKind, RdbAtomics, RdbMode, RdbOptions,
 };
-use pointlens::render::{RenderOptions, Renderer, SplatSize};
-use pointlens::report::FrameReport;
-use pointlens::sequence::{CameraPath, FramePattern, FrameRange, Motion};
-use pointlens::tree::Lod;
+use pointlens::render::{Renderer, Scene, SplatSize};
+use pointlens::sequence::{CameraPath, FrameRange, Motion};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
-use signal_hook::consts::{SIGINT, SIGTERM};
 
 #[derive(Parser)]
 #[command(
@@ -463,12 +460,6 @@ fn parse_background(s: &str) -> Result<Background, String> {
 }
 
 /// `--passes`: the EXR channels beside R, G, B, A.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct Passes {
-    z: bool,
-    coc: bool,
-}
-
 fn parse_passes(s: &str) -> Result<Passes, String> {
     let mut passes = Passes::default();
     for name in s.split(',') {
@@ -593,7 +584,7 @@ macro_rules! out {
 /// Writes `text` to stdout. A closed pipe is not a failure: the reader
 /// wanted no more, so the text is dropped and the command goes on (a render
 /// still writes its image); any other failure is an error.
-fn emit(text: &str) -> Result<()> {
+fn emit(text: &str) -> pointlens::Result<()> {
     let mut stdout = std::io::stdout().lock();
     match stdout
         .write_all(text.as_bytes())
@@ -601,7 +592,10 @@ fn emit(text: &str) -> Result<()> {
     {
         Ok(()) => Ok(()),
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(anyhow::anyhow!("writing to standard output: {e}")),
+        Err(source) => Err(pointlens::Error::System {
+            what: "writing to standard output",
+            source,
+        }),
     }
 }
 
@@ -659,41 +653,6 @@ fn list_devices() -> Result<()> {
     Ok(())
 }
 
-/// Handles SIGINT and SIGTERM on a thread of their own. In a sequence the
-/// first sets `stop`, and the frame loop ends after the frame in flight;
-/// otherwise (a single image, or a second signal) the temporary files of
-/// the writes in progress are removed and the process ends as the signal's
-/// default action would (its status says which signal), so no partial
-/// file, not even a hidden temporary, is left.
-fn watch_signals(sequence: bool, stop: Arc<AtomicBool>) -> Result<()> {
-    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
-        .context("installing a signal handler")?;
-    std::thread::spawn(move || {
-        for signal in signals.forever() {
-            if sequence && !stop.swap(true, Ordering::SeqCst) {
-                continue;
-            }
-            let removed = pointlens::image_io::abandon_writes();
-            log::debug!("signal {signal}: {removed} file(s) in writing removed");
-            // Ends the process (terminate is these signals' default).
-            let _ = signal_hook::low_level::emulate_default_handler(signal);
-            std::process::exit(128 + signal);
-        }
-    });
-    Ok(())
-}
-
-/// Fails early when `path`'s directory does not exist, so a long run does
-/// not end without a place for its result.
-fn check_parent_dir(path: &Path, flag: &str) -> Result<()> {
-    match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() && !dir.is_dir() => {
-            bail!("{flag} {}: no directory {}", path.display(), dir.display())
-        }
-        _ => Ok(()),
-    }
-}
-
 fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
     for (path, flag) in [(&args.json, "--json"), (&args.csv, "--csv")] {
         if let Some(p) = path {
@@ -711,10 +670,10 @@ fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
     out!("{}", report.to_markdown())?;
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report)?;
-        write_text(path, &text)?;
+        write_text_atomically(path, &text)?;
     }
     if let Some(path) = &args.csv {
-        write_text(path, &report.to_csv())?;
+        write_text_atomically(path, &report.to_csv())?;
     }
     if let Some(path) = &args.chart {
         chart::write_chart(&report, path)?;
@@ -806,19 +765,6 @@ fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
     Ok(report?)
 }
 
-/// Writes `text` to `path` atomically.
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    write_atomically(path, |mut file| {
-        let io = |source| pointlens::Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        file.write_all(text.as_bytes()).map_err(io)?;
-        file.sync_all().map_err(io)
-    })?;
-    Ok(())
-}
-
 /// Loads a cloud of any format, with a progress bar on stderr while a
 /// LAS/LAZ file streams in (drawn only when stderr is a terminal).
 fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointCloud> {
@@ -841,7 +787,8 @@ fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointClou
 
 fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
     let cloud = load(input, origin, quiet)?;
-    out!("{}", cloud.info_text(input))?;
+    let spacing = pointlens::tree::median_spacing(&cloud.positions, pointlens::available_threads());
+    out!("{}", cloud.info_text(input, spacing))?;
     Ok(())
 }
 
@@ -852,7 +799,7 @@ fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
     check_parent_dir(output, "-o")?;
     let bar = progress(points, "{bar:30} {pos}/{len} points, {elapsed}", quiet);
     let t = Instant::now();
-    let written = if pointlens::las::has_las_extension(output) {
+    let written = if pointlens::input::las::has_las_extension(output) {
         pointlens::synth::write_las(output, points, &mut |done| bar.set_position(done))
     } else {
         pointlens::synth::write_ply(output, points, &mut |done| bar.set_position(done))
@@ -886,53 +833,167 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-/// What `render` makes: one image, or a sequence of numbered ones.
-enum Shot {
-    Single,
-    Motion(Motion),
-    Path(CameraPath),
-}
-
-impl Shot {
-    fn of(args: &RenderArgs) -> Result<Shot> {
-        if let Some(path) = &args.path {
-            return Ok(Shot::Path(CameraPath::from_json_file(path)?));
-        }
-        let Some(frames) = args.frames else {
-            return Ok(Shot::Single);
-        };
-        let motion = Motion {
-            frames,
-            orbit_deg: args.orbit,
-            focus: args.focus_from.zip(args.focus_to).map(|(a, b)| [a, b]),
-            aperture: args
-                .aperture_from
-                .zip(args.aperture_to)
-                .map(|(a, b)| [a, b]),
-        };
-        motion.check()?;
-        Ok(Shot::Motion(motion))
-    }
-
-    /// The frame numbers, first and last.
-    fn frames(&self) -> (u32, u32) {
-        match self {
-            Shot::Single => (1, 1),
-            Shot::Motion(m) => m.frames(),
-            Shot::Path(p) => p.frames(),
-        }
-    }
-}
-
-/// A frame to render: its number, camera and output file.
-struct FrameJob {
-    number: u32,
-    camera: camera::Camera,
-    output: PathBuf,
-}
-
+/// `pointlens render`: the flags as a [`JobSpec`], then the library's job
+/// (`pointlens::job`): checks, signals, the cloud, every frame's camera,
+/// the scene, the frames, the timings.
 fn render(args: RenderArgs, quiet: bool) -> Result<()> {
-    let method = args.method.with(
+    let shot = shot_of(&args)?;
+    let splat = splat_of(&args)?;
+    let job = RenderJob::new(job_spec(&args, shot)?)?;
+
+    // SIGINT or SIGTERM ends a sequence after the frame being rendered
+    // (its file complete); a second one, or one during a single image,
+    // ends the process at once, removing the file being written.
+    let stop = Arc::new(AtomicBool::new(false));
+    job::watch_signals(job.is_sequence(), stop.clone())?;
+
+    let t_load = Instant::now();
+    let cloud = load(&args.input, args.origin, quiet)?;
+    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+    let plan = job.plan(&cloud)?;
+    if plan.frames.is_empty() {
+        log::warn!(
+            "nothing to render: the {} frames' files exist",
+            plan.skipped
+        );
+        return Ok(());
+    }
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    log::info!("device: {}", ctx.info.describe());
+    let renderer = Renderer::new(&ctx)?;
+    let scene = renderer.upload(&cloud, splat)?;
+    drop(cloud); // The hierarchy holds the points from here on.
+
+    let frames = FramesArgs {
+        print_camera: args.print_camera,
+        timings: args.timings,
+        quiet,
+    };
+    let outcome = render_frames(&job, &renderer, &scene, &plan, load_ms, &stop, frames)?;
+    if args.print_camera && job.is_sequence() {
+        out!("{}\n", job::camera_path(&outcome).to_json())?;
+    }
+    job.write_timings(&outcome.reports)?;
+    drop(scene);
+    drop(renderer);
+    Ok(ctx.check_validation()?)
+}
+
+/// What `render` prints as the frames go.
+#[derive(Clone, Copy)]
+struct FramesArgs {
+    print_camera: bool,
+    timings: bool,
+    quiet: bool,
+}
+
+/// Renders the plan's frames with a progress bar (sequences), the camera
+/// (`--print-camera` of one image) and each frame's timings on stderr.
+fn render_frames(
+    job: &RenderJob,
+    renderer: &Renderer,
+    scene: &Scene,
+    plan: &Plan,
+    load_ms: f64,
+    stop: &AtomicBool,
+    how: FramesArgs,
+) -> Result<Outcome> {
+    let sequence = job.is_sequence();
+    let bar = match sequence {
+        true => progress(
+            plan.frames.len() as u64,
+            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
+            how.quiet,
+        ),
+        false => ProgressBar::hidden(),
+    };
+    let outcome = job.render(renderer, scene, plan, stop, load_ms, &mut |event| {
+        match event {
+            JobEvent::Camera { spec, .. } if how.print_camera && !sequence => {
+                emit(&format!("{}\n", spec.to_json()))?;
+            }
+            JobEvent::Camera { .. } => {}
+            JobEvent::Written {
+                number,
+                seconds,
+                report,
+                ..
+            } => {
+                bar.set_message(format!("{seconds:.2} s/frame"));
+                bar.inc(1);
+                if how.timings {
+                    if sequence {
+                        eprintln!("frame {number}:");
+                    }
+                    eprint!("{}", report.text());
+                }
+            }
+        }
+        Ok(())
+    });
+    match &outcome {
+        Err(pointlens::Error::Interrupted { .. }) => bar.abandon(),
+        _ => bar.finish_and_clear(),
+    }
+    Ok(outcome?)
+}
+
+/// The shot the flags ask for: `--path`, `--frames` with its motion, or
+/// one image.
+fn shot_of(args: &RenderArgs) -> Result<Shot> {
+    if let Some(file) = &args.path {
+        return Ok(Shot::Path {
+            file: file.clone(),
+            path: CameraPath::from_json_file(file)?,
+        });
+    }
+    let Some(frames) = args.frames else {
+        return Ok(Shot::Single);
+    };
+    Ok(Shot::Motion(Motion {
+        frames,
+        orbit_deg: args.orbit,
+        focus: args.focus_from.zip(args.focus_to).map(|(a, b)| [a, b]),
+        aperture: args
+            .aperture_from
+            .zip(args.aperture_to)
+            .map(|(a, b)| [a, b]),
+    }))
+}
+
+/// `--splat-size` / `--splat-px` (each a positive number), else sizes from
+/// the points' spacing.
+fn splat_of(args: &RenderArgs) -> Result<SplatSize> {
+    if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
+        bail!("--splat-size must be a positive number, not {w}");
+    }
+    if let Some(p) = args.splat_px.filter(|p| !(p.is_finite() && *p > 0.0)) {
+        bail!("--splat-px must be a positive number, not {p}");
+    }
+    Ok(match (args.splat_size, args.splat_px) {
+        (Some(w), _) => SplatSize::World(w),
+        (_, Some(p)) => SplatSize::Pixels(p),
+        _ => SplatSize::Spacing,
+    })
+}
+
+/// `--background` in linear light (black when transparent or not given).
+fn background_of(args: &RenderArgs) -> Result<Vec3> {
+    Ok(match args.background {
+        Some(Background::Srgb(c)) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
+            bail!("--background takes sRGB values in [0, 1], got {c:?}")
+        }
+        Some(Background::Srgb(c)) => Vec3::from_array(c.map(srgb_to_linear)),
+        Some(Background::Transparent) | None => Vec3::ZERO,
+    })
+}
+
+/// The method and its options from the flags.
+fn method_of(args: &RenderArgs) -> Method {
+    args.method.with(
         FastOptions {
             weights: args.fast_weights,
             window: args.fast_window,
@@ -950,86 +1011,12 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
             layers: args.layers,
             ..LayeredOptions::default()
         },
-    );
-    check_output_path(&args.output)?;
-    let shot = Shot::of(&args)?;
-    let pattern = FramePattern::parse(&args.output)?;
-    let sequence = !matches!(shot, Shot::Single);
-    match (&pattern, sequence) {
-        (None, true) => bail!(
-            "-o {}: a sequence needs a frame number in the output name, e.g. shot_%04d.png",
-            args.output.display()
-        ),
-        (Some(_), false) => bail!(
-            "-o {}: a frame number pattern, but one frame to render (add --frames N or --path FILE)",
-            args.output.display()
-        ),
-        _ => {}
-    }
-    if !sequence && (args.frame_range.is_some() || args.skip_existing) {
-        bail!("--frame-range and --skip-existing are for sequences (--frames N or --path FILE)");
-    }
-    let range = match args.frame_range {
-        Some(r) => r.within(shot.frames())?,
-        None => {
-            let (first, last) = shot.frames();
-            FrameRange { first, last }
-        }
-    };
-    let output_of = |frame: u32| match &pattern {
-        Some(p) => p.path(frame),
-        None => args.output.clone(),
-    };
-    // Every frame's folder, before the cloud loads (a pattern may number
-    // folders: out_%02d/f.png).
-    let mut last_dir = None;
-    for number in range.first..=range.last {
-        let output = output_of(number);
-        if output.parent() != last_dir.as_deref() {
-            check_parent_dir(&output, "-o")?;
-            last_dir = output.parent().map(Path::to_path_buf);
-        }
-    }
-    if let Some(p) = &args.timings_json {
-        check_parent_dir(p, "--timings-json")?;
-    }
-    if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
-        bail!("--splat-size must be a positive number, not {w}");
-    }
-    if let Some(p) = args.splat_px.filter(|p| !(p.is_finite() && *p > 0.0)) {
-        bail!("--splat-px must be a positive number, not {p}");
-    }
-    let background = match args.background {
-        Some(Background::Srgb(c)) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
-            bail!("--background takes sRGB values in [0, 1], got {c:?}")
-        }
-        Some(Background::Srgb(c)) => Vec3::from_array(c.map(srgb_to_linear)),
-        Some(Background::Transparent) | None => Vec3::ZERO,
-    };
-    let written = Written {
-        transparent: args.background == Some(Background::Transparent),
-        passes: args.passes.unwrap_or_default(),
-    };
-    if args.passes.is_some() && is_png_path(&args.output)? {
-        bail!("--passes writes EXR channels: use an .exr output");
-    }
-    let lod = Lod {
-        px: args.lod_px,
-        blur: args.lod_blur,
-    };
-    check_lod(&lod)?;
+    )
+}
 
-    // SIGINT or SIGTERM ends a sequence after the frame being rendered
-    // (its file complete); a second one, or one during a single image,
-    // ends the process at once, removing the file being written.
-    let stop = Arc::new(AtomicBool::new(false));
-    watch_signals(sequence, stop.clone())?;
-
-    let t_load = Instant::now();
-    let cloud = load(&args.input, args.origin, quiet)?;
-    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
-
-    let flags = CameraSpec {
+/// The camera flags, which win over the camera file and the path.
+fn camera_flags(args: &RenderArgs) -> CameraSpec {
+    CameraSpec {
         coordinates: args.coordinates,
         width: args.width,
         height: args.height,
@@ -1045,305 +1032,31 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         units_per_mm: args.units_per_mm,
         focus_distance: args.focus_distance,
         ..CameraSpec::default()
-    };
-    let file = match &args.camera {
-        Some(path) => Some((path, CameraSpec::from_json_file(path)?)),
-        None => None,
-    };
-    // The fields of frame `frame`: camera file, then the path's, then flags.
-    let spec_of = |frame: u32| -> Result<CameraSpec> {
-        let mut spec = file.as_ref().map(|(_, s)| s.clone()).unwrap_or_default();
-        if let Shot::Path(path) = &shot {
-            spec = spec.overridden_by(&path.spec_at(frame));
-        }
-        let spec = spec.overridden_by(&flags);
-        if let Some((path, _)) = &file {
-            spec.require_complete()
-                .with_context(|| path.display().to_string())?;
-        }
-        Ok(spec)
-    };
-    let origin = cloud.origin;
-    let (lo, hi) = cloud.bounds();
-    let resolve = |spec: &CameraSpec| -> Result<camera::Camera> {
-        let in_scene = spec.in_scene(origin)?;
-        Ok(camera::resolve(&in_scene, lo, hi, &cloud.positions)?)
-    };
-    // Every frame's camera before any is rendered: a bad keyframe fails
-    // the run before the first frame.
-    let first_spec = spec_of(range.first)?;
-    let coordinates = first_spec.coordinates.unwrap_or_default();
-    let base = resolve(&first_spec)?;
-    let mut jobs = Vec::new();
-    for number in range.first..=range.last {
-        let camera = match &shot {
-            Shot::Single => base,
-            Shot::Motion(motion) => motion.camera(&base, number),
-            Shot::Path(_) => resolve(&spec_of(number)?)
-                .with_context(|| format!("frame {number} of {}", path_name(&args)))?,
-        };
-        jobs.push(FrameJob {
-            number,
-            camera,
-            output: output_of(number),
-        });
-    }
-    let all = jobs.len();
-    if args.skip_existing {
-        jobs.retain(|job| {
-            let exists = job.output.exists();
-            if exists {
-                log::info!(
-                    "frame {}: {} exists, skipped",
-                    job.number,
-                    job.output.display()
-                );
-            }
-            !exists
-        });
-        if jobs.is_empty() {
-            log::warn!("nothing to render: the {all} frames' files exist");
-            return Ok(());
-        }
-    }
-
-    let splat = match (args.splat_size, args.splat_px) {
-        (Some(w), _) => SplatSize::World(w),
-        (_, Some(p)) => SplatSize::Pixels(p),
-        _ => SplatSize::Spacing,
-    };
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    log::info!("device: {}", ctx.info.describe());
-    let renderer = Renderer::new(&ctx)?;
-    let scene = renderer.upload(&cloud, splat)?;
-    let points = cloud.len();
-    drop(cloud); // The hierarchy holds the points from here on.
-
-    let bar = match sequence {
-        true => progress(
-            jobs.len() as u64,
-            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
-            quiet,
-        ),
-        false => ProgressBar::hidden(),
-    };
-    let mut printed = Vec::new();
-    let mut reports = Vec::new();
-    for (done, job) in jobs.iter().enumerate() {
-        if stop.load(Ordering::SeqCst) {
-            bar.abandon();
-            bail!(
-                "interrupted: {done} of {} frames written, frame {} and later not rendered \
-                 (run again with --skip-existing to resume)",
-                jobs.len(),
-                job.number
-            );
-        }
-        let t_frame = Instant::now();
-        let mut cam = job.camera;
-        if let Some([x, y]) = args.focus_pixel {
-            cam.focus_distance = renderer.depth_at_pixel(&scene, &cam, args.ssaa, lod, x, y)?;
-        }
-        let spec = cam.to_spec_in(coordinates, origin);
-        if args.print_camera && !sequence {
-            out!("{}\n", spec.to_json())?;
-        }
-        printed.push((job.number, spec));
-        let options = RenderOptions {
-            camera: cam,
-            method,
-            ssaa: args.ssaa,
-            samples_per_pass: args.samples_per_pass,
-            background,
-            lod,
-        };
-        let report = render_frame(&renderer, &scene, &options, &job.output, written)?;
-        let report = FrameReport {
-            load_ms,
-            ..report.into_report(&ctx, method.short_name(), args.ssaa, points, &scene)
-        };
-        let (rss, peak) = pointlens::report::host_memory_bytes().unwrap_or_default();
-        log::info!(
-            "frame {}: {} in {:.2} s (device memory {} B, host resident {} B, peak {} B)",
-            job.number,
-            job.output.display(),
-            t_frame.elapsed().as_secs_f64(),
-            ctx.allocated_bytes(),
-            rss,
-            peak
-        );
-        bar.set_message(format!("{:.2} s/frame", t_frame.elapsed().as_secs_f64()));
-        bar.inc(1);
-        if args.timings {
-            if sequence {
-                eprintln!("frame {}:", job.number);
-            }
-            eprint!("{}", report.text());
-        }
-        reports.push(report);
-    }
-    bar.finish_and_clear();
-    if args.print_camera && sequence {
-        out!("{}\n", CameraPath::of_frames(printed).to_json())?;
-    }
-    if let Some(path) = &args.timings_json {
-        let text = match (sequence, reports.as_slice()) {
-            (false, [one]) => one.to_json(),
-            _ => format!(
-                "[\n{}\n]",
-                reports
-                    .iter()
-                    .map(FrameReport::to_json)
-                    .collect::<Vec<_>>()
-                    .join(",\n")
-            ),
-        };
-        write_text(path, &text)?;
-    }
-    drop(scene);
-    drop(renderer);
-    Ok(ctx.check_validation()?)
-}
-
-fn path_name(args: &RenderArgs) -> String {
-    args.path
-        .as_deref()
-        .map_or_else(String::new, |p| p.display().to_string())
-}
-
-/// The G-buffer's eye depth of each output pixel (guard band cropped).
-fn output_depths(g: &pointlens::render::HostGBuffer, width: u32, height: u32) -> Vec<f32> {
-    let mut depth = Vec::with_capacity(width as usize * height as usize);
-    for y in 0..height {
-        let row = ((y + g.guard) * g.width + g.guard) as usize;
-        depth.extend(g.eye[row..row + width as usize].iter().map(|e| e[2]));
-    }
-    depth
-}
-
-/// What one frame's render measured, before it becomes a [`FrameReport`].
-struct FrameMeasure {
-    rendered: pointlens::render::Rendered<()>,
-    camera: camera::Camera,
-    encode_ms: f64,
-}
-
-impl FrameMeasure {
-    fn into_report(
-        self,
-        ctx: &Context,
-        method: String,
-        ssaa: u32,
-        points: usize,
-        scene: &pointlens::render::Scene,
-    ) -> FrameReport {
-        let r = self.rendered;
-        FrameReport {
-            samples_per_pass: r.samples_per_pass,
-            counts: r.counts.clone(),
-            lod: r.lod,
-            encode_ms: self.encode_ms,
-            ..FrameReport::new(
-                &ctx.info,
-                method,
-                (self.camera.width, self.camera.height),
-                ssaa,
-                points,
-                r.guard,
-                &r.timings,
-                scene.upload,
-            )
-        }
     }
 }
 
-/// What a frame's file holds besides the color.
-#[derive(Debug, Clone, Copy)]
-struct Written {
-    /// Alpha = coverage (else opaque).
-    transparent: bool,
-    passes: Passes,
-}
-
-/// Renders one frame and writes it to `output` (atomically).
-fn render_frame(
-    renderer: &Renderer,
-    scene: &pointlens::render::Scene,
-    options: &RenderOptions,
-    output: &Path,
-    written: Written,
-) -> Result<FrameMeasure> {
-    let png = is_png_path(output)?;
-    if png && written.transparent {
-        let rendered = renderer.render(scene, options)?;
-        let t_encode = Instant::now();
-        write_png_rgba(&rendered.image, output)?;
-        return Ok(FrameMeasure {
-            rendered: rendered.map(|_| ()),
-            camera: options.camera,
-            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
-        });
-    }
-    if !png {
-        // EXR: R, G, B, A and the passes asked for.
-        let Passes { z, coc } = written.passes;
-        let (rendered, gbuffer) = match z || coc {
-            true => {
-                let (r, g) = renderer.render_with_gbuffer(scene, options)?;
-                (r, Some(g))
-            }
-            false => (renderer.render(scene, options)?, None),
-        };
-        let t_encode = Instant::now();
-        let image = &rendered.image;
-        let channel = |name: &str, samples: Vec<f32>| ExrChannel {
-            name: name.to_string(),
-            samples,
-        };
-        let component = |i: usize| image.pixels.iter().map(|p| p[i]).collect::<Vec<f32>>();
-        let mut channels = vec![
-            channel("R", component(0)),
-            channel("G", component(1)),
-            channel("B", component(2)),
-            channel(
-                "A",
-                match written.transparent {
-                    true => component(3),
-                    false => vec![1.0; image.pixels.len()],
-                },
-            ),
-        ];
-        if let Some(g) = gbuffer {
-            let depth = output_depths(&g, image.width, image.height);
-            if coc {
-                let cam = &options.camera;
-                channels.push(channel(
-                    "CoC",
-                    depth.iter().map(|&d| cam.coc_px(d)).collect(),
-                ));
-            }
-            if z {
-                channels.push(channel("Z", depth));
-            }
-        }
-        write_exr_channels(output, image.width, image.height, &channels)?;
-        return Ok(FrameMeasure {
-            rendered: rendered.map(|_| ()),
-            camera: options.camera,
-            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
-        });
-    }
-    // PNG pixels are encoded on the device.
-    let rendered = renderer.render_srgb8(scene, options)?;
-    let t_encode = Instant::now();
-    rendered.image.write_png(output)?;
-    let (rendered, encode_ms) = (rendered.map(|_| ()), t_encode.elapsed().as_secs_f64() * 1e3);
-    Ok(FrameMeasure {
-        rendered,
-        camera: options.camera,
-        encode_ms,
+/// Everything `render` asks of the job.
+fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
+    Ok(JobSpec {
+        shot,
+        output: args.output.clone(),
+        frame_range: args.frame_range,
+        skip_existing: args.skip_existing,
+        camera_file: args.camera.clone(),
+        camera_flags: camera_flags(args),
+        focus_pixel: args.focus_pixel,
+        method: method_of(args),
+        ssaa: args.ssaa,
+        samples_per_pass: args.samples_per_pass,
+        background: background_of(args)?,
+        lod: Lod {
+            px: args.lod_px,
+            blur: args.lod_blur,
+        },
+        written: Written {
+            transparent: args.background == Some(Background::Transparent),
+            passes: args.passes.unwrap_or_default(),
+        },
+        timings_json: args.timings_json.clone(),
     })
 }

@@ -7,7 +7,6 @@
 use clap::ValueEnum;
 
 use crate::error::{Error, Result};
-use crate::tree::Lod;
 
 /// How each pixel's contribution to the fast gather is weighted
 /// (`--fast-weights`).
@@ -415,4 +414,38 @@ fn in_range(flag: &str, v: u32, lo: u32, hi: u32) -> Result<u32> {
         )));
     }
     Ok(v)
+}
+
+/// What a frame asks of the splat hierarchy's traversal (DESIGN §3,
+/// `--lod-px`, `--lod-blur`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lod {
+    /// Emit an inner node when its projected diameter is at most this many
+    /// pixels. 0: no traversal, every point is drawn.
+    pub px: f32,
+    /// Also emit it when its projected diameter is at most this multiple
+    /// of the smallest CoC over its depth range (None: off).
+    pub blur: Option<f32>,
+}
+
+impl Default for Lod {
+    fn default() -> Lod {
+        Lod {
+            px: 1.0,
+            blur: None,
+        }
+    }
+}
+
+impl Lod {
+    /// Every point, no culling (`--lod-px 0`).
+    pub const ALL: Lod = Lod {
+        px: 0.0,
+        blur: None,
+    };
+
+    /// Whether the frame draws every point without a traversal.
+    pub fn draws_all(&self) -> bool {
+        self.px == 0.0
+    }
 }

@@ -14,12 +14,12 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
-use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Method};
+use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Lod, Method};
 use crate::passes::output::{OutputConvert, OutputFormat};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
 use crate::report::{LodReport, Upload};
-use crate::tree::{LeafSize, Lod, SplatTree, Widening};
+use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
 use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point
@@ -29,7 +29,7 @@ use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 pub const SPACING_TO_DIAMETER: f32 = 1.0;
 
 /// Every point's world diameter under `splat` (DESIGN §3) from the exact
-/// k-nearest-neighbour spacing (`PointCloud::local_spacing`):
+/// k-nearest-neighbour spacing ([`tree::exact_spacing`]):
 /// `SPACING_TO_DIAMETER` × local spacing (the cloud's median spacing where
 /// a point's is 0), W for `World(W)`, and 0 for `Pixels` (sized on the
 /// GPU). The renderer sizes splats from the tree ([`SplatTree`]); this is
@@ -39,8 +39,8 @@ pub fn splat_diameters(cloud: &PointCloud, splat: SplatSize) -> Vec<f32> {
         SplatSize::World(w) => vec![w; cloud.len()],
         SplatSize::Pixels(_) => vec![0.0; cloud.len()],
         SplatSize::Spacing => {
-            let spacing = cloud.local_spacing();
-            let fallback = crate::cloud::median(spacing.clone());
+            let spacing = tree::exact_spacing(&cloud.positions, crate::available_threads());
+            let fallback = tree::median(spacing.clone());
             spacing
                 .iter()
                 .map(|&s| SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback })
@@ -58,6 +58,25 @@ pub enum SplatSize {
     World(f32),
     /// Every splat a square of this many pixels in the pinhole image.
     Pixels(f32),
+}
+
+impl SplatSize {
+    /// The splat hierarchy's rule for its leaves' world diameters:
+    /// `SPACING_TO_DIAMETER` × the tree's local spacing, W, or 0 (splats
+    /// sized in pixels on the GPU).
+    pub fn leaf_size(self) -> LeafSize<'static> {
+        match self {
+            SplatSize::Spacing => LeafSize::SpacingTimes(SPACING_TO_DIAMETER),
+            SplatSize::World(w) => LeafSize::World(w),
+            SplatSize::Pixels(_) => LeafSize::Zero,
+        }
+    }
+}
+
+/// The splat hierarchy [`Renderer::upload`] builds for `cloud` under
+/// `splat`, on `threads` threads (e.g. to export the splats it draws).
+pub fn splat_tree(cloud: &PointCloud, splat: SplatSize, threads: usize) -> SplatTree {
+    SplatTree::build(points_of(cloud), splat.leaf_size(), threads)
 }
 
 /// Everything a frame needs besides the scene.
@@ -158,10 +177,7 @@ impl Scene {
         let traversal = self.tree.traverse(camera, key.lod, key.widening, threads);
         let started = Instant::now();
         let eye_from_world = camera.eye_from_world_transform();
-        let depths = depth_range_with(
-            &eye_from_world,
-            traversal.splats.iter().map(SplatVertex::centre),
-        );
+        let depths = depth_range_with(&eye_from_world, traversal.splats.iter().map(Splat::centre));
         let (near, _) = clip_range(depths);
         let max_splat_px = match self.splat {
             SplatSize::Pixels(p) => p.min(key.point_size_max),
@@ -186,7 +202,7 @@ impl Scene {
         let bytes: &[u8] = if traversal.splats.is_empty() {
             bytemuck::bytes_of(&EMPTY_VERTEX)
         } else {
-            bytemuck::cast_slice(&traversal.splats)
+            bytemuck::cast_slice(vertices_of(&traversal.splats))
         };
         // A buffer larger than one allocation or than the device's memory
         // may not be made (lavapipe crashed on 2.4 GB in a 2 GiB heap
@@ -238,6 +254,23 @@ impl Scene {
         let lod = splats.lod;
         Ok((splats, lod))
     }
+}
+
+/// The points of `cloud` as the splat hierarchy takes them.
+fn points_of(cloud: &PointCloud) -> Points<'_> {
+    Points {
+        positions: &cloud.positions,
+        colors: &cloud.colors,
+        normals: cloud.normals.as_deref(),
+    }
+}
+
+/// The hierarchy's splats as the raster's vertices: the same 24 bytes
+/// (position and diameter as 4 × f32, color and normal as 4 × u16; a test
+/// checks every field's offset), so the frame's splats reach the vertex
+/// buffer without a conversion.
+pub fn vertices_of(splats: &[Splat]) -> &[SplatVertex] {
+    bytemuck::cast_slice(splats)
 }
 
 /// The vertex of a frame that emits none (a buffer is never empty).
@@ -305,12 +338,7 @@ impl Renderer {
     /// local spacing under `splat`, DESIGN §3). The splats reach the GPU
     /// per frame, after the traversal.
     pub fn upload(&self, cloud: &PointCloud, splat: SplatSize) -> Result<Scene> {
-        let size = match splat {
-            SplatSize::Spacing => LeafSize::Spacing,
-            SplatSize::World(w) => LeafSize::World(w),
-            SplatSize::Pixels(_) => LeafSize::Zero,
-        };
-        self.upload_with(cloud, splat, size)
+        self.upload_with(cloud, splat, splat.leaf_size())
     }
 
     /// [`Renderer::upload`] with each point's world diameter given (in the
@@ -332,13 +360,17 @@ impl Renderer {
     /// Morton order gains the raster.
     pub fn upload_in_input_order(&self, cloud: &PointCloud) -> Result<Scene> {
         self.upload_tree(cloud, SplatSize::Spacing, |threads| {
-            SplatTree::build_in_input_order(cloud, LeafSize::Spacing, threads)
+            SplatTree::build_in_input_order(
+                points_of(cloud),
+                SplatSize::Spacing.leaf_size(),
+                threads,
+            )
         })
     }
 
     fn upload_with(&self, cloud: &PointCloud, splat: SplatSize, size: LeafSize) -> Result<Scene> {
         self.upload_tree(cloud, splat, |threads| {
-            SplatTree::build(cloud, size, threads)
+            SplatTree::build(points_of(cloud), size, threads)
         })
     }
 
@@ -712,4 +744,31 @@ fn rgba16f_texels(bytes: &[u8]) -> Vec<[f32; 4]> {
         .chunks_exact(8)
         .map(|t| std::array::from_fn(|i| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::mem::{align_of, offset_of, size_of};
+
+    use super::*;
+
+    /// [`vertices_of`] reads the hierarchy's splats as the raster's
+    /// vertices: every field at the same offset, of the same size.
+    #[test]
+    fn a_tree_splat_is_laid_out_as_the_raster_vertex() {
+        assert_eq!(size_of::<Splat>(), size_of::<SplatVertex>());
+        assert_eq!(align_of::<Splat>(), align_of::<SplatVertex>());
+        assert_eq!(
+            offset_of!(Splat, position_size),
+            offset_of!(SplatVertex, position_size)
+        );
+        assert_eq!(offset_of!(Splat, color), offset_of!(SplatVertex, color));
+        let splat = Splat {
+            position_size: [1.0, -2.0, 3.5, 0.25],
+            color: [1, 65535, 300, 0xBEEF],
+        };
+        let vertex = vertices_of(std::slice::from_ref(&splat))[0];
+        assert_eq!(vertex.position_size, splat.position_size);
+        assert_eq!(vertex.color, splat.color);
+    }
 }

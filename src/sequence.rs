@@ -442,8 +442,15 @@ impl FrameRange {
         Ok(range)
     }
 
-    /// Checks that the range lies within the sequence's frames.
+    /// Checks that the range is one (A ≤ B) and lies within the sequence's
+    /// frames.
     pub fn within(self, (first, last): (u32, u32)) -> Result<FrameRange> {
+        if self.first > self.last {
+            return Err(invalid(format!(
+                "--frame-range takes A-B or A (whole numbers, A <= B), not '{}-{}'",
+                self.first, self.last
+            )));
+        }
         if self.first < first || self.last > last {
             return Err(invalid(format!(
                 "--frame-range {}-{} is outside the sequence's frames {first}-{last}",

@@ -168,7 +168,7 @@ pub fn write_las(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -> Resu
     };
     let mut builder = Builder::from((1, 2));
     builder.point_format = las::point::Format::new(2).map_err(fail)?;
-    builder.point_format.is_compressed = crate::las::has_las_extension(path)
+    builder.point_format.is_compressed = crate::input::las::has_las_extension(path)
         && path
             .extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("laz"));

@@ -6,9 +6,9 @@ use common::{camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
+use pointlens::input::ply::load_ply;
 use pointlens::metrics::psnr;
 use pointlens::options::Method;
-use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::PointCloud;
 
@@ -27,7 +27,7 @@ fn accum(
         ssaa,
         samples_per_pass: None,
         background: Vec3::ZERO,
-        lod: pointlens::tree::Lod::default(),
+        lod: pointlens::options::Lod::default(),
     };
     renderer.render(&scene, &options).unwrap().image
 }

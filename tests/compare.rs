@@ -5,7 +5,7 @@ mod common;
 use std::process::Command;
 
 use common::scratch;
-use pointlens::cloud::srgb_to_linear;
+use pointlens::image_io::srgb_to_linear;
 use pointlens::image_io::{write_image, LinearImage};
 use pointlens::metrics::{max_abs_error, psnr, ssim};
 

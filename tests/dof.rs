@@ -4,10 +4,10 @@ mod common;
 
 use common::{camera, cloud, options, with_gpu};
 use glam::Vec3;
+use pointlens::options::Lod;
 use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow, RdbMode};
 use pointlens::render::{Renderer, SplatSize};
-use pointlens::tree::Lod;
 
 const METHODS: [Method; 7] = [
     Method::fast(FastWeights::Area, GatherWindow::Tiles),

@@ -6,8 +6,8 @@ use common::{assert_matches_reference, camera, cloud, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
+use pointlens::input::ply::load_ply;
 use pointlens::options::Method;
-use pointlens::ply::load_ply;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
@@ -28,7 +28,7 @@ fn render(
         background: Vec3::ZERO,
         // Every point: these tests are about how one splat is drawn, not
         // which the hierarchy picks (tests/tree.rs).
-        lod: pointlens::tree::Lod::ALL,
+        lod: pointlens::options::Lod::ALL,
     };
     renderer.render(&scene, &options).expect("render").image
 }
@@ -290,7 +290,7 @@ fn every_pass_of_a_many_sample_frame_is_timed() {
             ssaa: 12,
             samples_per_pass: Some(1),
             background: Vec3::ZERO,
-            lod: pointlens::tree::Lod::default(),
+            lod: pointlens::options::Lod::default(),
         };
         let timings = renderer.render(&scene, &options).unwrap().timings;
         let count = |name: &str| {
@@ -336,7 +336,7 @@ fn a_scene_remembers_only_its_last_camera() {
                 ssaa: 1,
                 samples_per_pass: None,
                 background: Vec3::ZERO,
-                lod: pointlens::tree::Lod::ALL,
+                lod: pointlens::options::Lod::ALL,
             };
             renderer.render(scene, &options).unwrap()
         };
@@ -377,7 +377,7 @@ fn a_scene_from_another_device_is_an_error_not_a_crash() {
             ssaa: 1,
             samples_per_pass: None,
             background: Vec3::ZERO,
-            lod: pointlens::tree::Lod::default(),
+            lod: pointlens::options::Lod::default(),
         };
         let err = ours.render(&scene, &options).err().expect("an error");
         assert!(err.to_string().contains("another device"), "{err}");

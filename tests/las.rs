@@ -13,10 +13,10 @@ use glam::{DVec3, Vec3};
 use las::point::{Classification, Format};
 use las::{Builder, Color, Point, Transform, Vector, Version, Writer};
 use pointlens::camera::{self, CameraSpec, Coordinates};
-use pointlens::cloud::{linear_from_code, load_cloud};
-use pointlens::las::load_las;
+use pointlens::input::las::load_las;
+use pointlens::input::ply::load_ply;
+use pointlens::input::{linear_from_code, load_cloud};
 use pointlens::options::{FastOptions, Method};
-use pointlens::ply::load_ply;
 use pointlens::render::{Renderer, SplatSize};
 use pointlens::PointCloud;
 
@@ -275,7 +275,7 @@ fn intensity_is_grey_over_the_files_actual_range() {
     assert!(cloud
         .colors
         .iter()
-        .all(|&c| c == pointlens::cloud::DEFAULT_COLOR));
+        .all(|&c| c == pointlens::input::DEFAULT_COLOR));
 }
 
 #[test]

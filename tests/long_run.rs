@@ -18,7 +18,7 @@ use common::scratch;
 #[test]
 fn a_thousand_frames_keep_device_memory_flat() {
     let path = common::root().join("data/bunny_colored.ply");
-    let cloud = pointlens::cloud::load_cloud(Path::new(&path), None, &mut |_, _| {}).unwrap();
+    let cloud = pointlens::input::load_cloud(Path::new(&path), None, &mut |_, _| {}).unwrap();
     let (lo, hi) = cloud.bounds();
     let spec = CameraSpec {
         width: Some(12),

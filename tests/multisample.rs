@@ -60,7 +60,7 @@ fn multisampled_passes_match_one_sample_passes_on_the_bundled_scenes() {
                 ssaa: 4,
                 samples_per_pass: None,
                 background: Vec3::new(0.05, 0.1, 0.2),
-                lod: pointlens::tree::Lod::default(),
+                lod: pointlens::options::Lod::default(),
             };
             let (reference, _) = render(&renderer, &scene, &base, Some(1));
             for method in [
@@ -120,7 +120,7 @@ fn one_sample_per_pass_is_the_device_independent_form() {
             ssaa: 3,
             samples_per_pass: None,
             background: Vec3::ZERO,
-            lod: pointlens::tree::Lod::default(),
+            lod: pointlens::options::Lod::default(),
         };
         // No standard 4-sample location is on the 3×3 grid, and a limit of
         // 2 leaves lavapipe only 1: both fall back to one sample per pass.

@@ -45,7 +45,7 @@ fn device_output_equals_the_host_conversion() {
                     // A bright background: codes up to 255 and linear
                     // values near 1.
                     background: Vec3::new(0.9, 0.35, 0.02),
-                    lod: pointlens::tree::Lod::default(),
+                    lod: pointlens::options::Lod::default(),
                 };
                 let linear = renderer.render(&scene, &options).unwrap();
                 let srgb = renderer.render_srgb8(&scene, &options).unwrap();

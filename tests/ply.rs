@@ -9,11 +9,13 @@ use std::path::{Path, PathBuf};
 
 use common::{root, scratch};
 use glam::Vec3;
-use pointlens::cloud::{srgb_to_linear, DEFAULT_COLOR};
-use pointlens::ply::{
+use pointlens::image_io::srgb_to_linear;
+use pointlens::input::ply::{
     load_ply, load_ply_direct, load_ply_direct_with_chunk, load_ply_general, load_ply_with_chunk,
     CHUNK_BYTES,
 };
+use pointlens::input::DEFAULT_COLOR;
+use pointlens::tree::{exact_spacing, median};
 use pointlens::PointCloud;
 
 /// The three test points: positions, 8-bit sRGB colors, and normals (not unit
@@ -661,7 +663,7 @@ fn local_spacing_of_a_grid_is_the_analytic_mean() {
         positions,
         ..Default::default()
     };
-    let s = cloud.local_spacing();
+    let s = exact_spacing(&cloud.positions, 2);
     let expected = h * (1.0 + 2f32.sqrt()) / 2.0;
     let interior = 20 * 40 + 20;
     assert!(
@@ -669,7 +671,7 @@ fn local_spacing_of_a_grid_is_the_analytic_mean() {
         "{} vs {expected}",
         s[interior]
     );
-    assert!((cloud.median_spacing() - expected).abs() < 1e-6);
+    assert!((median(exact_spacing(&cloud.positions, 3)) - expected).abs() < 1e-6);
 }
 
 #[test]
@@ -693,7 +695,7 @@ fn local_spacing_equals_brute_force() {
         positions: positions.clone(),
         ..Default::default()
     };
-    let fast = cloud.local_spacing();
+    let fast = exact_spacing(&cloud.positions, 2);
     for (i, p) in positions.iter().enumerate() {
         let mut d: Vec<f32> = positions
             .iter()

@@ -7,12 +7,12 @@ use glam::Vec3;
 use pointlens::camera::rdb_lens_table;
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
+use pointlens::input::ply::load_ply;
 use pointlens::metrics::psnr;
 use pointlens::options::Method;
 use pointlens::options::{FastWeights, GatherWindow};
 use pointlens::options::{RdbAtomics, RdbMode, RdbOptions};
 use pointlens::passes::rdb::{bytes_per_pixel, TilePlan};
-use pointlens::ply::load_ply;
 use pointlens::reference;
 use pointlens::render::{HostGBuffer, RenderOptions, Renderer, Scene, SplatSize};
 
@@ -23,7 +23,7 @@ fn options(cam: Camera, method: Method) -> RenderOptions {
         ssaa: 2,
         samples_per_pass: None,
         background: Vec3::ZERO,
-        lod: pointlens::tree::Lod::default(),
+        lod: pointlens::options::Lod::default(),
     }
 }
 

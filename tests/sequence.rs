@@ -175,7 +175,7 @@ fn exr_passes_hold_the_gbuffer_depth_and_the_coc_of_design_2() {
     // The G-buffer of the same camera, through the library.
     let spec = CameraSpec::from_json_str(std::str::from_utf8(&o.stdout).unwrap()).unwrap();
     let cam = camera::resolve(&spec, glam::Vec3::ZERO, glam::Vec3::ZERO, &[]).unwrap();
-    let cloud = pointlens::cloud::load_cloud(Path::new(&bunny()), None, &mut |_, _| {}).unwrap();
+    let cloud = pointlens::input::load_cloud(Path::new(&bunny()), None, &mut |_, _| {}).unwrap();
     let gbuffer = common::with_gpu(|ctx| {
         let renderer = pointlens::render::Renderer::new(ctx).unwrap();
         let scene = renderer
@@ -586,7 +586,7 @@ fn list_devices_marks_the_default() {
 #[test]
 fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
     use pointlens::options::{Method, RdbAtomics, RdbMode, RdbOptions};
-    let cloud = pointlens::cloud::load_cloud(Path::new(&bunny()), None, &mut |_, _| {}).unwrap();
+    let cloud = pointlens::input::load_cloud(Path::new(&bunny()), None, &mut |_, _| {}).unwrap();
     let (lo, hi) = cloud.bounds();
     let spec = CameraSpec {
         width: Some(40),

@@ -7,7 +7,7 @@ use common::{assert_fails, file_names, pointlens, scratch};
 use glam::Vec3;
 use pointlens::bench::synthetic_cloud;
 use pointlens::image_io::{linear_to_srgb8, srgb8_to_linear_lut};
-use pointlens::ply::{load_ply, load_ply_direct};
+use pointlens::input::ply::{load_ply, load_ply_direct};
 use pointlens::synth::{self, RECORD_BYTES};
 
 /// The bench's generator as it was before `synth` (one sequential

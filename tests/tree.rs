@@ -10,12 +10,22 @@ use pointlens::bench::{synthetic_cloud, BenchModel};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics;
+use pointlens::options::Lod;
 use pointlens::options::{FastWeights, GatherWindow, Method};
 use pointlens::render::{splat_diameters, RenderOptions, Renderer, SplatSize};
-use pointlens::tree::{max_coc_px, LeafSize, Lod, SplatTree, Widening};
+use pointlens::tree::{max_coc_px, LeafSize, Points, SplatTree, Widening};
 use pointlens::PointCloud;
 
 const THREADS: usize = 2;
+
+/// A cloud's points as the hierarchy takes them.
+fn points(cloud: &PointCloud) -> Points<'_> {
+    Points {
+        positions: &cloud.positions,
+        colors: &cloud.colors,
+        normals: cloud.normals.as_deref(),
+    }
+}
 
 fn lcg(seed: u64) -> impl FnMut() -> f32 {
     let mut state = seed;
@@ -57,7 +67,7 @@ fn inside_camera() -> Camera {
 #[test]
 fn culling_keeps_exactly_what_can_reach_the_image() {
     let cloud = cube_cloud(60_000);
-    let tree = SplatTree::build(&cloud, LeafSize::World(0.001), THREADS);
+    let tree = SplatTree::build(points(&cloud), LeafSize::World(0.001), THREADS);
     let cam = inside_camera();
     // A threshold no inner node meets: the emitted splats are the leaves
     // that survive culling.
@@ -154,7 +164,7 @@ fn plane_camera(aperture_radius: f32) -> Camera {
 #[test]
 fn back_facing_cones_are_culled_and_clouds_without_normals_are_not() {
     let count = |normal: Option<Vec3>, aperture: f32| {
-        let tree = SplatTree::build(&plane(normal), LeafSize::World(0.02), THREADS);
+        let tree = SplatTree::build(points(&plane(normal)), LeafSize::World(0.02), THREADS);
         let lod = Lod {
             px: 1e-4,
             blur: None,
@@ -185,7 +195,7 @@ fn back_facing_cones_are_culled_and_clouds_without_normals_are_not() {
 #[test]
 fn coarser_lod_emits_fewer_splats_and_no_node_above_the_threshold() {
     let cloud = synthetic_cloud(300_000);
-    let tree = SplatTree::build(&cloud, LeafSize::Spacing, THREADS);
+    let tree = SplatTree::build(points(&cloud), SplatSize::Spacing.leaf_size(), THREADS);
     let cam = BenchModel::Synthetic.camera(&cloud, 320, 240).unwrap();
     let f = cam.f_px();
     let eye_from_world = cam.eye_from_world_transform();
@@ -365,7 +375,8 @@ fn tree_splat_sizes_match_knn_sizes_against_accum() {
 fn tree_median_spacing_is_near_the_exact_one() {
     for model in [BenchModel::Bunny, BenchModel::Mug] {
         let cloud = bundled(&model);
-        let exact = cloud.median_spacing();
+        let exact =
+            pointlens::tree::median(pointlens::tree::exact_spacing(&cloud.positions, THREADS));
         let tree = pointlens::tree::median_spacing(&cloud.positions, THREADS);
         eprintln!("{model:?}: exact {exact}, tree {tree}");
         assert!(

@@ -18,7 +18,7 @@ fuzz_target!(|data: &[u8]| {
     let mut bytes = b"LASF".to_vec();
     bytes.extend_from_slice(body.get(4..).unwrap_or(&[]));
     std::fs::write(&path, &bytes).expect("write the input");
-    if let Ok(cloud) = pointlens::cloud::load_cloud(&path, None, &mut |_, _| {}) {
+    if let Ok(cloud) = pointlens::input::load_cloud(&path, None, &mut |_, _| {}) {
         let _ = cloud.bounds();
         assert_eq!(cloud.positions.len(), cloud.colors.len());
     }

@@ -12,7 +12,7 @@ fuzz_target!(|data: &[u8]| {
         std::process::id()
     ));
     std::fs::write(&path, data).expect("write the input");
-    if let Ok(cloud) = pointlens::cloud::load_cloud(&path, None, &mut |_, _| {}) {
+    if let Ok(cloud) = pointlens::input::load_cloud(&path, None, &mut |_, _| {}) {
         // What a render does next with a loaded cloud, on the CPU.
         let _ = cloud.bounds();
         assert_eq!(cloud.positions.len(), cloud.colors.len());

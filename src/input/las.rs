@@ -26,7 +26,8 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use las::{PointData, PointDataBuilder, Reader};
 
-use crate::cloud::{display_coord, linear_from_code, PointCloud, DEFAULT_COLOR};
+use super::{linear_from_code, DEFAULT_COLOR};
+use crate::cloud::{display_coord, PointCloud};
 use crate::error::{Error, Result};
 
 /// Points read from the file at a time: ten LAZ chunks of the usual 50,000

@@ -14,8 +14,10 @@ use ply_rs_bw::ply::{
     DefaultElement, ElementDef, Encoding, Header, Property, PropertyType, ScalarType,
 };
 
-use crate::cloud::{linear_from_code, srgb_to_linear, PointCloud, DEFAULT_COLOR};
+use super::{linear_from_code, DEFAULT_COLOR};
+use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
+use crate::image_io::srgb_to_linear;
 
 /// The accepted names of the red, green and blue properties, in order of preference.
 const COLOR_NAMES: [[&str; 3]; 3] = [

@@ -26,23 +26,12 @@ pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub struct SplatVertex {
     /// World position (xyz) and world diameter (w).
     pub position_size: [f32; 4],
-    /// Linear RGB, 16-bit UNORM; alpha unused.
+    /// Linear RGB, 16-bit UNORM; the fourth channel is not read (the
+    /// splat hierarchy keeps a normal there: `tree::Splat`).
     pub color: [u16; 4],
 }
 
 const _: () = assert!(std::mem::size_of::<SplatVertex>() == 24);
-
-impl SplatVertex {
-    /// The world position.
-    pub fn centre(&self) -> glam::Vec3 {
-        glam::Vec3::from_slice(&self.position_size[..3])
-    }
-
-    /// The splat's sphere: world centre and radius (half the diameter).
-    pub fn sphere(&self) -> (glam::Vec3, f32) {
-        (self.centre(), 0.5 * self.position_size[3])
-    }
-}
 
 push_constants! {
     /// Push constants of the pass; mirrors `glsl/splat_raster.glsl` (128 bytes).

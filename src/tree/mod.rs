@@ -2,27 +2,79 @@
 //! over the points in Morton order, built once per cloud, and the per-frame
 //! traversal that culls and picks the level of detail.
 //!
+//! A pure data structure: it takes points ([`Points`]: positions, linear
+//! colors, normals) and a size rule ([`LeafSize`]), and gives splats in its
+//! own type ([`Splat`]). It knows nothing of the renderer: the GPU vertex
+//! and the rule from spacing to diameter live on the render side
+//! (`render`, `passes::splat_raster`).
+//!
+//! - `morton`: the points' Morton order (a parallel radix sort);
+//! - `spacing`: local point spacing, the tree's (a window in Morton order)
+//!   and the exact k-nearest-neighbour one it approximates;
+//! - `traverse`: the per-frame traversal (culling, level of detail).
+//!
 //! Layout (docs/ARCHITECTURE.md, "Splat hierarchy"). Level 0 holds the
-//! points themselves, sorted by the Morton code of their position, as the
-//! splat vertices the raster pass reads (24 bytes: position, world
-//! diameter, linear color as UNORM16; the color's unused alpha holds the
-//! octahedral normal). Level l ≥ 1 groups runs of at most 8 consecutive
-//! nodes of level l − 1, broken wherever Morton order jumps (the next node
-//! farther from the one before than `GROUP_JUMP_RADII` of their radii), so
-//! that each group is compact. An inner node is a [`Node`] (32 bytes: its
-//! splat — centre, diameter of the bounding sphere, mean color, mean
-//! normal — the normal cone's half-angle, and its first child; the
-//! children run to the next node's first child). About 30.8 bytes per
-//! point for every level together, at most 32.
+//! points themselves, sorted by the Morton code of their position, as
+//! [`Splat`]s (24 bytes: position, world diameter, linear color as UNORM16;
+//! the color's fourth channel holds the octahedral normal). Level l ≥ 1
+//! groups runs of at most 8 consecutive nodes of level l − 1, broken
+//! wherever Morton order jumps (the next node farther from the one before
+//! than `GROUP_JUMP_RADII` of their radii), so that each group is compact.
+//! An inner node is a [`Node`] (32 bytes: its splat — centre, diameter of
+//! the bounding sphere, mean color, mean normal — the normal cone's
+//! half-angle, and its first child; the children run to the next node's
+//! first child). About 30.8 bytes per point for every level together, at
+//! most 32.
+
+mod morton;
+pub mod spacing;
+mod traverse;
 
 use std::time::Instant;
 
 use bytemuck::Zeroable;
 use glam::{Vec2, Vec3};
 
-use crate::camera::{Camera, EyeFromWorld};
-use crate::cloud::PointCloud;
-use crate::passes::splat_raster::SplatVertex;
+pub use morton::morton_order;
+pub use spacing::{
+    exact_spacing, median, median_spacing, tree_spacing, SPACING_BIAS, SPACING_NEIGHBOURS,
+    SPACING_WINDOW,
+};
+pub use traverse::{max_coc_px, min_coc_px, Traversal, Widening};
+
+/// The points a tree is built of, in any order: positions, linear-light
+/// colors in [0, 1] (one per point) and, when known, unit normals.
+#[derive(Debug, Clone, Copy)]
+pub struct Points<'a> {
+    pub positions: &'a [Vec3],
+    pub colors: &'a [Vec3],
+    pub normals: Option<&'a [Vec3]>,
+}
+
+/// A node of the hierarchy as one splat: a sphere and what it looks like.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Splat {
+    /// Centre (xyz) and world diameter (w) of the splat's sphere.
+    pub position_size: [f32; 4],
+    /// Linear RGB as 16-bit UNORM codes, and the octahedral normal
+    /// ([`oct_encode`]; 0 when the points have no normals).
+    pub color: [u16; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Splat>() == 24);
+
+impl Splat {
+    /// The centre.
+    pub fn centre(&self) -> Vec3 {
+        Vec3::from_slice(&self.position_size[..3])
+    }
+
+    /// The splat's sphere: centre and radius (half the diameter).
+    pub fn sphere(&self) -> (Vec3, f32) {
+        (self.centre(), 0.5 * self.position_size[3])
+    }
+}
 
 /// The most children of an inner node.
 pub const FANOUT: usize = 8;
@@ -33,14 +85,6 @@ pub const FANOUT: usize = 8;
 /// would be too large for the level of detail.
 pub const GROUP_JUMP_RADII: f32 = 4.0;
 
-/// How many points `tree_spacing` looks at on either side of a point in
-/// Morton order.
-pub const SPACING_WINDOW: usize = 12;
-
-/// How many of those nearest candidates it averages (as the k-NN spacing
-/// of `PointCloud::local_spacing`).
-pub const SPACING_NEIGHBOURS: usize = crate::cloud::SPACING_NEIGHBOURS;
-
 /// An inner node: its splat (centre, diameter of the bounding sphere, mean
 /// linear color, octahedral mean normal in the color's alpha) and the
 /// half-angle of the cone that holds every normal beneath it (radians;
@@ -48,7 +92,7 @@ pub const SPACING_NEIGHBOURS: usize = crate::cloud::SPACING_NEIGHBOURS;
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Node {
-    pub splat: SplatVertex,
+    pub splat: Splat,
     pub cone_rad: f32,
     /// Its first child in the level below; the children run to the next
     /// node's first child (the last node's: to the end of that level).
@@ -60,13 +104,14 @@ const _: () = assert!(std::mem::size_of::<Node>() == 32);
 /// How a leaf's world diameter is chosen (DESIGN §3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LeafSize<'a> {
-    /// `SPACING_TO_DIAMETER` × the tree's local spacing ([`tree_spacing`]).
-    Spacing,
+    /// This multiple of the tree's local spacing ([`tree_spacing`]; where
+    /// a point's is 0, of the median spacing).
+    SpacingTimes(f32),
     /// Every leaf this world diameter.
     World(f32),
     /// Zero: the raster sizes splats in pixels.
     Zero,
-    /// Each point's world diameter, in the cloud's order.
+    /// Each point's world diameter, in the order of [`Points`].
     PerPoint(&'a [f32]),
 }
 
@@ -74,7 +119,7 @@ pub enum LeafSize<'a> {
 #[derive(Debug, Clone, Default)]
 pub struct SplatTree {
     /// Level 0: the points in Morton order.
-    leaves: Vec<SplatVertex>,
+    leaves: Vec<Splat>,
     /// Levels 1, 2, …: the last holds the root alone.
     levels: Vec<Vec<Node>>,
     has_normals: bool,
@@ -94,102 +139,29 @@ pub struct BuildTimes {
     pub total_ms: f64,
 }
 
-/// What a frame asks of the traversal (DESIGN §3, `--lod-px`, `--lod-blur`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lod {
-    /// Emit an inner node when its projected diameter is at most this many
-    /// pixels. 0: no traversal, every point is drawn.
-    pub px: f32,
-    /// Also emit it when its projected diameter is at most this multiple
-    /// of the smallest CoC over its depth range (None: off).
-    pub blur: Option<f32>,
-}
-
-impl Default for Lod {
-    fn default() -> Lod {
-        Lod {
-            px: 1.0,
-            blur: None,
-        }
-    }
-}
-
-impl Lod {
-    /// Every point, no culling (`--lod-px 0`).
-    pub const ALL: Lod = Lod {
-        px: 0.0,
-        blur: None,
-    };
-
-    /// Whether the frame draws every point without a traversal.
-    pub fn draws_all(&self) -> bool {
-        self.px == 0.0
-    }
-}
-
-/// What widens the frustum beyond each node's own CoC (DESIGN §3: blurred
-/// geometry entering the frame still counts).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Widening {
-    /// The background's CoC when the method blurs the background (its
-    /// guard band holds it, so pixels that far out take part), else 0.
-    pub background_coc_px: f32,
-    /// `--splat-px`: splats drawn this wide whatever their sphere (0: off).
-    pub splat_px: f32,
-}
-
-/// One frame's splats and what the traversal did.
-#[derive(Debug, Clone, Default)]
-pub struct Traversal {
-    pub splats: Vec<SplatVertex>,
-    /// Nodes tested (leaves included).
-    pub nodes_visited: u64,
-    /// Inner nodes among the emitted splats.
-    pub inner_emitted: u64,
-    /// Wall time, milliseconds.
-    pub ms: f64,
-}
-
-/// The camera-dependent part of the tests, made once per frame.
-#[derive(Debug, Clone, Copy)]
-struct View {
-    camera: Camera,
-    eye_from_world: EyeFromWorld,
-    f_px: f32,
-    centre: Vec2,
-    widening: Widening,
-    lod: Lod,
-}
-
-enum Test {
-    Cull,
-    Emit,
-    Recurse,
-}
-
 impl SplatTree {
-    /// Builds the hierarchy of `cloud` on `threads` threads (the result is
+    /// Builds the hierarchy of `points` on `threads` threads (the result is
     /// the same bytes whatever the count).
-    pub fn build(cloud: &PointCloud, size: LeafSize, threads: usize) -> SplatTree {
+    pub fn build(points: Points, size: LeafSize, threads: usize) -> SplatTree {
         let started = Instant::now();
         let threads = threads.max(1);
-        let n = cloud.len();
+        let n = points.positions.len();
         if n == 0 {
             return SplatTree::default();
         }
-        let order = morton_order(&cloud.positions, threads);
+        let order = morton_order(points.positions, threads);
         let per_point = match size {
             LeafSize::PerPoint(d) => Some(d),
             _ => None,
         };
-        let normals = cloud.normals.as_deref();
-        let mut leaves: Vec<SplatVertex> = vec![SplatVertex::zeroed(); n];
+        let normals = points.normals;
+        let mut leaves: Vec<Splat> = vec![Splat::zeroed(); n];
         let leaf_cone = par_chunks(&mut leaves, CHUNK, threads, |c, out| {
             let mut worst = 0.0f32;
             for (j, v) in out.iter_mut().enumerate() {
                 let i = order[c * CHUNK + j] as usize;
-                let p = cloud.positions[i];
-                let col = cloud.colors[i];
+                let p = points.positions[i];
+                let col = points.colors[i];
                 let packed = match normals {
                     Some(ns) => {
                         let packed = oct_encode(ns[i]);
@@ -198,7 +170,7 @@ impl SplatTree {
                     }
                     None => 0,
                 };
-                *v = SplatVertex {
+                *v = Splat {
                     position_size: [p.x, p.y, p.z, per_point.map_or(0.0, |d| d[i])],
                     color: [unorm16(col.x), unorm16(col.y), unorm16(col.z), packed],
                 };
@@ -213,14 +185,13 @@ impl SplatTree {
         match size {
             LeafSize::World(w) => leaves.iter_mut().for_each(|v| v.position_size[3] = w),
             LeafSize::Zero | LeafSize::PerPoint(_) => {}
-            LeafSize::Spacing => {
-                let in_order: Vec<Vec3> = leaves.iter().map(SplatVertex::centre).collect();
+            LeafSize::SpacingTimes(k) => {
+                let in_order: Vec<Vec3> = leaves.iter().map(Splat::centre).collect();
                 let spacing = tree_spacing(&in_order, threads);
                 drop(in_order);
-                let fallback = crate::cloud::median(spacing.clone());
+                let fallback = median(spacing.clone());
                 for (v, s) in leaves.iter_mut().zip(spacing) {
-                    v.position_size[3] =
-                        crate::render::SPACING_TO_DIAMETER * if s > 0.0 { s } else { fallback };
+                    v.position_size[3] = k * if s > 0.0 { s } else { fallback };
                 }
             }
         }
@@ -238,7 +209,7 @@ impl SplatTree {
             if below <= 1 {
                 break;
             }
-            let get = |j: usize| -> (SplatVertex, f32) {
+            let get = |j: usize| -> (Splat, f32) {
                 match prev {
                     None => (leaves[j], leaf_cone_rad),
                     Some(p) => (p[j].splat, p[j].cone_rad),
@@ -257,7 +228,7 @@ impl SplatTree {
             par_chunks(&mut nodes, CHUNK / FANOUT, threads, |c, out| {
                 for (j, node) in out.iter_mut().enumerate() {
                     let g = c * (CHUNK / FANOUT) + j;
-                    let children: Vec<(SplatVertex, f32, f32)> = (starts[g] as usize..end(g))
+                    let children: Vec<(Splat, f32, f32)> = (starts[g] as usize..end(g))
                         .map(|k| {
                             let (s, cone) = get(k);
                             (s, cone, beneath[k] as f32)
@@ -290,13 +261,13 @@ impl SplatTree {
     }
 
     /// The same points and splat sizes as [`SplatTree::build`], drawn in
-    /// the cloud's own order and without a hierarchy (every frame draws
+    /// the points' own order and without a hierarchy (every frame draws
     /// every point, whatever the LOD): for measuring what Morton order
     /// gains the raster (`examples/point_order.rs`).
-    pub fn build_in_input_order(cloud: &PointCloud, size: LeafSize, threads: usize) -> SplatTree {
-        let mut tree = SplatTree::build(cloud, size, threads);
-        let order = morton_order(&cloud.positions, threads);
-        let mut leaves = vec![SplatVertex::zeroed(); tree.leaves.len()];
+    pub fn build_in_input_order(points: Points, size: LeafSize, threads: usize) -> SplatTree {
+        let mut tree = SplatTree::build(points, size, threads);
+        let order = morton_order(points.positions, threads);
+        let mut leaves = vec![Splat::zeroed(); tree.leaves.len()];
         for (v, &i) in tree.leaves.iter().zip(&order) {
             leaves[i as usize] = *v;
         }
@@ -316,7 +287,7 @@ impl SplatTree {
     }
 
     /// The points in Morton order (level 0).
-    pub fn leaves(&self) -> &[SplatVertex] {
+    pub fn leaves(&self) -> &[Splat] {
         &self.leaves
     }
 
@@ -325,19 +296,19 @@ impl SplatTree {
         &self.levels
     }
 
-    /// Whether the cloud had normals (else no back-face culling).
+    /// Whether the points had normals (else no back-face culling).
     pub fn has_normals(&self) -> bool {
         self.has_normals
     }
 
     /// Host bytes of every level together.
     pub fn bytes(&self) -> usize {
-        self.leaves.len() * std::mem::size_of::<SplatVertex>()
+        self.leaves.len() * std::mem::size_of::<Splat>()
             + self.levels.iter().map(Vec::len).sum::<usize>() * std::mem::size_of::<Node>()
     }
 
     /// The whole tree as bytes (leaves, then each level): the same for the
-    /// same cloud whatever the thread count (a test).
+    /// same points whatever the thread count (a test).
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut b = bytemuck::cast_slice(&self.leaves).to_vec();
         for l in &self.levels {
@@ -348,7 +319,7 @@ impl SplatTree {
     }
 
     /// Node `i` of level `level` (0: a leaf) as (splat, cone half-angle).
-    pub fn node(&self, level: usize, i: usize) -> (SplatVertex, f32) {
+    pub fn node(&self, level: usize, i: usize) -> (Splat, f32) {
         if level == 0 {
             (self.leaves[i], self.leaf_cone_rad)
         } else {
@@ -374,281 +345,15 @@ impl SplatTree {
             self.levels[level - 1].len()
         }
     }
-
-    /// The splats of one frame (DESIGN §3, Zhao §2): from the root, drop
-    /// nodes outside the view frustum widened by their largest CoC (and by
-    /// `widening`), drop
-    /// nodes whose normal cone faces away from every point of the lens,
-    /// emit a node when it is a leaf or its projected diameter is at most
-    /// `lod.px` (or `lod.blur` × its smallest CoC), otherwise recurse.
-    /// With `lod.px` 0, every point in Morton order. Output order is Morton
-    /// order, whatever `threads`.
-    pub fn traverse(
-        &self,
-        camera: &Camera,
-        lod: Lod,
-        widening: Widening,
-        threads: usize,
-    ) -> Traversal {
-        let started = Instant::now();
-        if lod.draws_all() || self.levels.is_empty() {
-            return Traversal {
-                splats: self.leaves.clone(),
-                nodes_visited: 0,
-                inner_emitted: 0,
-                ms: ms_since(started),
-            };
-        }
-        let view = View {
-            camera: *camera,
-            eye_from_world: camera.eye_from_world_transform(),
-            f_px: camera.f_px(),
-            centre: Vec2::new(camera.width as f32 / 2.0, camera.height as f32 / 2.0),
-            widening,
-            lod,
-        };
-        // Breadth first from the root until there is work for every
-        // thread: a list in Morton order of emitted splats and subtrees
-        // still to walk (a fixed target, so the same list whatever
-        // `threads`).
-        enum Item {
-            Splat(SplatVertex, bool),
-            Subtree(usize, usize),
-        }
-        let top = self.levels.len();
-        let mut items = vec![Item::Subtree(top, 0)];
-        let mut visited = 0u64;
-        loop {
-            let pending = items
-                .iter()
-                .filter(|i| matches!(i, Item::Subtree(l, _) if *l > 0))
-                .count();
-            if pending == 0 || pending >= FRONTIER {
-                break;
-            }
-            let mut next = Vec::with_capacity(items.len() * FANOUT);
-            for item in items {
-                match item {
-                    Item::Subtree(level, i) if level > 0 => {
-                        visited += 1;
-                        let (s, cone) = self.node(level, i);
-                        match self.test(&view, &s, cone, false) {
-                            Test::Cull => {}
-                            Test::Emit => next.push(Item::Splat(s, true)),
-                            Test::Recurse => {
-                                next.extend(
-                                    self.children(level, i).map(|c| Item::Subtree(level - 1, c)),
-                                );
-                            }
-                        }
-                    }
-                    other => next.push(other),
-                }
-            }
-            items = next;
-        }
-        let subtrees: Vec<(usize, usize)> = items
-            .iter()
-            .filter_map(|i| match i {
-                Item::Subtree(l, n) => Some((*l, *n)),
-                Item::Splat(..) => None,
-            })
-            .collect();
-        // Each subtree depth first, split over the threads in contiguous
-        // runs; outputs joined in order.
-        let per = subtrees.len().div_ceil(threads.max(1)).max(1);
-        let results: Vec<Vec<(Vec<SplatVertex>, u64, u64)>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = subtrees
-                .chunks(per)
-                .map(|run| {
-                    let view = &view;
-                    scope.spawn(move || {
-                        run.iter()
-                            .map(|&(l, i)| {
-                                let mut out = Vec::new();
-                                let (mut visited, mut inner) = (0u64, 0u64);
-                                self.walk(view, l, i, &mut out, &mut visited, &mut inner);
-                                (out, visited, inner)
-                            })
-                            .collect()
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("a traversal thread does not panic"))
-                .collect()
-        });
-        let mut walked = results.into_iter().flatten();
-        let mut splats = Vec::new();
-        let mut inner_emitted = 0u64;
-        for item in items {
-            match item {
-                Item::Splat(s, inner) => {
-                    splats.push(s);
-                    inner_emitted += inner as u64;
-                }
-                Item::Subtree(..) => {
-                    let (out, v, inner) = walked.next().expect("one result per subtree");
-                    splats.extend_from_slice(&out);
-                    visited += v;
-                    inner_emitted += inner;
-                }
-            }
-        }
-        Traversal {
-            splats,
-            nodes_visited: visited,
-            inner_emitted,
-            ms: ms_since(started),
-        }
-    }
-
-    /// Depth-first walk of the subtree at (level, i).
-    fn walk(
-        &self,
-        view: &View,
-        level: usize,
-        i: usize,
-        out: &mut Vec<SplatVertex>,
-        visited: &mut u64,
-        inner: &mut u64,
-    ) {
-        *visited += 1;
-        let (s, cone) = self.node(level, i);
-        match self.test(view, &s, cone, level == 0) {
-            Test::Cull => {}
-            Test::Emit => {
-                out.push(s);
-                *inner += (level > 0) as u64;
-            }
-            Test::Recurse => {
-                for c in self.children(level, i) {
-                    self.walk(view, level - 1, c, out, visited, inner);
-                }
-            }
-        }
-    }
-
-    /// The traversal's decision for one node.
-    fn test(&self, view: &View, s: &SplatVertex, cone_rad: f32, leaf: bool) -> Test {
-        let (centre, r) = s.sphere();
-        let e = view.eye_from_world.apply(centre);
-        let in_front = e.z - r > 0.0;
-        // Behind the lens, nothing of it can be seen. A leaf is one depth,
-        // so its CoC is that depth's; an inner node's is the largest over
-        // its sphere's depths, unbounded when the sphere reaches the lens
-        // plane (then no frustum test).
-        let coc_px = if leaf {
-            if e.z <= 0.0 {
-                return Test::Cull;
-            }
-            Some(view.camera.coc_px(e.z))
-        } else {
-            if e.z + r <= 0.0 {
-                return Test::Cull;
-            }
-            in_front.then(|| max_coc_px(&view.camera, e.z - r, e.z + r))
-        };
-        if coc_px.is_some_and(|c| outside_frustum(view, e, r, c)) {
-            return Test::Cull;
-        }
-        if self.has_normals && back_facing(view, centre, r, s.color[3], cone_rad) {
-            return Test::Cull;
-        }
-        if leaf {
-            return Test::Emit;
-        }
-        if in_front {
-            // The size the vertex shader draws: f_px · diameter / z.
-            let size_px = view.f_px * s.position_size[3] / e.z;
-            if size_px <= view.lod.px {
-                return Test::Emit;
-            }
-            if let Some(f) = view.lod.blur {
-                if size_px <= f * min_coc_px(&view.camera, e.z - r, e.z + r) {
-                    return Test::Emit;
-                }
-            }
-        }
-        Test::Recurse
-    }
 }
-
-/// Breadth-first expansion stops at this many subtrees.
-const FRONTIER: usize = 4096;
 
 /// Points per unit of parallel work in the build.
 const CHUNK: usize = 1 << 16;
 
-/// The largest CoC in pixels over eye depths [z0, z1], 0 < z0 ≤ z1 (the
-/// CoC falls towards the focus plane from either side, so an end holds it).
-pub fn max_coc_px(camera: &Camera, z0: f32, z1: f32) -> f32 {
-    camera.coc_px(z0).max(camera.coc_px(z1))
-}
-
-/// The smallest CoC in pixels over eye depths [z0, z1], 0 < z0 ≤ z1.
-pub fn min_coc_px(camera: &Camera, z0: f32, z1: f32) -> f32 {
-    let s = camera.focus_distance;
-    if z0 <= s && s <= z1 {
-        0.0
-    } else {
-        camera.coc_px(z0).min(camera.coc_px(z1))
-    }
-}
-
-/// Whether the sphere (eye-space centre `e`, radius `r`, wholly in front
-/// of the lens) lies outside the frustum of the image widened by
-/// max(`coc_px`, the background's CoC) / 2 + `--splat-px` / 2 + 1 px on
-/// every side: then neither it nor its blur reaches the image (the extra
-/// 1 px holds sprites clamped to one pixel and the SSAA jitter).
-fn outside_frustum(view: &View, e: Vec3, r: f32, coc_px: f32) -> bool {
-    let w = &view.widening;
-    let margin = 0.5 * coc_px.max(w.background_coc_px) + 0.5 * w.splat_px + 1.0;
-    let f = view.f_px;
-    let (w, h) = (view.camera.width as f32, view.camera.height as f32);
-    let (x0, x1) = (-margin, w + margin);
-    let (y0, y1) = (-margin, h + margin);
-    let c = view.centre;
-    // Each side as a plane through the eye, a·e ≥ 0 inside (pixel x =
-    // c.x + f·x/z, pixel y = c.y − f·y/z).
-    let sides = [
-        Vec3::new(f, 0.0, c.x - x0),
-        Vec3::new(-f, 0.0, x1 - c.x),
-        Vec3::new(0.0, -f, c.y - y0),
-        Vec3::new(0.0, f, y1 - c.y),
-    ];
-    sides.iter().any(|a| a.dot(e) < -r * a.length())
-}
-
-/// Whether every normal of the cone (axis from `packed`, half-angle
-/// `cone_rad`) faces away from every point of the lens disk (within the
-/// aperture radius of the eye) for every point of the sphere.
-fn back_facing(view: &View, centre: Vec3, r: f32, packed: u16, cone_rad: f32) -> bool {
-    if cone_rad >= std::f32::consts::FRAC_PI_2 {
-        return false;
-    }
-    let to_eye = view.camera.eye - centre;
-    let d = to_eye.length();
-    let reach = r + view.camera.aperture_radius;
-    if d <= reach {
-        return false;
-    }
-    // The directions from the sphere to the lens lie within `spread` of
-    // `to_eye`; the normals within `cone_rad` of `n`.
-    let spread = (reach / d).asin();
-    let n = oct_decode(packed);
-    let between = angle(n, to_eye / d);
-    between > std::f32::consts::FRAC_PI_2 + cone_rad + spread + ANGLE_SLACK_RAD
-}
-
-/// Rounding slack of the angle tests (f32 acos/asin).
-const ANGLE_SLACK_RAD: f32 = 1e-3;
-
 /// The parent of `children` (splat, cone, leaves beneath): the sphere
 /// holding theirs, their mean color and normal weighted by leaves beneath,
 /// and the cone holding their cones.
-fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
+fn merge(children: &[(Splat, f32, f32)], has_normals: bool) -> Node {
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for (s, ..) in children {
         let (c, r) = s.sphere();
@@ -691,7 +396,7 @@ fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
         (0, std::f32::consts::PI)
     };
     Node {
-        splat: SplatVertex {
+        splat: Splat {
             position_size: [centre.x, centre.y, centre.z, 2.0 * radius],
             color: [color[0], color[1], color[2], packed],
         },
@@ -704,7 +409,7 @@ fn merge(children: &[(SplatVertex, f32, f32)], has_normals: bool) -> Node {
 /// nodes (`splat(j)`): at most `FANOUT` to a group, and a new group
 /// wherever a node lies farther from the one before than `jump_radii`
 /// times the larger of their radii. Sequential: the same for any threads.
-fn group_starts(count: usize, splat: impl Fn(usize) -> SplatVertex, jump_radii: f32) -> Vec<u32> {
+fn group_starts(count: usize, splat: impl Fn(usize) -> Splat, jump_radii: f32) -> Vec<u32> {
     let sphere = |j: usize| splat(j).sphere();
     let mut starts = Vec::with_capacity(count / 4 + 1);
     let mut start = 0usize;
@@ -753,116 +458,6 @@ pub fn oct_decode(bits: u16) -> Vec3 {
     Vec3::new(x - t * sign(x), y - t * sign(y), z).normalize()
 }
 
-/// The points' order by 63-bit Morton code of their position quantised to
-/// 2^21 steps over the bounding cube; equal codes keep input order (a
-/// stable LSD radix sort, so the order is unique).
-pub fn morton_order(positions: &[Vec3], threads: usize) -> Vec<u32> {
-    morton_order_in(positions, threads, None)
-}
-
-/// [`morton_order`] over a cube twice the size, moved by `shift` (in
-/// units of the bounding cube's side, each in [0, 1)): another order whose
-/// cell boundaries fall elsewhere.
-fn morton_order_in(positions: &[Vec3], threads: usize, shift: Option<Vec3>) -> Vec<u32> {
-    let (lo, hi) = positions.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    let mut extent = (hi - lo).max_element().max(f32::MIN_POSITIVE);
-    let mut origin = lo;
-    if let Some(shift) = shift {
-        origin -= shift * extent;
-        extent *= 2.0;
-    }
-    let scale = ((1u32 << 21) - 1) as f32 / extent;
-    let mut keys = vec![0u64; positions.len()];
-    par_chunks(&mut keys, CHUNK, threads, |c, out| {
-        for (j, k) in out.iter_mut().enumerate() {
-            let q = ((positions[c * CHUNK + j] - origin) * scale)
-                .round()
-                .clamp(Vec3::ZERO, Vec3::splat(((1u32 << 21) - 1) as f32))
-                .as_uvec3();
-            *k = spread3(q.x) | spread3(q.y) << 1 | spread3(q.z) << 2;
-        }
-    });
-    radix_sort(keys, threads)
-}
-
-/// The low 21 bits of `v`, two zero bits after each.
-fn spread3(v: u32) -> u64 {
-    let mut x = (v & 0x1F_FFFF) as u64;
-    x = (x | x << 32) & 0x1F_0000_0000_FFFF;
-    x = (x | x << 16) & 0x1F_0000_FF00_00FF;
-    x = (x | x << 8) & 0x100F_00F0_0F00_F00F;
-    x = (x | x << 4) & 0x10C3_0C30_C30C_30C3;
-    x = (x | x << 2) & 0x1249_2492_4924_9249;
-    x
-}
-
-/// The stable order of `keys` (LSD radix sort, 8 bits a pass, passes where
-/// every key has the same digit skipped), on `threads` threads: each pass
-/// counts digits per chunk in parallel, then scatters each chunk to its
-/// own offsets, so the result is the same for any split. The arrays are
-/// atomics (relaxed: plain loads and stores on x86) so that the threads
-/// may write to disjoint, scattered indices without `unsafe`.
-fn radix_sort(keys: Vec<u64>, threads: usize) -> Vec<u32> {
-    use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
-    let n = keys.len();
-    let mut keys: Vec<AtomicU64> = keys.into_iter().map(AtomicU64::new).collect();
-    let mut index: Vec<AtomicU32> = (0..n as u32).map(AtomicU32::new).collect();
-    let mut keys_out: Vec<AtomicU64> = (0..n).map(|_| AtomicU64::new(0)).collect();
-    let mut index_out: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
-    let chunk = n.div_ceil(threads.max(1)).max(CHUNK);
-    for pass in 0..8 {
-        let shift = pass * 8;
-        let digit = |k: &AtomicU64| (k.load(Relaxed) >> shift) as usize & 0xFF;
-        let counts: Vec<[usize; 256]> = std::thread::scope(|scope| {
-            let handles: Vec<_> = keys
-                .chunks(chunk)
-                .map(|part| {
-                    scope.spawn(move || {
-                        let mut c = [0usize; 256];
-                        part.iter().for_each(|k| c[digit(k)] += 1);
-                        c
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("a counting thread does not panic"))
-                .collect()
-        });
-        if (0..256).any(|d| counts.iter().map(|c| c[d]).sum::<usize>() == n) {
-            continue; // Every key has the same digit: the order stands.
-        }
-        // Offsets: digit-major, then chunk order (stability).
-        let mut offsets = vec![[0usize; 256]; counts.len()];
-        let mut at = 0usize;
-        for d in 0..256 {
-            for (o, c) in offsets.iter_mut().zip(&counts) {
-                o[d] = at;
-                at += c[d];
-            }
-        }
-        std::thread::scope(|scope| {
-            for ((part, idx), mut off) in keys.chunks(chunk).zip(index.chunks(chunk)).zip(offsets) {
-                let (keys_out, index_out) = (&keys_out, &index_out);
-                scope.spawn(move || {
-                    for (k, i) in part.iter().zip(idx) {
-                        let d = digit(k);
-                        keys_out[off[d]].store(k.load(Relaxed), Relaxed);
-                        index_out[off[d]].store(i.load(Relaxed), Relaxed);
-                        off[d] += 1;
-                    }
-                });
-            }
-        });
-        std::mem::swap(&mut keys, &mut keys_out);
-        std::mem::swap(&mut index, &mut index_out);
-    }
-    index.into_iter().map(AtomicU32::into_inner).collect()
-}
-
 /// Runs `f(chunk index, chunk)` over `data` in chunks of `chunk` items on
 /// up to `threads` threads (contiguous runs of chunks per thread), and
 /// returns `f`'s results in chunk order.
@@ -896,88 +491,6 @@ fn par_chunks<T: Send, R: Send>(
     })
 }
 
-/// The tree's local spacing of every point of `p` (the points in Morton
-/// order): the mean distance to its `SPACING_NEIGHBOURS` nearest among the
-/// `SPACING_WINDOW` points on either side of it in Morton order, the
-/// smaller of two Morton orders whose cell boundaries differ (a point
-/// alone in its cell of one order, its neighbours far before or after it,
-/// has them beside it in the other). An approximation of
-/// `PointCloud::local_spacing`'s exact k nearest neighbours, at a fixed
-/// cost per point; 0 for a single point.
-pub fn tree_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
-    let mut spacing = window_spacing(p, threads);
-    // The second order, as indices into the first (both are spatially
-    // coherent, so the gather and scatter below stay mostly in cache).
-    let second = morton_order_in(p, threads, Some(SECOND_ORDER_SHIFT));
-    let in_second: Vec<Vec3> = second.iter().map(|&i| p[i as usize]).collect();
-    let other = window_spacing(&in_second, threads);
-    for (&i, s) in second.iter().zip(other) {
-        let slot = &mut spacing[i as usize];
-        *slot = slot.min(s);
-    }
-    spacing.iter_mut().for_each(|s| *s /= SPACING_BIAS);
-    spacing
-}
-
-/// How much the window's estimate exceeds the exact k-nearest-neighbour
-/// spacing (it picks the nearest among fewer candidates), divided out: the
-/// ratio of the mean spacings, measured on the bundled clouds with two
-/// orders of 12 on either side, 1.0959 (bunny) and 1.0969 (mug), so that
-/// the splats cover as much as the exact sizes' on average.
-pub const SPACING_BIAS: f32 = 1.096;
-
-/// The median of [`tree_spacing`] over `positions` (any order; 0 for fewer
-/// than two points): what `info` prints, in the time of a tree build
-/// rather than the exact k-NN search's.
-pub fn median_spacing(positions: &[Vec3], threads: usize) -> f32 {
-    let order = morton_order(positions, threads);
-    let in_order: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
-    crate::cloud::median(tree_spacing(&in_order, threads))
-}
-
-/// Where the second Morton order's cube starts, in units of the first's
-/// side: no common dyadic boundary with the first for several levels.
-const SECOND_ORDER_SHIFT: Vec3 = Vec3::new(0.381_966, 0.236_068, 0.145_898);
-
-/// Per point of `p` (in Morton order), the mean distance to its
-/// `SPACING_NEIGHBOURS` nearest among the `SPACING_WINDOW` points on either
-/// side.
-fn window_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
-    const K: usize = SPACING_NEIGHBOURS;
-    let n = p.len();
-    let k = K.min(n.saturating_sub(1));
-    let mut spacing = vec![0.0f32; n];
-    if k == 0 {
-        return spacing;
-    }
-    par_chunks(&mut spacing, CHUNK, threads, |c, out| {
-        for (j, s) in out.iter_mut().enumerate() {
-            let i = c * CHUNK + j;
-            let q = p[i];
-            let mut best = [f32::INFINITY; K];
-            let lo = i.saturating_sub(SPACING_WINDOW);
-            let hi = (i + SPACING_WINDOW).min(n - 1);
-            for &other in p[lo..i].iter().chain(&p[i + 1..=hi]) {
-                insert_sorted(&mut best, q.distance_squared(other));
-            }
-            *s = best[..k].iter().map(|d2| d2.sqrt()).sum::<f32>() / k as f32;
-        }
-    });
-    spacing
-}
-
-/// Inserts `d` into the ascending `best`, dropping the largest, without
-/// a branch: the new best[t] is min(best[t], max(best[t − 1], d)) (so the
-/// compiler makes it a few vector min/max).
-#[inline(always)]
-fn insert_sorted(best: &mut [f32; SPACING_NEIGHBOURS], d: f32) {
-    let mut shifted = [f32::NEG_INFINITY; SPACING_NEIGHBOURS];
-    shifted[1..].copy_from_slice(&best[..SPACING_NEIGHBOURS - 1]);
-    for (b, s) in best.iter_mut().zip(shifted) {
-        *b = b.min(s.max(d));
-    }
-}
-
 fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
@@ -986,7 +499,24 @@ fn ms_since(t: Instant) -> f64 {
 mod tests {
     use super::*;
 
-    fn cloud(n: usize, seed: u64, normals: bool) -> PointCloud {
+    /// Points owned by a test.
+    struct Cloud {
+        positions: Vec<Vec3>,
+        colors: Vec<Vec3>,
+        normals: Option<Vec<Vec3>>,
+    }
+
+    impl Cloud {
+        fn points(&self) -> Points<'_> {
+            Points {
+                positions: &self.positions,
+                colors: &self.colors,
+                normals: self.normals.as_deref(),
+            }
+        }
+    }
+
+    fn cloud(n: usize, seed: u64, normals: bool) -> Cloud {
         let mut state = seed;
         let mut next = move || {
             state = state
@@ -1003,54 +533,20 @@ mod tests {
                 .map(|_| Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize())
                 .collect()
         });
-        PointCloud {
+        Cloud {
             positions,
             colors,
             normals,
-            has_colors: true,
-            attributes: vec![],
-            ..Default::default()
         }
-    }
-
-    #[test]
-    fn morton_order_is_a_stable_sort_by_code() {
-        let mut positions: Vec<Vec3> = (0..5000)
-            .map(|i| {
-                Vec3::new(
-                    (i * 7919 % 100) as f32,
-                    (i * 104729 % 37) as f32,
-                    (i % 11) as f32,
-                )
-            })
-            .collect();
-        positions.push(positions[3]); // a duplicate: input order kept
-        for threads in [1, 2, 3] {
-            let order = morton_order(&positions, threads);
-            let mut sorted: Vec<u32> = (0..positions.len() as u32).collect();
-            let code = |p: Vec3| {
-                let q = (p / 99.0 * ((1u32 << 21) - 1) as f32).round().as_uvec3();
-                spread3(q.x) | spread3(q.y) << 1 | spread3(q.z) << 2
-            };
-            sorted.sort_by_key(|&i| (code(positions[i as usize]), i));
-            assert_eq!(order, sorted, "threads {threads}");
-        }
-    }
-
-    #[test]
-    fn spread3_interleaves() {
-        assert_eq!(spread3(0b1011), 0b1_000_001_001);
-        assert_eq!(spread3(0x1F_FFFF).count_ones(), 21);
-        assert_eq!(spread3(0x1F_FFFF) >> 60, 1);
     }
 
     #[test]
     fn the_build_is_the_same_bytes_whatever_the_threads() {
         let c = cloud(200_000, 7, true);
-        let one = SplatTree::build(&c, LeafSize::Spacing, 1).to_bytes();
+        let one = SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), 1).to_bytes();
         for t in [2, 3, 8] {
             assert!(
-                one == SplatTree::build(&c, LeafSize::Spacing, t).to_bytes(),
+                one == SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), t).to_bytes(),
                 "threads {t}"
             );
         }
@@ -1059,9 +555,9 @@ mod tests {
     #[test]
     fn every_node_holds_its_children_and_their_cones() {
         let c = cloud(20_000, 3, true);
-        let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
+        let tree = SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), 2);
         assert_eq!(tree.levels().last().map(Vec::len), Some(1), "one root");
-        assert!(tree.bytes() as f64 / c.len() as f64 <= 32.0);
+        assert!(tree.bytes() as f64 / c.positions.len() as f64 <= 32.0);
         for level in 1..=tree.levels().len() {
             for i in 0..tree.level_len(level) {
                 let (p, cone) = tree.node(level, i);
@@ -1097,15 +593,12 @@ mod tests {
             .map(|i| Vec3::new((i / 2) as f32, (i % 2) as f32 * 0.01, 0.0))
             .collect();
         let n = positions.len();
-        let c = PointCloud {
+        let c = Cloud {
             colors: vec![Vec3::splat(0.5); n],
             positions,
             normals: None,
-            has_colors: true,
-            attributes: vec![],
-            ..Default::default()
         };
-        let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
+        let tree = SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), 2);
         assert!(tree.bytes() as f64 / n as f64 <= 32.0, "{}", tree.bytes());
         // A cloud of two clusters far apart: no group of the first level
         // holds points of both.
@@ -1120,12 +613,12 @@ mod tests {
                 },
             );
         }
-        let c = PointCloud {
+        let c = Cloud {
             colors: vec![Vec3::splat(0.5); positions.len()],
             positions,
-            ..c
+            normals: None,
         };
-        let tree = SplatTree::build(&c, LeafSize::Spacing, 2);
+        let tree = SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), 2);
         for g in 0..tree.level_len(1) {
             let xs: Vec<f32> = tree
                 .children(1, g)
@@ -1142,7 +635,7 @@ mod tests {
     #[test]
     fn a_node_color_is_the_mean_of_its_points() {
         let c = cloud(64, 5, false);
-        let tree = SplatTree::build(&c, LeafSize::World(0.01), 1);
+        let tree = SplatTree::build(c.points(), LeafSize::World(0.01), 1);
         let root = tree.levels().last().unwrap()[0].splat;
         for ch in 0..3 {
             let mean = c.colors.iter().map(|v| v[ch]).sum::<f32>() / 64.0;

@@ -223,6 +223,6 @@ pub fn options(camera: Camera, method: Method) -> RenderOptions {
         ssaa: 2,
         samples_per_pass: None,
         background: Vec3::ZERO,
-        lod: pointlens::tree::Lod::default(),
+        lod: pointlens::options::Lod::default(),
     }
 }

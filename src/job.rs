@@ -1,0 +1,597 @@
+//! A render job: the frames of a shot (one image, a `--frames` motion or a
+//! `--path` camera path), each resolved to a camera, rendered, and written
+//! atomically, with its timing report. `pointlens render` is this module
+//! behind its flags; tests and library users call it directly.
+//!
+//! The steps, in the order `main` takes them:
+//!
+//! 1. [`RenderJob::new`] checks what needs no cloud: the output name
+//!    against the shot (a `%04d` pattern for a sequence, none for one
+//!    image), `--frame-range`, every frame's folder, the timings file's
+//!    folder, EXR passes, the level of detail. A mistake fails here, before
+//!    a cloud is read.
+//! 2. [`watch_signals`] makes SIGINT and SIGTERM safe (no partial file).
+//! 3. [`RenderJob::plan`] resolves every frame's camera against the loaded
+//!    cloud (a bad keyframe fails the run before the first frame) and drops
+//!    the frames whose file exists under `--skip-existing`.
+//! 4. [`RenderJob::render`] renders and writes the planned frames on a
+//!    [`Renderer`], reporting each through [`JobEvent`]s, and stops between
+//!    frames when asked to; [`RenderJob::write_timings`] writes the reports.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+
+use crate::camera::{self, Camera, CameraSpec, Coordinates};
+use crate::cloud::PointCloud;
+use crate::error::{Error, Result};
+use crate::image_io::{
+    check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_png_rgba,
+    write_text_atomically, ExrChannel, LinearImage,
+};
+use crate::options::{check_lod, Lod, Method};
+use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene};
+use crate::report::FrameReport;
+use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
+
+/// What is rendered: one image, or a sequence of numbered ones.
+#[derive(Debug, Clone)]
+pub enum Shot {
+    /// One image of the camera the flags and camera file give.
+    Single,
+    /// `--frames N` changed by `--orbit`, focus and aperture pulls.
+    Motion(Motion),
+    /// `--path FILE`: keyframes, from its first frame to its last.
+    Path { file: PathBuf, path: CameraPath },
+}
+
+impl Shot {
+    /// The frame numbers, first and last.
+    pub fn frames(&self) -> (u32, u32) {
+        match self {
+            Shot::Single => (1, 1),
+            Shot::Motion(m) => m.frames(),
+            Shot::Path { path, .. } => path.frames(),
+        }
+    }
+
+    /// Whether the shot numbers its frames (any but [`Shot::Single`]).
+    pub fn is_sequence(&self) -> bool {
+        !matches!(self, Shot::Single)
+    }
+}
+
+/// EXR channels written beside R, G, B, A (`--passes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Passes {
+    /// `Z`: eye depth of the nearest surface, scene units (+∞ on background).
+    pub z: bool,
+    /// `CoC`: its circle of confusion, pixels.
+    pub coc: bool,
+}
+
+/// What a frame's file holds besides the color.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Written {
+    /// Alpha = coverage, color premultiplied in EXR and straight in PNG
+    /// (`--background transparent`); else opaque.
+    pub transparent: bool,
+    pub passes: Passes,
+}
+
+/// Everything a render job is asked for (the flags of `pointlens render`
+/// beyond the input, the scene's splat size and the device).
+#[derive(Debug, Clone)]
+pub struct JobSpec {
+    pub shot: Shot,
+    /// The output file, or for a sequence a pattern with a frame number
+    /// (`shot_%04d.png`).
+    pub output: PathBuf,
+    /// `--frame-range`: only these frames of the sequence.
+    pub frame_range: Option<FrameRange>,
+    /// `--skip-existing`: leave frames whose file exists.
+    pub skip_existing: bool,
+    /// A camera file, read when the cloud is loaded ([`RenderJob::plan`]).
+    pub camera_file: Option<PathBuf>,
+    /// The camera flags: they win over the camera file and the path.
+    pub camera_flags: CameraSpec,
+    /// `--focus-pixel X,Y`: focus every frame on what that pixel sees.
+    pub focus_pixel: Option<[u32; 2]>,
+    pub method: Method,
+    /// K: K×K G-buffer samples per pixel.
+    pub ssaa: u32,
+    /// The most samples one raster pass takes (None: the device's best).
+    pub samples_per_pass: Option<u32>,
+    /// Linear-light background color.
+    pub background: Vec3,
+    pub lod: Lod,
+    pub written: Written,
+    /// `--timings-json`: every frame's report, written at the end.
+    pub timings_json: Option<PathBuf>,
+}
+
+/// A checked job ([`RenderJob::new`]).
+#[derive(Debug, Clone)]
+pub struct RenderJob {
+    spec: JobSpec,
+    pattern: Option<FramePattern>,
+    range: FrameRange,
+}
+
+/// One frame to render: its number, camera and output file.
+#[derive(Debug, Clone)]
+pub struct FrameJob {
+    pub number: u32,
+    pub camera: Camera,
+    pub output: PathBuf,
+}
+
+/// The frames of a job for one cloud ([`RenderJob::plan`]).
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The frames to render, in order (skipped ones left out).
+    pub frames: Vec<FrameJob>,
+    /// Frames of the range whose file existed (`--skip-existing`).
+    pub skipped: usize,
+    /// The coordinates and origin cameras are printed in.
+    coordinates: Coordinates,
+    origin: DVec3,
+}
+
+/// What [`RenderJob::render`] tells as it goes.
+#[derive(Debug)]
+pub enum JobEvent<'a> {
+    /// A frame's camera, as it will be rendered (focus resolved), in the
+    /// job's coordinates: before the frame renders.
+    Camera { number: u32, spec: &'a CameraSpec },
+    /// A frame written.
+    Written {
+        number: u32,
+        output: &'a Path,
+        seconds: f64,
+        report: &'a FrameReport,
+    },
+}
+
+/// What [`RenderJob::render`] did.
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    /// Each frame's report, in order.
+    pub reports: Vec<FrameReport>,
+    /// Each frame's camera as rendered (number, camera in the job's
+    /// coordinates): `--print-camera` of a sequence prints them as a path.
+    pub cameras: Vec<(u32, CameraSpec)>,
+}
+
+impl RenderJob {
+    /// Checks `spec` before any cloud is read: the output's format and name
+    /// against the shot, the motion's numbers, the frame range, the folder
+    /// of every frame's file and of the timings file, EXR passes (EXR only)
+    /// and the level of detail.
+    pub fn new(spec: JobSpec) -> Result<RenderJob> {
+        check_output_path(&spec.output)?;
+        if let Shot::Motion(motion) = &spec.shot {
+            motion.check()?;
+        }
+        let pattern = FramePattern::parse(&spec.output)?;
+        let sequence = spec.shot.is_sequence();
+        let output = spec.output.display();
+        match (&pattern, sequence) {
+            (None, true) => {
+                return Err(invalid(format!(
+                    "-o {output}: a sequence needs a frame number in the output name, \
+                     e.g. shot_%04d.png"
+                )))
+            }
+            (Some(_), false) => {
+                return Err(invalid(format!(
+                    "-o {output}: a frame number pattern, but one frame to render \
+                     (add --frames N or --path FILE)"
+                )))
+            }
+            _ => {}
+        }
+        if !sequence && (spec.frame_range.is_some() || spec.skip_existing) {
+            return Err(invalid(
+                "--frame-range and --skip-existing are for sequences (--frames N or --path FILE)",
+            ));
+        }
+        let range = match spec.frame_range {
+            Some(r) => r.within(spec.shot.frames())?,
+            None => {
+                let (first, last) = spec.shot.frames();
+                FrameRange { first, last }
+            }
+        };
+        let job = RenderJob {
+            spec,
+            pattern,
+            range,
+        };
+        job.check_folders()?;
+        if job.spec.written.passes != Passes::default() && is_png_path(&job.spec.output)? {
+            return Err(invalid("--passes writes EXR channels: use an .exr output"));
+        }
+        check_lod(&job.spec.lod)?;
+        Ok(job)
+    }
+
+    /// What was asked.
+    pub fn spec(&self) -> &JobSpec {
+        &self.spec
+    }
+
+    /// Whether the job renders a sequence.
+    pub fn is_sequence(&self) -> bool {
+        self.spec.shot.is_sequence()
+    }
+
+    /// The frames of the range, first and last.
+    pub fn range(&self) -> FrameRange {
+        self.range
+    }
+
+    /// The output file of frame `number`.
+    pub fn output_of(&self, number: u32) -> PathBuf {
+        match &self.pattern {
+            Some(p) => p.path(number),
+            None => self.spec.output.clone(),
+        }
+    }
+
+    /// Every frame's folder (a pattern may number folders: out_%02d/f.png)
+    /// and the timings file's, so a long run does not end without a place
+    /// for its result.
+    fn check_folders(&self) -> Result<()> {
+        let mut last_dir = None;
+        for number in self.range.first..=self.range.last {
+            let output = self.output_of(number);
+            if output.parent() != last_dir.as_deref() {
+                check_parent_dir(&output, "-o")?;
+                last_dir = output.parent().map(Path::to_path_buf);
+            }
+        }
+        match &self.spec.timings_json {
+            Some(p) => check_parent_dir(p, "--timings-json"),
+            None => Ok(()),
+        }
+    }
+
+    /// The camera fields of frame `number`: the camera file's, then the
+    /// path's, then the flags'.
+    fn spec_of(&self, file: Option<&CameraSpec>, number: u32) -> Result<CameraSpec> {
+        let mut spec = file.cloned().unwrap_or_default();
+        if let Shot::Path { path, .. } = &self.spec.shot {
+            spec = spec.overridden_by(&path.spec_at(number));
+        }
+        let spec = spec.overridden_by(&self.spec.camera_flags);
+        if let Some(path) = &self.spec.camera_file {
+            spec.require_complete()
+                .map_err(|e| e.within(path.display().to_string()))?;
+        }
+        Ok(spec)
+    }
+
+    /// Every frame's camera through `cloud` (auto-framing, file
+    /// coordinates), before any is rendered: a bad keyframe fails the run
+    /// before the first frame. With `--skip-existing`, the frames whose
+    /// file exists are left out (and logged).
+    pub fn plan(&self, cloud: &PointCloud) -> Result<Plan> {
+        let file = match &self.spec.camera_file {
+            Some(path) => Some(CameraSpec::from_json_file(path)?),
+            None => None,
+        };
+        let origin = cloud.origin;
+        let (lo, hi) = cloud.bounds();
+        let resolve = |spec: &CameraSpec| -> Result<Camera> {
+            let in_scene = spec.in_scene(origin)?;
+            camera::resolve(&in_scene, lo, hi, &cloud.positions)
+        };
+        let first_spec = self.spec_of(file.as_ref(), self.range.first)?;
+        let coordinates = first_spec.coordinates.unwrap_or_default();
+        let base = resolve(&first_spec)?;
+        let mut frames = Vec::new();
+        for number in self.range.first..=self.range.last {
+            let camera = match &self.spec.shot {
+                Shot::Single => base,
+                Shot::Motion(motion) => motion.camera(&base, number),
+                Shot::Path {
+                    file: path_file, ..
+                } => resolve(&self.spec_of(file.as_ref(), number)?)
+                    .map_err(|e| e.within(format!("frame {number} of {}", path_file.display())))?,
+            };
+            frames.push(FrameJob {
+                number,
+                camera,
+                output: self.output_of(number),
+            });
+        }
+        let all = frames.len();
+        if self.spec.skip_existing {
+            frames.retain(|job| {
+                let exists = job.output.exists();
+                if exists {
+                    log::info!(
+                        "frame {}: {} exists, skipped",
+                        job.number,
+                        job.output.display()
+                    );
+                }
+                !exists
+            });
+        }
+        Ok(Plan {
+            skipped: all - frames.len(),
+            frames,
+            coordinates,
+            origin,
+        })
+    }
+
+    /// Renders and writes the frames of `plan` in order on `renderer`:
+    /// each frame's focus (`--focus-pixel`), its image and passes written
+    /// atomically, its report (`load_ms`: the cloud's reading, for the
+    /// reports), each step told to `events` (whose error ends the job).
+    /// Before each frame, `stop` set (by [`watch_signals`]) ends the job
+    /// with [`Error::Interrupted`], the frames before it complete.
+    pub fn render(
+        &self,
+        renderer: &Renderer,
+        scene: &Scene,
+        plan: &Plan,
+        stop: &AtomicBool,
+        load_ms: f64,
+        events: &mut dyn FnMut(JobEvent) -> Result<()>,
+    ) -> Result<Outcome> {
+        let mut outcome = Outcome::default();
+        for (done, job) in plan.frames.iter().enumerate() {
+            if stop.load(Ordering::SeqCst) {
+                return Err(Error::Interrupted {
+                    written: done,
+                    total: plan.frames.len(),
+                    next: job.number,
+                });
+            }
+            let started = Instant::now();
+            let options = self.frame_options(renderer, scene, job.camera)?;
+            let spec = options.camera.to_spec_in(plan.coordinates, plan.origin);
+            events(JobEvent::Camera {
+                number: job.number,
+                spec: &spec,
+            })?;
+            let measure = write_frame(renderer, scene, &options, &job.output, self.spec.written)?;
+            let report = FrameReport {
+                load_ms,
+                ..measure.into_report(renderer, &self.spec, scene)
+            };
+            log_memory(renderer, job, started);
+            events(JobEvent::Written {
+                number: job.number,
+                output: &job.output,
+                seconds: started.elapsed().as_secs_f64(),
+                report: &report,
+            })?;
+            outcome.cameras.push((job.number, spec));
+            outcome.reports.push(report);
+        }
+        Ok(outcome)
+    }
+
+    /// The options of one frame through `camera`, its focus on what
+    /// `--focus-pixel` sees.
+    fn frame_options(
+        &self,
+        renderer: &Renderer,
+        scene: &Scene,
+        mut camera: Camera,
+    ) -> Result<RenderOptions> {
+        let s = &self.spec;
+        if let Some([x, y]) = s.focus_pixel {
+            camera.focus_distance = renderer.depth_at_pixel(scene, &camera, s.ssaa, s.lod, x, y)?;
+        }
+        Ok(RenderOptions {
+            camera,
+            method: s.method,
+            ssaa: s.ssaa,
+            samples_per_pass: s.samples_per_pass,
+            background: s.background,
+            lod: s.lod,
+        })
+    }
+
+    /// Writes `reports` to `--timings-json` (if asked): one object for a
+    /// single image, an array for a sequence.
+    pub fn write_timings(&self, reports: &[FrameReport]) -> Result<()> {
+        let Some(path) = &self.spec.timings_json else {
+            return Ok(());
+        };
+        let text = match (self.is_sequence(), reports) {
+            (false, [one]) => one.to_json(),
+            _ => format!(
+                "[\n{}\n]",
+                reports
+                    .iter()
+                    .map(FrameReport::to_json)
+                    .collect::<Vec<_>>()
+                    .join(",\n")
+            ),
+        };
+        write_text_atomically(path, &text)
+    }
+}
+
+/// The cameras of `outcome` as a camera path (`--print-camera` of a
+/// sequence).
+pub fn camera_path(outcome: &Outcome) -> CameraPath {
+    CameraPath::of_frames(outcome.cameras.iter().cloned())
+}
+
+/// Logs a written frame with the device's and the process's memory (a long
+/// sequence shows whether either grows).
+fn log_memory(renderer: &Renderer, job: &FrameJob, started: Instant) {
+    let (rss, peak) = crate::report::host_memory_bytes().unwrap_or_default();
+    log::info!(
+        "frame {}: {} in {:.2} s (device memory {} B, host resident {} B, peak {} B)",
+        job.number,
+        job.output.display(),
+        started.elapsed().as_secs_f64(),
+        renderer.ctx().allocated_bytes(),
+        rss,
+        peak
+    );
+}
+
+/// Handles SIGINT and SIGTERM on a thread of their own. In a sequence the
+/// first sets `stop`, and [`RenderJob::render`] ends after the frame in
+/// flight; otherwise (a single image, or a second signal) the temporary
+/// files of the writes in progress are removed and the process ends as the
+/// signal's default action would (its status says which signal), so no
+/// partial file, not even a hidden temporary, is left.
+pub fn watch_signals(sequence: bool, stop: Arc<AtomicBool>) -> Result<()> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let mut signals =
+        signal_hook::iterator::Signals::new([SIGINT, SIGTERM]).map_err(|source| Error::System {
+            what: "installing a signal handler",
+            source,
+        })?;
+    std::thread::spawn(move || {
+        for signal in signals.forever() {
+            if sequence && !stop.swap(true, Ordering::SeqCst) {
+                continue;
+            }
+            let removed = crate::image_io::abandon_writes();
+            log::debug!("signal {signal}: {removed} file(s) in writing removed");
+            // Ends the process (terminate is these signals' default).
+            let _ = signal_hook::low_level::emulate_default_handler(signal);
+            std::process::exit(128 + signal);
+        }
+    });
+    Ok(())
+}
+
+/// What one frame's render measured, before it becomes a [`FrameReport`].
+struct FrameMeasure {
+    rendered: Rendered<()>,
+    camera: Camera,
+    encode_ms: f64,
+}
+
+impl FrameMeasure {
+    fn into_report(self, renderer: &Renderer, spec: &JobSpec, scene: &Scene) -> FrameReport {
+        let r = self.rendered;
+        FrameReport {
+            samples_per_pass: r.samples_per_pass,
+            counts: r.counts.clone(),
+            lod: r.lod,
+            encode_ms: self.encode_ms,
+            ..FrameReport::new(
+                &renderer.ctx().info,
+                spec.method.short_name(),
+                (self.camera.width, self.camera.height),
+                spec.ssaa,
+                scene.len(),
+                r.guard,
+                &r.timings,
+                scene.upload,
+            )
+        }
+    }
+}
+
+/// Renders one frame and writes it to `output` (atomically): PNG pixels
+/// encoded on the device (RGBA on the host when transparent), EXR with
+/// R, G, B, A and the passes asked for.
+fn write_frame(
+    renderer: &Renderer,
+    scene: &Scene,
+    options: &RenderOptions,
+    output: &Path,
+    written: Written,
+) -> Result<FrameMeasure> {
+    let (rendered, t_encode) = if !is_png_path(output)? {
+        let Passes { z, coc } = written.passes;
+        let (rendered, gbuffer) = match z || coc {
+            true => {
+                let (r, g) = renderer.render_with_gbuffer(scene, options)?;
+                (r, Some(g))
+            }
+            false => (renderer.render(scene, options)?, None),
+        };
+        let t_encode = Instant::now();
+        let depth = gbuffer.map(|g| output_depths(&g, rendered.image.width, rendered.image.height));
+        write_exr(&rendered.image, depth, &options.camera, output, written)?;
+        (rendered.map(|_| ()), t_encode)
+    } else if written.transparent {
+        let rendered = renderer.render(scene, options)?;
+        let t_encode = Instant::now();
+        write_png_rgba(&rendered.image, output)?;
+        (rendered.map(|_| ()), t_encode)
+    } else {
+        let rendered = renderer.render_srgb8(scene, options)?;
+        let t_encode = Instant::now();
+        rendered.image.write_png(output)?;
+        (rendered.map(|_| ()), t_encode)
+    };
+    Ok(FrameMeasure {
+        rendered,
+        camera: options.camera,
+        encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// Writes `image` as EXR: R, G, B, A (coverage when transparent, else 1),
+/// and from the output pixels' eye `depth` the passes asked for.
+fn write_exr(
+    image: &LinearImage,
+    depth: Option<Vec<f32>>,
+    camera: &Camera,
+    output: &Path,
+    written: Written,
+) -> Result<()> {
+    let channel = |name: &str, samples: Vec<f32>| ExrChannel {
+        name: name.to_string(),
+        samples,
+    };
+    let component = |i: usize| image.pixels.iter().map(|p| p[i]).collect::<Vec<f32>>();
+    let mut channels = vec![
+        channel("R", component(0)),
+        channel("G", component(1)),
+        channel("B", component(2)),
+        channel(
+            "A",
+            match written.transparent {
+                true => component(3),
+                false => vec![1.0; image.pixels.len()],
+            },
+        ),
+    ];
+    if let Some(depth) = depth {
+        if written.passes.coc {
+            channels.push(channel(
+                "CoC",
+                depth.iter().map(|&d| camera.coc_px(d)).collect(),
+            ));
+        }
+        if written.passes.z {
+            channels.push(channel("Z", depth));
+        }
+    }
+    write_exr_channels(output, image.width, image.height, &channels)
+}
+
+/// The G-buffer's eye depth of each output pixel (guard band cropped).
+fn output_depths(g: &HostGBuffer, width: u32, height: u32) -> Vec<f32> {
+    let mut depth = Vec::with_capacity(width as usize * height as usize);
+    for y in 0..height {
+        let row = ((y + g.guard) * g.width + g.guard) as usize;
+        depth.extend(g.eye[row..row + width as usize].iter().map(|e| e[2]));
+    }
+    depth
+}
+
+fn invalid(msg: impl Into<String>) -> Error {
+    Error::InvalidArgument(msg.into())
+}

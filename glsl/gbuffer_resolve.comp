@@ -1,8 +1,13 @@
 #version 460
-// Resolves the one-sample rasters into the G-buffer as they are drawn
-// (DESIGN §3): folds sample s into the running color sum and nearest eye
-// position (gbuffer_fold.glsl). After the last sample, writes the mean
-// color and the coverage fraction.
+// Resolves one-sample rasters into the G-buffer as they are drawn
+// (DESIGN §3): folds samples sample_index, sample_index + 1, … into the
+// running color sum and nearest eye position (gbuffer_fold.glsl). A pass
+// of scale 1 (the one-sample form, one pass per sample) holds one sample of
+// each pixel, in place; a pass of scale K (the upscaled plan, every sample
+// in one pass) holds output pixel p's K² samples in the target's K×K block
+// at K·p, sample s (the one-sample form's index) in cell K² − 1 − s
+// (src/passes/sample_plan.rs). After the last sample, writes the mean color
+// and the coverage fraction.
 #include "gbuffer_fold.glsl"
 
 layout(local_size_x = 16, local_size_y = 16) in;
@@ -13,9 +18,10 @@ layout(binding = 2, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's inde
 layout(binding = 3, rgba16f) uniform writeonly image2D gbuffer_color;
 
 layout(push_constant, std430) uniform Push {
-    ivec2 extent;
-    uint sample_index;
-    uint sample_count;
+    ivec2 extent;        // of the G-buffer
+    uint sample_index;   // of this pass's first sample
+    uint sample_count;   // samples of the whole G-buffer
+    uint scale;          // target pixels per output pixel along each axis
 } pc;
 
 void main() {
@@ -23,19 +29,26 @@ void main() {
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
-    vec4 s = imageLoad(sample_target, p);
-    float index = float(pc.sample_index);
+    uint n = pc.scale * pc.scale;
     Fold f;
-    if (pc.sample_index == 0u) {
-        f = fold_first(s, index);
-    } else {
+    if (pc.sample_index != 0u) {
         f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
-        fold_next(f, s, index);
     }
-    if (pc.sample_index + 1u == pc.sample_count) {
-        float n = float(pc.sample_count);
-        imageStore(gbuffer_color, p, f.sum / n);
-        imageStore(gbuffer_eye, p, fold_eye(f, n));
+    for (uint s = 0u; s < n; s++) {
+        uint cell = n - 1u - s;
+        ivec2 q = p * int(pc.scale) + ivec2(cell % pc.scale, cell / pc.scale);
+        vec4 t = imageLoad(sample_target, q);
+        float index = float(pc.sample_index + s);
+        if (pc.sample_index == 0u && s == 0u) {
+            f = fold_first(t, index);
+        } else {
+            fold_next(f, t, index);
+        }
+    }
+    if (pc.sample_index + n == pc.sample_count) {
+        float count = float(pc.sample_count);
+        imageStore(gbuffer_color, p, f.sum / count);
+        imageStore(gbuffer_eye, p, fold_eye(f, count));
     } else {
         imageStore(color_sum, p, f.sum);
         imageStore(gbuffer_eye, p, f.best);

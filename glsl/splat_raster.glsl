@@ -15,5 +15,5 @@ layout(push_constant, std430) uniform SplatPush {
     float aperture_radius;
     float focus_distance;
     float max_point_size;
-    float pad;
+    float min_point_size; // 1, or K in the upscaled plan's target (one output pixel)
 } pc;

@@ -28,7 +28,7 @@ void main() {
     p += pc.jitter + lens_offset_px(e.z, pc.lens_u, pc.f_px, pc.aperture_radius, pc.focus_distance);
     float size = pc.splat_px > 0.0 ? pc.splat_px : pc.f_px * in_position_size.w / e.z;
     v_diameter = pc.splat_px > 0.0 ? pc.splat_px * e.z / pc.f_px : in_position_size.w;
-    gl_PointSize = clamp(size, 1.0, pc.max_point_size);
+    gl_PointSize = clamp(size, pc.min_point_size, pc.max_point_size);
     // Framebuffer coordinate p ↦ NDC; depth linear in eye z (D32 float).
     gl_Position = vec4(2.0 * p / pc.extent - 1.0, (e.z - pc.near) / (pc.far - pc.near), 1.0);
 }

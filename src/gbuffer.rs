@@ -35,35 +35,57 @@ pub struct RasterView {
     pub splat_px: f32,
     /// The device's largest point size.
     pub max_point_size: f32,
+    /// The largest splat the view draws, output pixels (at most
+    /// `max_point_size`).
+    pub max_splat_px: f32,
 }
 
 impl RasterView {
     /// Push constants for one raster pass: sub-pixel `jitter` (pixels),
-    /// normalised lens position `lens_u` (zero for a pinhole view) and the
+    /// normalised lens position `lens_u` (zero for a pinhole view), the
     /// render targets' size (the G-buffer's, or one pixel more each way
-    /// when the pass's samples are read from the next pixel).
-    pub fn push(&self, jitter: Vec2, lens_u: Vec2, targets: [u32; 2]) -> SplatPush {
+    /// when the pass's samples are read from the next pixel, or `scale`
+    /// times the G-buffer's) and `scale`, target pixels per G-buffer pixel
+    /// along each axis (1, or K for the upscaled plan: the projection, the
+    /// pixel sizes and the smallest sprite scaled by it, so that a sprite
+    /// covers the same part of the image).
+    pub fn push(&self, jitter: Vec2, lens_u: Vec2, targets: [u32; 2], scale: u32) -> SplatPush {
         let c = &self.frame.camera;
         let (right, up, forward) = c.basis();
         let g = self.frame.guard as f32;
+        let k = scale as f32;
+        let centre = [c.width as f32 / 2.0 + g, c.height as f32 / 2.0 + g];
         SplatPush {
             eye: c.eye.extend(0.0).to_array(),
             right: right.extend(0.0).to_array(),
             up: up.extend(0.0).to_array(),
             forward: forward.extend(0.0).to_array(),
-            center: [c.width as f32 / 2.0 + g, c.height as f32 / 2.0 + g],
+            center: match scale {
+                1 => centre,
+                _ => centre.map(|v| k * v),
+            },
             extent: [targets[0] as f32, targets[1] as f32],
             jitter: jitter.to_array(),
             lens_u: lens_u.to_array(),
-            f_px: c.f_px(),
+            f_px: match scale {
+                1 => c.f_px(),
+                _ => k * c.f_px(),
+            },
             near: self.near,
             far: self.far,
-            splat_px: self.splat_px,
+            splat_px: k * self.splat_px,
             aperture_radius: c.aperture_radius,
             focus_distance: c.focus_distance,
             max_point_size: self.max_point_size,
-            pad: 0.0,
+            min_point_size: k,
         }
+    }
+
+    /// Whether the upscaled plan of K×K samples ([`SamplePlan::upscaled`])
+    /// draws this view's splats as the one-sample form does: its largest
+    /// splat, K times wider in the target, within the device's point size.
+    fn upscales(&self, ssaa: u32) -> bool {
+        ssaa as f32 * self.max_splat_px <= self.max_point_size
     }
 }
 
@@ -136,18 +158,33 @@ impl GBufferPasses {
         })
     }
 
-    /// The plan for K×K samples with at most `max_samples_per_pass`
-    /// samples per pass (None: no limit) whose sample targets for `pixels`
-    /// pixels take at most `budget_bytes`: the fewest passes the device's
-    /// sample counts allow ([`SamplePlan::best`]).
+    /// The plan for K×K samples of `view` with at most
+    /// `max_samples_per_pass` samples of an output pixel per pass (None: no
+    /// limit) whose sample targets take at most `budget_bytes`: all K² in
+    /// one pass ([`SamplePlan::upscaled`]) where the targets, K times the
+    /// G-buffer's size, fit the budget and `max_dimension` and the view's
+    /// largest splat K times wider fits the device's point size; else the
+    /// fewest passes the device's sample counts allow ([`SamplePlan::best`]).
     pub fn plan(
         &self,
         ssaa: u32,
         max_samples_per_pass: Option<u32>,
-        pixels: u64,
+        view: &RasterView,
         budget_bytes: u64,
+        max_dimension: u32,
     ) -> SamplePlan {
         let max = max_samples_per_pass.unwrap_or(u32::MAX);
+        let (w, h) = (view.frame.full_width(), view.frame.full_height());
+        let pixels = w as u64 * h as u64;
+        let k = ssaa as u64;
+        if ssaa > 1
+            && ssaa * ssaa <= max
+            && view.upscales(ssaa)
+            && (w as u64 * k).max(h as u64 * k) <= max_dimension as u64
+            && SampleTargets::fit(1, pixels * k * k, budget_bytes)
+        {
+            return SamplePlan::upscaled(ssaa);
+        }
         let mut counts: Vec<u32> = self
             .rasters
             .iter()
@@ -233,6 +270,7 @@ impl GBuffer {
         assert!(layers >= 1, "a G-buffer has at least one layer");
         // Passes whose samples are read from the next pixel draw one more.
         let margin = u32::from(plan.reads_neighbours());
+        let scale = plan.scale;
         let storage = vk::ImageUsageFlags::STORAGE;
         let readable = storage | vk::ImageUsageFlags::TRANSFER_SRC;
         let mut images = Vec::new();
@@ -260,9 +298,16 @@ impl GBuffer {
         Ok(GBuffer {
             layers: images,
             color_sums,
-            targets: SampleTargets::new(ctx, w + margin, h + margin, plan.samples_per_pass)?,
-            // The peel reads in place: its targets need no margin.
-            peel_targets: match layers > 1 && peel_samples != plan.samples_per_pass {
+            targets: SampleTargets::new(
+                ctx,
+                scale * w + margin,
+                scale * h + margin,
+                plan.samples_per_pass,
+            )?,
+            // The peel reads in place at the G-buffer's size: its targets
+            // need no margin.
+            peel_targets: match layers > 1 && (peel_samples != plan.samples_per_pass || scale != 1)
+            {
                 true => Some(SampleTargets::new(ctx, w, h, peel_samples)?),
                 false => None,
             },
@@ -302,7 +347,9 @@ impl GBuffer {
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let t = &self.targets;
         let samples = self.plan.samples_per_pass;
-        let per_lens = self.plan.passes.len() as u32 * samples;
+        let scale = self.plan.scale;
+        let per_pass = self.plan.samples_per_pixel_per_pass();
+        let per_lens = self.plan.passes.len() as u32 * per_pass;
         let sample_count = lens.len() as u32 * per_lens;
         let extent = [t.sample.width(), t.sample.height()];
         let background = self.background.to_array();
@@ -312,7 +359,7 @@ impl GBuffer {
             previous: Access::NONE,
         };
         for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
-            let push = self.view.push(planned.jitter, lens_u, extent);
+            let push = self.view.push(planned.jitter, lens_u, extent, scale);
             passes.raster(samples, false).record(
                 frame,
                 &raster_name,
@@ -328,11 +375,12 @@ impl GBuffer {
             before.sample = Access::COMPUTE_READ;
             before.depth = Access::DEPTH_WRITE;
             let pass = ResolvePass {
-                first_sample: i as u32 * samples,
+                first_sample: i as u32 * per_pass,
                 sample_count,
                 read_offsets: planned.read_offsets,
                 index_base: l * per_lens,
                 indices: planned.packed_indices(),
+                scale,
             };
             passes
                 .resolve
@@ -349,6 +397,7 @@ impl GBuffer {
             Vec2::ZERO,
             lens_u,
             [peel.sample.width(), peel.sample.height()],
+            1,
         );
         let mut indices = [0u8; 8];
         for (s, index) in indices.iter_mut().enumerate().take(samples as usize) {
@@ -375,6 +424,7 @@ impl GBuffer {
                 read_offsets: 0,
                 index_base: 0,
                 indices: PlannedPass::pack_indices(indices),
+                scale: 1,
             };
             passes.resolve.record(
                 frame,

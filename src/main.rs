@@ -158,9 +158,10 @@ struct BenchArgs {
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
-    /// The most samples one G-buffer raster pass takes, 1 to 64 (default:
-    /// the device's best: multisampled passes where its sample counts tile
-    /// the K×K grid; 1 = one pass per sample, the reference form).
+    /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
+    /// (default: all K² in one pass into a target K times larger where the
+    /// device holds it, else multisampled passes where its sample counts
+    /// tile the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
@@ -252,9 +253,10 @@ struct RenderArgs {
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard sprites).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
-    /// The most samples one G-buffer raster pass takes, 1 to 64 (default:
-    /// the device's best: multisampled passes where its sample counts tile
-    /// the K×K grid; 1 = one pass per sample, the reference form).
+    /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
+    /// (default: all K² in one pass into a target K times larger where the
+    /// device holds it, else multisampled passes where its sample counts
+    /// tile the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
     /// Vertical field of view, degrees.

@@ -441,6 +441,7 @@ impl Renderer {
                 _ => 0.0,
             },
             max_point_size: max_point,
+            max_splat_px: seen.max_splat_px,
         };
         Ok((splats, lod_report, view))
     }
@@ -547,8 +548,9 @@ impl Renderer {
         let plan = self.gbuffer.plan(
             options.ssaa,
             options.samples_per_pass,
-            pixels,
+            &view,
             self.ctx.info.device_local_heap_bytes / 4,
+            self.ctx.info.max_image_dimension_2d,
         );
         let peel_samples = self.gbuffer.peel_samples(
             options.ssaa,
@@ -591,7 +593,7 @@ impl Renderer {
             image,
             timings,
             guard: view.frame.guard,
-            samples_per_pass: plan.samples_per_pass,
+            samples_per_pass: plan.samples_per_pixel_per_pass(),
             counts: dof.counts(),
             lod: lod_report,
         };

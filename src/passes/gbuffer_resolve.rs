@@ -1,6 +1,7 @@
 //! The G-buffer resolve pass: folds one raster pass's samples into the
 //! running color sum and nearest eye depth, and after the last pass
-//! writes the G-buffer (mean color, coverage fraction). One sample per pass:
+//! writes the G-buffer (mean color, coverage fraction). One sample per pass,
+//! or every sample in the upscaled plan's K×K blocks:
 //! `glsl/gbuffer_resolve.comp`; multisampled passes:
 //! `glsl/gbuffer_resolve_ms.comp`; both fold through `gbuffer_fold.glsl`.
 
@@ -15,6 +16,7 @@ push_constants! {
         extent: [i32; 2],
         sample_index: u32,
         sample_count: u32,
+        scale: u32,
     }
 }
 
@@ -53,6 +55,10 @@ pub struct ResolvePass {
     /// Packed indices of this pass's samples within the lens position
     /// ([`super::sample_plan::PlannedPass::packed_indices`]).
     pub indices: [u32; 2],
+    /// Target pixels per output pixel along each axis (one-sample targets
+    /// only): 1, or K for the upscaled plan's K×K blocks
+    /// ([`super::sample_plan::SamplePlan::upscaled`]).
+    pub scale: u32,
 }
 
 /// The images the pass reads and writes, all in `GENERAL` layout.
@@ -96,7 +102,11 @@ impl GBufferResolve {
     ) {
         let samples = images.sample.samples();
         assert!(
-            pass.first_sample + samples <= pass.sample_count,
+            pass.scale == 1 || samples == 1,
+            "upscaled targets have one sample"
+        );
+        assert!(
+            pass.first_sample + samples * pass.scale * pass.scale <= pass.sample_count,
             "more samples than the G-buffer's"
         );
         frame.pass(name, |rec| {
@@ -133,6 +143,7 @@ impl GBufferResolve {
                     extent,
                     sample_index: pass.first_sample,
                     sample_count: pass.sample_count,
+                    scale: pass.scale,
                 };
                 rec.dispatch(&self.pipeline, &binds, &push, size);
             } else {

@@ -4,6 +4,12 @@
 //! locations, each pass offset so that the passes together take exactly the
 //! K×K grid of pixel-cell centres.
 //!
+//! Or, where the device can hold them, all K² samples in one pass
+//! ([`SamplePlan::upscaled`]): a one-sample target K times the output's
+//! width and height, whose pixel centres are exactly the grid's cell
+//! centres; each splat is drawn once (issue 28: lavapipe's point path
+//! costs per splat, not per sample).
+//!
 //! A multisampled pass offset by `jitter` (added to every splat's pixel
 //! position) samples the scene at `q + location_s − jitter` for the pixel
 //! with corner `q`. That point lies in pixel `q + floor(location_s −
@@ -76,8 +82,13 @@ impl PlannedPass {
 /// The raster passes of one lens position's K×K samples.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SamplePlan {
-    /// Samples per pixel of every pass (1: the one-sample form).
+    /// Samples per pixel of the sample targets of every pass (1: the
+    /// one-sample form).
     pub samples_per_pass: u32,
+    /// Target pixels per output pixel along each axis: 1, or K for the
+    /// upscaled plan (output pixel p's samples are the target's K×K block
+    /// at K·p).
+    pub scale: u32,
     pub passes: Vec<PlannedPass>,
 }
 
@@ -87,6 +98,7 @@ impl SamplePlan {
     pub fn single(ssaa: u32) -> SamplePlan {
         SamplePlan {
             samples_per_pass: 1,
+            scale: 1,
             passes: (0..ssaa * ssaa)
                 .map(|s| PlannedPass {
                     jitter: ssaa_jitter(s, ssaa),
@@ -163,8 +175,32 @@ impl SamplePlan {
         }
         Some(SamplePlan {
             samples_per_pass: samples,
+            scale: 1,
             passes,
         })
+    }
+
+    /// All K² samples in one unjittered pass into a one-sample target of K
+    /// times the output's width and height: target pixel K·p + (i, j) of
+    /// output pixel p has its centre at p + ((i + ½)/K, (j + ½)/K), cell
+    /// (i, j)'s centre, so the samples are the one-sample form's; the
+    /// resolve folds them in that form's index order (its sample s takes
+    /// the mirrored cell K² − 1 − s, see [`SamplePlan::multisampled`]).
+    pub fn upscaled(ssaa: u32) -> SamplePlan {
+        SamplePlan {
+            samples_per_pass: 1,
+            scale: ssaa,
+            passes: vec![PlannedPass {
+                jitter: Vec2::ZERO,
+                read_offsets: 0,
+                indices: [0; 8],
+            }],
+        }
+    }
+
+    /// Samples of one output pixel that one pass takes.
+    pub fn samples_per_pixel_per_pass(&self) -> u32 {
+        self.samples_per_pass * self.scale * self.scale
     }
 
     /// The plan with the fewest passes among the sample counts in
@@ -302,6 +338,33 @@ mod tests {
         // Jitter j moves the splats by j: pixel centre 0.5 samples 0.5 − j.
         assert_eq!(sorted_positions(&plan), grid(4));
         check_indices(&plan, 4);
+    }
+
+    #[test]
+    fn the_upscaled_plan_is_the_grid_in_one_pass_folded_in_index_order() {
+        for k in 1..=8u32 {
+            let plan = SamplePlan::upscaled(k);
+            assert_eq!(plan.passes.len(), 1);
+            assert_eq!(plan.samples_per_pixel_per_pass(), k * k);
+            // Target pixel (i, j) of the block: its centre, in output pixels
+            // from the output pixel's corner, is a cell centre.
+            let mut centres: Vec<Vec2> = (0..k * k)
+                .map(|c| (Vec2::new((c % k) as f32, (c / k) as f32) + 0.5) / k as f32)
+                .collect();
+            let mut sorted: Vec<(u32, u32)> = centres
+                .iter()
+                .map(|p| ((p.x * 1024.0) as u32, (p.y * 1024.0) as u32))
+                .collect();
+            sorted.sort();
+            assert_eq!(sorted, grid(k));
+            // The resolve folds index s from cell K² − 1 − s: the one-sample
+            // form's sample s at the same position.
+            let single = positions(&SamplePlan::single(k));
+            centres.reverse();
+            for (s, p) in centres.iter().enumerate() {
+                assert!((single[s] - *p).abs().max_element() < 1e-6, "K={k} s={s}");
+            }
+        }
     }
 
     #[test]

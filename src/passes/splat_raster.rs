@@ -51,7 +51,7 @@ push_constants! {
         pub aperture_radius: f32,
         pub focus_distance: f32,
         pub max_point_size: f32,
-        pub pad: f32,
+        pub min_point_size: f32,
     }
 }
 

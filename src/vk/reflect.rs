@@ -527,7 +527,7 @@ mod tests {
                 ("aperture_radius", 112, 4),
                 ("focus_distance", 116, 4),
                 ("max_point_size", 120, 4),
-                ("pad", 124, 4),
+                ("min_point_size", 124, 4),
             ],
         );
         let last = members.last().unwrap();

@@ -48,13 +48,24 @@ impl RasterView {
     /// times the G-buffer's) and `scale`, target pixels per G-buffer pixel
     /// along each axis (1, or K for the upscaled plan: the projection, the
     /// pixel sizes and the smallest sprite scaled by it, so that a sprite
-    /// covers the same part of the image).
-    pub fn push(&self, jitter: Vec2, lens_u: Vec2, targets: [u32; 2], scale: u32) -> SplatPush {
+    /// covers the same part of the image), and the first G-buffer row the
+    /// targets hold (0, or a band's first row: the image moved up by it).
+    pub fn push(
+        &self,
+        jitter: Vec2,
+        lens_u: Vec2,
+        targets: [u32; 2],
+        scale: u32,
+        first_row: u32,
+    ) -> SplatPush {
         let c = &self.frame.camera;
         let (right, up, forward) = c.basis();
         let g = self.frame.guard as f32;
         let k = scale as f32;
-        let centre = [c.width as f32 / 2.0 + g, c.height as f32 / 2.0 + g];
+        let centre = [
+            c.width as f32 / 2.0 + g,
+            c.height as f32 / 2.0 + g - first_row as f32,
+        ];
         SplatPush {
             eye: c.eye.extend(0.0).to_array(),
             right: right.extend(0.0).to_array(),
@@ -161,10 +172,13 @@ impl GBufferPasses {
     /// The plan for K×K samples of `view` with at most
     /// `max_samples_per_pass` samples of an output pixel per pass (None: no
     /// limit) whose sample targets take at most `budget_bytes`: all K² in
-    /// one pass ([`SamplePlan::upscaled`]) where the targets, K times the
-    /// G-buffer's size, fit the budget and `max_dimension` and the view's
-    /// largest splat K times wider fits the device's point size; else the
-    /// fewest passes the device's sample counts allow ([`SamplePlan::best`]).
+    /// one pass ([`SamplePlan::upscaled`]) where the view's largest splat K
+    /// times wider fits the device's point size, in as few horizontal bands
+    /// as make the targets, K times the band's size, fit the budget and
+    /// `max_dimension`, while the bands are fewer than the passes of the
+    /// plan the device's sample counts allow otherwise
+    /// ([`SamplePlan::best`]: each band draws every splat, as each pass
+    /// does); else that plan.
     pub fn plan(
         &self,
         ssaa: u32,
@@ -176,29 +190,33 @@ impl GBufferPasses {
         let max = max_samples_per_pass.unwrap_or(u32::MAX);
         let (w, h) = (view.frame.full_width(), view.frame.full_height());
         let pixels = w as u64 * h as u64;
-        let k = ssaa as u64;
-        if ssaa > 1
-            && ssaa * ssaa <= max
-            && view.upscales(ssaa)
-            && (w as u64 * k).max(h as u64 * k) <= max_dimension as u64
-            && SampleTargets::fit(1, pixels * k * k, budget_bytes)
-        {
-            return SamplePlan::upscaled(ssaa);
-        }
         let mut counts: Vec<u32> = self
             .rasters
             .iter()
             .map(|(s, _)| *s)
             .filter(|&s| s <= max)
             .collect();
-        loop {
+        let otherwise = loop {
             let plan = SamplePlan::best(ssaa, counts.iter().fold(0, |m, s| m | s));
             let s = plan.samples_per_pass;
             if SampleTargets::fit(s, pixels, budget_bytes) {
-                return plan;
+                break plan;
             }
             counts.retain(|&c| c < s);
+        };
+        if ssaa > 1 && ssaa * ssaa <= max && view.upscales(ssaa) {
+            let k = ssaa as u64;
+            let fits = |bands: u32| {
+                let rows = h.div_ceil(bands) as u64;
+                (w as u64 * k).max(rows * k) <= max_dimension as u64
+                    && w as u64 * rows * k * k * SampleTargets::bytes_per_pixel(1) <= budget_bytes
+            };
+            let fewer = (1..otherwise.passes.len() as u32).find(|&b| fits(b));
+            if let Some(bands) = fewer {
+                return SamplePlan::upscaled(ssaa).in_bands(bands);
+            }
         }
+        otherwise
     }
 
     /// Samples per pixel of each depth-peel pass (one per later layer):
@@ -268,9 +286,11 @@ impl GBuffer {
             )));
         }
         assert!(layers >= 1, "a G-buffer has at least one layer");
-        // Passes whose samples are read from the next pixel draw one more.
+        // Passes whose samples are read from the next pixel draw one more;
+        // an upscaled target holds one band's rows.
         let margin = u32::from(plan.reads_neighbours());
         let scale = plan.scale;
+        let band = h.div_ceil(plan.bands);
         let storage = vk::ImageUsageFlags::STORAGE;
         let readable = storage | vk::ImageUsageFlags::TRANSFER_SRC;
         let mut images = Vec::new();
@@ -301,7 +321,7 @@ impl GBuffer {
             targets: SampleTargets::new(
                 ctx,
                 scale * w + margin,
-                scale * h + margin,
+                scale * band + margin,
                 plan.samples_per_pass,
             )?,
             // The peel reads in place at the G-buffer's size: its targets
@@ -358,33 +378,40 @@ impl GBuffer {
             depth: Access::NONE,
             previous: Access::NONE,
         };
-        for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
-            let push = self.view.push(planned.jitter, lens_u, extent, scale);
-            passes.raster(samples, false).record(
-                frame,
-                &raster_name,
-                &t.sample,
-                &t.depth,
-                None,
-                before,
-                splats,
-                count,
-                background,
-                &push,
-            );
-            before.sample = Access::COMPUTE_READ;
-            before.depth = Access::DEPTH_WRITE;
-            let pass = ResolvePass {
-                first_sample: i as u32 * per_pass,
-                sample_count,
-                read_offsets: planned.read_offsets,
-                index_base: l * per_lens,
-                indices: planned.packed_indices(),
-                scale,
-            };
-            passes
-                .resolve
-                .record(frame, &resolve_name, &self.resolve_images(t, 0), &pass);
+        let height = self.layers[0].color.height();
+        for (band, rows) in self.plan.band_rows(height).into_iter().enumerate() {
+            for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
+                let push = self
+                    .view
+                    .push(planned.jitter, lens_u, extent, scale, rows.0);
+                passes.raster(samples, false).record(
+                    frame,
+                    &raster_name,
+                    &t.sample,
+                    &t.depth,
+                    None,
+                    before,
+                    splats,
+                    count,
+                    background,
+                    &push,
+                );
+                before.sample = Access::COMPUTE_READ;
+                before.depth = Access::DEPTH_WRITE;
+                let pass = ResolvePass {
+                    first_sample: i as u32 * per_pass,
+                    sample_count,
+                    read_offsets: planned.read_offsets,
+                    index_base: l * per_lens,
+                    indices: planned.packed_indices(),
+                    scale,
+                    rows,
+                    fresh: band == 0 && i == 0,
+                };
+                passes
+                    .resolve
+                    .record(frame, &resolve_name, &self.resolve_images(t, 0), &pass);
+            }
         }
         let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
         let peel = self.peel_targets.as_ref().unwrap_or(t);
@@ -398,6 +425,7 @@ impl GBuffer {
             lens_u,
             [peel.sample.width(), peel.sample.height()],
             1,
+            0,
         );
         let mut indices = [0u8; 8];
         for (s, index) in indices.iter_mut().enumerate().take(samples as usize) {
@@ -425,6 +453,8 @@ impl GBuffer {
                 index_base: 0,
                 indices: PlannedPass::pack_indices(indices),
                 scale: 1,
+                rows: (0, height),
+                fresh: true,
             };
             passes.resolve.record(
                 frame,

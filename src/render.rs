@@ -317,6 +317,8 @@ pub struct Renderer {
     gbuffer: GBufferPasses,
     methods: Methods,
     output: OutputConvert,
+    /// The most bytes a frame's G-buffer sample targets may take.
+    sample_budget_bytes: u64,
 }
 
 impl Renderer {
@@ -326,7 +328,16 @@ impl Renderer {
             gbuffer: GBufferPasses::new(ctx)?,
             methods: Methods::new(ctx)?,
             output: OutputConvert::new(ctx)?,
+            sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
         })
+    }
+
+    /// At most `bytes` for a frame's G-buffer sample
+    /// targets (default: a quarter of the device-local heap): a plan whose
+    /// targets would be larger takes fewer samples per pass, or bands
+    /// (docs/ARCHITECTURE.md, "All K² samples in one pass").
+    pub fn set_sample_budget(&mut self, bytes: u64) {
+        self.sample_budget_bytes = bytes;
     }
 
     /// The context the renderer draws with.
@@ -549,14 +560,14 @@ impl Renderer {
             options.ssaa,
             options.samples_per_pass,
             &view,
-            self.ctx.info.device_local_heap_bytes / 4,
+            self.sample_budget_bytes,
             self.ctx.info.max_image_dimension_2d,
         );
         let peel_samples = self.gbuffer.peel_samples(
             options.ssaa,
             options.samples_per_pass,
             pixels,
-            self.ctx.info.device_local_heap_bytes / 4,
+            self.sample_budget_bytes,
         );
         let gbuffer = GBuffer::new(
             &self.ctx,

@@ -171,3 +171,71 @@ fn one_sample_per_pass_is_the_device_independent_form() {
         assert_eq!(render(&renderer, &narrow, &options, None).1, 16);
     });
 }
+
+#[test]
+fn bands_of_the_upscaled_target_give_the_whole_target_s_image() {
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let model = BenchModel::Mug;
+        let cloud = model.load(&root().join("data"), 0).unwrap();
+        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+        let base = RenderOptions {
+            camera: model.camera(&cloud, 96, 72).unwrap(),
+            method: Method::Pinhole,
+            ssaa: 4,
+            samples_per_pass: None,
+            background: Vec3::new(0.05, 0.1, 0.2),
+            lod: pointlens::options::Lod::default(),
+        };
+        let rasters = |r: &pointlens::render::Rendered| {
+            r.timings
+                .passes
+                .iter()
+                .find(|p| p.name.ends_with(".raster") && !p.name.starts_with("peel"))
+                .map_or(0, |p| p.count)
+        };
+        for method in [Method::Pinhole, Method::accum(3)] {
+            let options = RenderOptions { method, ..base };
+            let lens = if method == Method::Pinhole { 1 } else { 3 };
+            renderer.set_sample_budget(u64::MAX);
+            let whole = renderer.render(&scene, &options).unwrap();
+            assert_eq!((whole.samples_per_pass, rasters(&whole)), (16, lens));
+            // The whole target's bytes: 16 samples of 20 bytes a pixel of
+            // the G-buffer (guard band included).
+            let g = whole.guard;
+            let bytes = (96 + 2 * g as u64) * (72 + 2 * g as u64) * 16 * 20;
+            for bands in [2, 3] {
+                renderer.set_sample_budget(bytes / bands + bytes / 100);
+                let banded = renderer.render(&scene, &options).unwrap();
+                assert_eq!(
+                    (banded.samples_per_pass, rasters(&banded)),
+                    (16, bands as u32 * lens),
+                    "{method:?}: {bands} bands"
+                );
+                // The same samples, folded in the same order: only the
+                // rounding of a sprite's position moved up by the band's
+                // rows can differ.
+                let close = psnr(&whole.image, &banded.image).unwrap();
+                let n = differing(&whole.image, &banded.image);
+                eprintln!("{method:?} {bands} bands: {n} pixels differ, {close:.1} dB");
+                assert!(close >= 60.0, "{method:?} {bands} bands: {close:.1} dB");
+            }
+            // Room for the multisampled plan (4 passes of 4 samples) but
+            // not for fewer than 4 bands: that plan.
+            renderer.set_sample_budget(bytes / 4);
+            let fallback = renderer.render(&scene, &options).unwrap();
+            assert_eq!(fallback.samples_per_pass, 4, "{method:?}");
+            // Room for neither: the one-sample form would take 16 passes, so
+            // 5 or 6 bands (rows rounded up) are fewer.
+            renderer.set_sample_budget(bytes / 5);
+            let narrow = renderer.render(&scene, &options).unwrap();
+            assert_eq!(narrow.samples_per_pass, 16, "{method:?}");
+            assert!(
+                (5 * lens..=6 * lens).contains(&rasters(&narrow)),
+                "{method:?}: {} passes",
+                rasters(&narrow)
+            );
+            assert!(psnr(&whole.image, &narrow.image).unwrap() >= 60.0);
+        }
+    });
+}

@@ -17,6 +17,7 @@ push_constants! {
         sample_index: u32,
         sample_count: u32,
         scale: u32,
+        first_row: i32,
     }
 }
 
@@ -59,6 +60,14 @@ pub struct ResolvePass {
     /// only): 1, or K for the upscaled plan's K×K blocks
     /// ([`super::sample_plan::SamplePlan::upscaled`]).
     pub scale: u32,
+    /// The G-buffer rows (first, end) the pass's samples are of: every
+    /// row, or a band's ([`super::sample_plan::SamplePlan::band_rows`];
+    /// one-sample targets only), whose target holds only its rows.
+    pub rows: (u32, u32),
+    /// Whether this is the first resolve into the G-buffer images this
+    /// frame (before it, they hold nothing; after it, a later band's or
+    /// pass's resolve reads or writes what the earlier ones wrote).
+    pub fresh: bool,
 }
 
 /// The images the pass reads and writes, all in `GENERAL` layout.
@@ -109,8 +118,19 @@ impl GBufferResolve {
             pass.first_sample + samples * pass.scale * pass.scale <= pass.sample_count,
             "more samples than the G-buffer's"
         );
+        let (w, h) = (images.gbuffer_color.width(), images.gbuffer_color.height());
+        let (first_row, end_row) = pass.rows;
+        assert!(
+            first_row < end_row && end_row <= h,
+            "rows within the G-buffer"
+        );
+        assert!(
+            pass.rows == (0, h) || (samples == 1 && pass.read_offsets == 0),
+            "bands of one-sample targets only"
+        );
+        assert!(pass.fresh == (pass.first_sample == 0 && first_row == 0));
         frame.pass(name, |rec| {
-            let src = if pass.first_sample == 0 {
+            let src = if pass.fresh {
                 Access::NONE
             } else {
                 Access::COMPUTE_READ_WRITE
@@ -119,19 +139,26 @@ impl GBufferResolve {
                 (images.color_sum, src, Access::COMPUTE_READ_WRITE),
                 (images.gbuffer_eye, src, Access::COMPUTE_READ_WRITE),
             ];
-            if pass.first_sample == 0 {
+            if pass.fresh {
                 list.push((images.gbuffer_color, Access::NONE, Access::COMPUTE_WRITE));
+            } else if pass.first_sample == 0 {
+                // A later band's first pass: the earlier bands' last
+                // resolves wrote the color image (other rows).
+                list.push((
+                    images.gbuffer_color,
+                    Access::COMPUTE_WRITE,
+                    Access::COMPUTE_WRITE,
+                ));
             }
             rec.barriers(&list);
-            let (w, h) = (images.gbuffer_color.width(), images.gbuffer_color.height());
             let binds = [
                 Bind::StorageImage(images.sample),
                 Bind::StorageImage(images.color_sum),
                 Bind::StorageImage(images.gbuffer_eye),
                 Bind::StorageImage(images.gbuffer_color),
             ];
-            let extent = [w as i32, h as i32];
-            let size = [groups(w, 16), groups(h, 16), 1];
+            let extent = [w as i32, end_row as i32];
+            let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
             if samples == 1 {
                 assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
                 assert_eq!(
@@ -144,6 +171,7 @@ impl GBufferResolve {
                     sample_index: pass.first_sample,
                     sample_count: pass.sample_count,
                     scale: pass.scale,
+                    first_row: first_row as i32,
                 };
                 rec.dispatch(&self.pipeline, &binds, &push, size);
             } else {

@@ -89,6 +89,10 @@ pub struct SamplePlan {
     /// upscaled plan (output pixel p's samples are the target's K×K block
     /// at K·p).
     pub scale: u32,
+    /// Horizontal bands of the G-buffer drawn one after the other, each
+    /// with every pass (1, or more for an upscaled target that would not
+    /// fit whole: [`SamplePlan::in_bands`]).
+    pub bands: u32,
     pub passes: Vec<PlannedPass>,
 }
 
@@ -99,6 +103,7 @@ impl SamplePlan {
         SamplePlan {
             samples_per_pass: 1,
             scale: 1,
+            bands: 1,
             passes: (0..ssaa * ssaa)
                 .map(|s| PlannedPass {
                     jitter: ssaa_jitter(s, ssaa),
@@ -176,6 +181,7 @@ impl SamplePlan {
         Some(SamplePlan {
             samples_per_pass: samples,
             scale: 1,
+            bands: 1,
             passes,
         })
     }
@@ -190,12 +196,32 @@ impl SamplePlan {
         SamplePlan {
             samples_per_pass: 1,
             scale: ssaa,
+            bands: 1,
             passes: vec![PlannedPass {
                 jitter: Vec2::ZERO,
                 read_offsets: 0,
                 indices: [0; 8],
             }],
         }
+    }
+
+    /// The plan drawn in `bands` horizontal bands of the G-buffer, one
+    /// after the other (each band's target holds its rows alone).
+    pub fn in_bands(self, bands: u32) -> SamplePlan {
+        SamplePlan {
+            bands: bands.max(1),
+            ..self
+        }
+    }
+
+    /// The rows of each band of a G-buffer `height` rows tall, (first,
+    /// end): bands of equal height (the last one shorter).
+    pub fn band_rows(&self, height: u32) -> Vec<(u32, u32)> {
+        let rows = height.div_ceil(self.bands).max(1);
+        (0..height)
+            .step_by(rows as usize)
+            .map(|first| (first, (first + rows).min(height)))
+            .collect()
     }
 
     /// Samples of one output pixel that one pass takes.
@@ -363,6 +389,20 @@ mod tests {
             centres.reverse();
             for (s, p) in centres.iter().enumerate() {
                 assert!((single[s] - *p).abs().max_element() < 1e-6, "K={k} s={s}");
+            }
+        }
+    }
+
+    #[test]
+    fn bands_cover_every_row_once() {
+        for bands in 1..=7 {
+            let plan = SamplePlan::upscaled(4).in_bands(bands);
+            for height in [1, 2, 7, 480, 1081] {
+                let rows = plan.band_rows(height);
+                assert!(rows.len() as u32 <= bands.max(1));
+                assert_eq!(rows[0].0, 0);
+                assert_eq!(rows.last().unwrap().1, height);
+                assert!(rows.windows(2).all(|w| w[0].1 == w[1].0 && w[0].0 < w[0].1));
             }
         }
     }

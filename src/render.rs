@@ -287,7 +287,8 @@ pub struct Rendered<I = LinearImage> {
     pub timings: FrameTimings,
     /// The guard band the frame was rendered with, pixels.
     pub guard: u32,
-    /// Samples per G-buffer raster pass.
+    /// Samples of a pixel per G-buffer raster pass (K² for the upscaled
+    /// plan, S for multisampled passes, 1 for the one-sample form).
     pub samples_per_pass: u32,
     /// What the method counted ([`crate::passes::DofFrame::counts`]), e.g.
     /// the layered method's kept and discarded pixels per layer.

@@ -91,8 +91,8 @@ pub struct FrameReport {
     pub width: u32,
     pub height: u32,
     pub ssaa: u32,
-    /// Samples per G-buffer raster pass (DESIGN §3; 1 in reports written
-    /// before multisampled passes).
+    /// Samples of a pixel per G-buffer raster pass (DESIGN §3; K² for the
+    /// upscaled plan; 1 in reports written before multisampled passes).
     #[serde(default = "one")]
     pub samples_per_pass: u32,
     pub points: usize,

@@ -38,7 +38,7 @@ use pointlens::PointCloud;
     version,
     about = "Offline point-cloud renderer with physically based depth of field (Vulkan)",
     after_help = "Start with: pointlens render data/bunny_colored.ply -o bunny.png \
-                  (depth of field by the ray distribution buffer). \
+                  (depth of field by the layered method). \
                   'pointlens render --help' has worked examples.",
     subcommand_required = false,
     arg_required_else_help = true
@@ -215,9 +215,10 @@ struct RenderArgs {
     width: Option<u32>,
     #[arg(long)]
     height: Option<u32>,
-    /// pinhole | fast | rdb | layered | accum (default rdb: the best image
-    /// for its cost, docs/BENCHMARKS.md).
-    #[arg(long, default_value = "rdb", value_parser = method_kind)]
+    /// pinhole | fast | rdb | layered | accum (default layered, with 2
+    /// layers: the best image for its cost on the bundled scenes and LiDAR
+    /// tile, docs/BENCHMARKS.md).
+    #[arg(long, default_value = "layered", value_parser = method_kind)]
     method: MethodKind,
     /// Weights of the fast method: area (by inverse CoC area) or uniform
     /// (the paper's plain mean).
@@ -244,7 +245,8 @@ struct RenderArgs {
     /// in tiles, with the same result.
     #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
     rdb_memory_mb: Option<u64>,
-    /// Depth-peeled layers of `--method layered` (1-8).
+    /// Depth-peeled layers of `--method layered` (1-8; more only where
+    /// more surfaces hide one another: docs/BENCHMARKS.md).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_LAYERS, value_parser = checked(check_layers))]
     layers: u32,
     /// Lens samples of the accumulation reference (--method accum).

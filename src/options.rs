@@ -335,8 +335,11 @@ impl Method {
 pub const DEFAULT_RDB_BINS: u32 = 9;
 /// Default lens samples of `accum`.
 pub const DEFAULT_SAMPLES: u32 = 256;
-/// Default K of the layered method's depth-peeled layers.
-pub const DEFAULT_LAYERS: u32 = 4;
+/// Default K of the layered method's depth-peeled layers: 2, by the
+/// quality-per-time table of docs/BENCHMARKS.md (issue 28): 3 and 4 layers
+/// gained nothing on the bunny and the mug and 0.8–0.9 dB on the LiDAR
+/// tile, for 1.15–1.75 times the frame.
+pub const DEFAULT_LAYERS: u32 = 2;
 /// Default K of the K×K SSAA G-buffer.
 pub const DEFAULT_SSAA: u32 = 4;
 

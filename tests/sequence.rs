@@ -667,15 +667,22 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
 }
 
 #[test]
-fn render_without_a_method_is_the_rdb_and_its_help_gives_the_common_tasks() {
+fn render_without_a_method_is_layered_with_two_layers_and_its_help_gives_the_common_tasks() {
+    // The default by the quality-per-time table of docs/BENCHMARKS.md
+    // (issue 28): layered with 2 layers.
     let dir = scratch("seq-default-method");
     let out = |name: &str| dir.join(name);
     render(&out("default.png"), &[]);
+    render(
+        &out("layered2.png"),
+        &["--method", "layered", "--layers", "2"],
+    );
+    render(&out("layered.png"), &["--method", "layered"]);
     render(&out("rdb.png"), &["--method", "rdb"]);
-    render(&out("pinhole.png"), &["--method", "pinhole"]);
-    assert_eq!(bytes(out("default.png")), bytes(out("rdb.png")));
+    assert_eq!(bytes(out("default.png")), bytes(out("layered2.png")));
+    assert_eq!(bytes(out("default.png")), bytes(out("layered.png")));
     // Not a method whose image would equal any other's here.
-    assert_ne!(bytes(out("default.png")), bytes(out("pinhole.png")));
+    assert_ne!(bytes(out("default.png")), bytes(out("rdb.png")));
     let o = pointlens(&["render", "--help"]);
     assert!(o.status.success());
     let help = String::from_utf8_lossy(&o.stdout);
@@ -685,7 +692,7 @@ fn render_without_a_method_is_the_rdb_and_its_help_gives_the_common_tasks() {
         "--focus-from",
         "tile.laz",
         "--frame-range 101-200 --skip-existing",
-        "default: rdb",
+        "default: layered",
     ] {
         assert!(
             help.contains(task),

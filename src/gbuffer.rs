@@ -16,12 +16,13 @@ use glam::{Vec2, Vec3};
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
 use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass};
+use crate::passes::peel_cull::{PeelCull, PeelCullBuffers};
 use crate::passes::sample_plan::{PlannedPass, SamplePlan};
 use crate::passes::splat_raster::{
     SampleTargets, SplatPush, SplatRaster, TargetsBefore, COLOR_FORMAT, EYE_FORMAT,
 };
 use crate::passes::{DofInput, FrameView, GBufferLayer};
-use crate::vk::{Access, Buffer, Context, Frame, Image};
+use crate::vk::{Access, Buffer, Context, DrawCount, Frame, Image};
 
 /// Everything the raster needs to place splats for one view: the frame's
 /// view (camera, guard band), the depth range and the splat size rule.
@@ -143,6 +144,8 @@ pub struct GBufferPasses {
     rasters: Vec<(u32, SplatRaster)>,
     /// The depth peel of layers after the first, by samples per pixel.
     peels: Vec<(u32, SplatRaster)>,
+    /// The splats a peel may keep, before each peel pass.
+    peel_cull: PeelCull,
     resolve: GBufferResolve,
 }
 
@@ -164,6 +167,7 @@ impl GBufferPasses {
             .collect::<Result<Vec<_>>>()?;
         Ok(GBufferPasses {
             resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
+            peel_cull: PeelCull::new(ctx)?,
             rasters,
             peels,
         })
@@ -258,6 +262,9 @@ pub struct GBuffer {
     /// The depth peel's targets where its samples per pixel differ from
     /// the plan's (else it draws into `targets`).
     peel_targets: Option<SampleTargets>,
+    /// Each peel's splats, culled before it (None: the peel draws every
+    /// splat).
+    peel_cull: Option<PeelCullBuffers>,
     view: RasterView,
     plan: SamplePlan,
     background: Vec3,
@@ -267,13 +274,17 @@ impl GBuffer {
     /// Allocates `layers` G-buffer layers for `view` (1: the pinhole
     /// G-buffer), the sample targets for the passes of `plan` and, for
     /// more than one layer, those of the depth peel's passes of
-    /// `peel_samples` samples ([`GBufferPasses::peel_samples`]).
+    /// `peel_samples` samples ([`GBufferPasses::peel_samples`]) and, with
+    /// `cull_splats` (the frame's splat count), the buffers that cull each
+    /// peel's splats ([`PeelCull`]; None: every peel draws every splat).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Arc<Context>,
         view: &RasterView,
         plan: &SamplePlan,
         layers: u32,
         peel_samples: u32,
+        cull_splats: Option<u32>,
         background: Vec3,
     ) -> Result<GBuffer> {
         let frame = &view.frame;
@@ -332,6 +343,10 @@ impl GBuffer {
                 false => None,
             },
             view: *view,
+            peel_cull: match (layers > 1, cull_splats) {
+                (true, Some(count)) => Some(PeelCullBuffers::new(ctx, count, w, h)?),
+                _ => None,
+            },
             plan: plan.clone(),
             background,
         })
@@ -392,7 +407,7 @@ impl GBuffer {
                     None,
                     before,
                     splats,
-                    count,
+                    DrawCount::Direct(count),
                     background,
                     &push,
                 );
@@ -432,17 +447,28 @@ impl GBuffer {
             *index = s as u8;
         }
         for layer in 1..self.layers.len() {
+            let previous = &self.layers[layer - 1].eye;
             // The previous layer's depth was last written by its resolve.
             before.previous = Access::COMPUTE_READ_WRITE;
+            let (vertices, draw) = match &self.peel_cull {
+                Some(cull) => {
+                    passes
+                        .peel_cull
+                        .record(frame, splats, previous, cull, &push);
+                    before.previous = Access::COMPUTE_READ;
+                    (&cull.kept, DrawCount::Indirect(&cull.draw))
+                }
+                None => (splats, DrawCount::Direct(count)),
+            };
             passes.raster(samples, true).record(
                 frame,
                 "peel.raster",
                 &peel.sample,
                 &peel.depth,
-                Some(&self.layers[layer - 1].eye),
+                Some(previous),
                 before,
-                splats,
-                count,
+                vertices,
+                draw,
                 background,
                 &push,
             );

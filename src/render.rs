@@ -223,7 +223,8 @@ impl Scene {
             &self.ctx,
             "splats",
             bytes,
-            vk::BufferUsageFlags::VERTEX_BUFFER,
+            // Also read as a storage buffer by the peel's cull.
+            vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::STORAGE_BUFFER,
         )
         .map_err(|e| {
             Error::Allocation(format!(
@@ -320,6 +321,9 @@ pub struct Renderer {
     output: OutputConvert,
     /// The most bytes a frame's G-buffer sample targets may take.
     sample_budget_bytes: u64,
+    /// Whether a depth peel draws only the splats it can keep
+    /// ([`crate::passes::peel_cull`]).
+    peel_cull: bool,
 }
 
 impl Renderer {
@@ -330,7 +334,15 @@ impl Renderer {
             methods: Methods::new(ctx)?,
             output: OutputConvert::new(ctx)?,
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
+            peel_cull: true,
         })
+    }
+
+    /// Whether each depth peel of `layered` first culls the splats it
+    /// cannot keep (default on; the same image bit for bit, fewer splats
+    /// drawn: off only to compare).
+    pub fn set_peel_cull(&mut self, on: bool) {
+        self.peel_cull = on;
     }
 
     /// At most `bytes` for a frame's G-buffer sample
@@ -576,6 +588,7 @@ impl Renderer {
             &plan,
             layers,
             peel_samples,
+            self.peel_cull.then_some(splats.count),
             options.background,
         )?;
         let dof = method.prepare(&self.ctx, &view.frame)?;

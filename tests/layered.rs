@@ -8,6 +8,7 @@ mod common;
 
 use common::{camera, cloud, options, scratch, with_gpu};
 use glam::Vec3;
+use pointlens::bench::BenchModel;
 use pointlens::camera::Camera;
 use pointlens::image_io::{write_image, LinearImage};
 use pointlens::metrics;
@@ -422,6 +423,55 @@ fn a_sharp_surface_and_a_blurred_one_do_not_leak_into_each_other() {
                         assert!(p[2] < 0.01, "{method:?}: blue {} at ({x}, {y})", p[2]);
                     }
                 }
+            }
+        }
+    });
+}
+
+#[test]
+fn culling_the_peel_s_splats_changes_no_layered_image() {
+    // The peel draws only the splats that can pass its test somewhere
+    // (passes::peel_cull): the same images bit for bit, fewer splats drawn.
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let cases = [
+            (BenchModel::Bunny, SplatSize::Spacing),
+            (BenchModel::Mug, SplatSize::Spacing),
+            // Sizes in pixels: the cull's diameter from --splat-px.
+            (BenchModel::Bunny, SplatSize::Pixels(3.0)),
+        ];
+        for (model, splat) in cases {
+            let cloud = model.load(&common::root().join("data"), 0).unwrap();
+            let scene = renderer.upload(&cloud, splat).unwrap();
+            for (ssaa, layers) in [(2, 4), (4, 2), (1, 3)] {
+                let options = RenderOptions {
+                    camera: model.camera(&cloud, 96, 72).unwrap(),
+                    method: Method::Layered(LayeredOptions {
+                        layers,
+                        keep_occluded: false,
+                    }),
+                    ssaa,
+                    samples_per_pass: None,
+                    background: Vec3::new(0.05, 0.1, 0.2),
+                    lod: pointlens::options::Lod::default(),
+                };
+                renderer.set_peel_cull(false);
+                let all = renderer.render(&scene, &options).unwrap();
+                renderer.set_peel_cull(true);
+                let culled = renderer.render(&scene, &options).unwrap();
+                let differ = all
+                    .image
+                    .pixels
+                    .iter()
+                    .zip(&culled.image.pixels)
+                    .filter(|(a, b)| a != b)
+                    .count();
+                assert_eq!(
+                    differ, 0,
+                    "{model:?} K={ssaa} layers {layers}: pixels differ"
+                );
+                let culls = culled.timings.passes.iter().find(|p| p.name == "peel.cull");
+                assert_eq!(culls.map(|p| p.count), Some(layers - 1));
             }
         }
     });

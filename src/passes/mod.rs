@@ -22,6 +22,7 @@ pub mod fast;
 pub mod gbuffer_resolve;
 pub mod layered;
 pub mod output;
+pub mod peel_cull;
 pub mod pinhole;
 pub mod rdb;
 pub mod sample_plan;

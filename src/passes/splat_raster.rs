@@ -10,8 +10,8 @@ use ash::vk;
 use crate::error::Result;
 use crate::push_constants;
 use crate::vk::{
-    Access, Bind, Binding, Buffer, Context, Frame, Image, PointPipeline, PointPipelineDesc,
-    VertexAttribute,
+    Access, Bind, Binding, Buffer, Context, DrawCount, Frame, Image, PointPipeline,
+    PointPipelineDesc, VertexAttribute,
 };
 
 pub const COLOR_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
@@ -155,8 +155,9 @@ impl SplatRaster {
 
     /// Records one raster pass as pass `name` into `sample` and `depth`:
     /// the barriers from their last uses (`before`), a clear (the sample to
-    /// (`background`, +∞), depth to 1), the draw of `count` splats (a peel
-    /// reads `previous`, the previous layer's G-buffer eye image), and the
+    /// (`background`, +∞), depth to 1), the draw of `count` splats (or as
+    /// many as a compute pass wrote; a peel reads `previous`, the previous
+    /// layer's G-buffer eye image), and the
     /// barrier that hands the sample to the resolve's
     /// compute reads.
     #[allow(clippy::too_many_arguments)]
@@ -169,7 +170,7 @@ impl SplatRaster {
         previous: Option<&'r Image>,
         before: TargetsBefore,
         splats: &'r Buffer,
-        count: u32,
+        count: DrawCount<'r>,
         background: [f32; 3],
         push: &SplatPush,
     ) {

@@ -557,7 +557,7 @@ impl<'r> Recorder<'_, 'r> {
         depth: &'r Image,
         binds: &[Bind<'r>],
         vertices: &'r Buffer,
-        count: u32,
+        count: DrawCount<'r>,
         push: &P,
     ) {
         assert!(pipeline.made_on(self.ctx), "a pipeline of another device");
@@ -595,10 +595,16 @@ impl<'r> Recorder<'_, 'r> {
             colors.iter().all(|c| (c.0.width(), c.0.height()) == (w, h)),
             "targets of different sizes"
         );
-        assert!(
-            count as u64 * pipeline.stride as u64 <= vertices.size(),
-            "{count} vertices do not fit the vertex buffer"
-        );
+        match count {
+            DrawCount::Direct(count) => assert!(
+                count as u64 * pipeline.stride as u64 <= vertices.size(),
+                "{count} vertices do not fit the vertex buffer"
+            ),
+            DrawCount::Indirect(args) => {
+                self.own_buffer(args);
+                assert!(args.size() >= 16, "a draw's arguments are 16 bytes");
+            }
+        }
         let area = vk::Rect2D {
             offset: vk::Offset2D { x: 0, y: 0 },
             extent: vk::Extent2D {
@@ -650,9 +656,13 @@ impl<'r> Recorder<'_, 'r> {
         // pipeline's formats and size (asserted) and are in the layouts
         // named above (the caller's barriers); `vertices` holds `count`
         // vertices (asserted), made visible to vertex input by the caller
-        // (the upload's barrier); the fragment descriptors are checked
-        // against the pipeline's set by `push_fragment_descriptors` and are
-        // no render target (asserted); all live for the frame (`'r`).
+        // (the upload's barrier), or the indirect arguments (a
+        // `VkDrawIndirectCommand` at offset 0, 16 bytes, asserted) count no
+        // more vertices than the buffer holds (the writer's contract, made
+        // visible to indirect reads by the caller's barrier); the fragment
+        // descriptors are checked against the pipeline's set by
+        // `push_fragment_descriptors` and are no render target (asserted);
+        // all live for the frame (`'r`).
         unsafe {
             device.cmd_begin_rendering(self.cmd, &rendering);
             device.cmd_set_viewport(self.cmd, 0, &[viewport]);
@@ -667,10 +677,26 @@ impl<'r> Recorder<'_, 'r> {
                 0,
                 bytemuck::bytes_of(push),
             );
-            device.cmd_draw(self.cmd, count, 1, 0, 0);
+            match count {
+                DrawCount::Direct(count) => device.cmd_draw(self.cmd, count, 1, 0, 0),
+                DrawCount::Indirect(args) => {
+                    device.cmd_draw_indirect(self.cmd, args.raw, 0, 1, 16);
+                }
+            }
             device.cmd_end_rendering(self.cmd);
         }
     }
+}
+
+/// How many vertices [`Recorder::draw_points`] draws: a count, or the
+/// `VkDrawIndirectCommand` a compute pass wrote at the start of a buffer
+/// (read at [`Access::INDIRECT_READ`](super::Access::INDIRECT_READ); its
+/// vertex count must not exceed the vertex buffer's, which the writer
+/// guarantees).
+#[derive(Clone, Copy)]
+pub enum DrawCount<'r> {
+    Direct(u32),
+    Indirect(&'r Buffer),
 }
 
 /// Bytes per texel of the color formats pointlens reads back.

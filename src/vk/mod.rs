@@ -16,7 +16,7 @@ mod sync;
 pub use context::{
     Context, ContextOptions, DeviceInfo, DeviceListing, MessageLog, ValidationMessage,
 };
-pub use frame::{texel_bytes, Frame, FrameTimings, PassTiming, Recorder};
+pub use frame::{texel_bytes, DrawCount, Frame, FrameTimings, PassTiming, Recorder};
 pub use pipeline::{
     check_push_layout, groups, Bind, Binding, ComputePipeline, PointPipeline, PointPipelineDesc,
     PushConstants, VertexAttribute,

@@ -439,8 +439,13 @@ fn culling_the_peel_s_splats_changes_no_layered_image() {
             (BenchModel::Mug, SplatSize::Spacing),
             // Sizes in pixels: the cull's diameter from --splat-px.
             (BenchModel::Bunny, SplatSize::Pixels(3.0)),
+            // The LiDAR tile, where the cull drops the most.
+            (
+                BenchModel::File(common::root().join("data/autzen_trim.las")),
+                SplatSize::Spacing,
+            ),
         ];
-        for (model, splat) in cases {
+        for (model, splat) in cases.iter().cloned() {
             let cloud = model.load(&common::root().join("data"), 0).unwrap();
             let scene = renderer.upload(&cloud, splat).unwrap();
             for (ssaa, layers) in [(2, 4), (4, 2), (1, 3)] {

@@ -72,17 +72,13 @@ impl RasterView {
             right: right.extend(0.0).to_array(),
             up: up.extend(0.0).to_array(),
             forward: forward.extend(0.0).to_array(),
-            center: match scale {
-                1 => centre,
-                _ => centre.map(|v| k * v),
-            },
+            // k = 1 multiplies exactly: the one-sample and multisampled
+            // plans' projection is unchanged.
+            center: centre.map(|v| k * v),
             extent: [targets[0] as f32, targets[1] as f32],
             jitter: jitter.to_array(),
             lens_u: lens_u.to_array(),
-            f_px: match scale {
-                1 => c.f_px(),
-                _ => k * c.f_px(),
-            },
+            f_px: k * c.f_px(),
             near: self.near,
             far: self.far,
             splat_px: k * self.splat_px,
@@ -394,7 +390,7 @@ impl GBuffer {
             previous: Access::NONE,
         };
         let height = self.layers[0].color.height();
-        for (band, rows) in self.plan.band_rows(height).into_iter().enumerate() {
+        for rows in self.plan.band_rows(height) {
             for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
                 let push = self
                     .view
@@ -421,7 +417,6 @@ impl GBuffer {
                     indices: planned.packed_indices(),
                     scale,
                     rows,
-                    fresh: band == 0 && i == 0,
                 };
                 passes
                     .resolve
@@ -480,7 +475,6 @@ impl GBuffer {
                 indices: PlannedPass::pack_indices(indices),
                 scale: 1,
                 rows: (0, height),
-                fresh: true,
             };
             passes.resolve.record(
                 frame,

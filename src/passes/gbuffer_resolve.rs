@@ -64,10 +64,6 @@ pub struct ResolvePass {
     /// row, or a band's ([`super::sample_plan::SamplePlan::band_rows`];
     /// one-sample targets only), whose target holds only its rows.
     pub rows: (u32, u32),
-    /// Whether this is the first resolve into the G-buffer images this
-    /// frame (before it, they hold nothing; after it, a later band's or
-    /// pass's resolve reads or writes what the earlier ones wrote).
-    pub fresh: bool,
 }
 
 /// The images the pass reads and writes, all in `GENERAL` layout.
@@ -128,9 +124,12 @@ impl GBufferResolve {
             pass.rows == (0, h) || (samples == 1 && pass.read_offsets == 0),
             "bands of one-sample targets only"
         );
-        assert!(pass.fresh == (pass.first_sample == 0 && first_row == 0));
+        // The first resolve into the G-buffer images this frame: before it
+        // they hold nothing; after it, a later pass's or band's resolve
+        // reads or writes what the earlier ones wrote.
+        let fresh = pass.first_sample == 0 && first_row == 0;
         frame.pass(name, |rec| {
-            let src = if pass.fresh {
+            let src = if fresh {
                 Access::NONE
             } else {
                 Access::COMPUTE_READ_WRITE
@@ -139,7 +138,7 @@ impl GBufferResolve {
                 (images.color_sum, src, Access::COMPUTE_READ_WRITE),
                 (images.gbuffer_eye, src, Access::COMPUTE_READ_WRITE),
             ];
-            if pass.fresh {
+            if fresh {
                 list.push((images.gbuffer_color, Access::NONE, Access::COMPUTE_WRITE));
             } else if pass.first_sample == 0 {
                 // A later band's first pass: the earlier bands' last

@@ -1,15 +1,8 @@
 #version 460
 // Resolves one-sample rasters into the G-buffer as they are drawn
 // (DESIGN §3): folds samples sample_index, sample_index + 1, … into the
-// running color sum and nearest eye position (gbuffer_fold.glsl). A pass
-// of scale 1 (the one-sample form, one pass per sample) holds one sample of
-// each pixel, in place; a pass of scale K (the upscaled plan, every sample
-// in one pass) holds output pixel p's K² samples in the target's K×K block
-// at K·p, sample s (the one-sample form's index) in cell K² − 1 − s
-// (src/passes/sample_plan.rs); an upscaled plan drawn in bands holds only
-// the band's rows, from first_row. After the last sample, writes the mean
-// color and the coverage fraction.
-#include "gbuffer_fold.glsl"
+// running color sum and nearest eye position (gbuffer_fold.glsl), from the
+// sample target the sprites drew (gbuffer_resolve_blocks.glsl).
 
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -26,34 +19,12 @@ layout(push_constant, std430) uniform Push {
     int first_row;       // the band's first G-buffer row (the target's row 0)
 } pc;
 
+vec4 target_sample(ivec2 q) {
+    return imageLoad(sample_target, q);
+}
+
+#include "gbuffer_resolve_blocks.glsl"
+
 void main() {
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
-    if (any(greaterThanEqual(p, pc.extent))) {
-        return;
-    }
-    ivec2 block = (p - ivec2(0, pc.first_row)) * int(pc.scale);
-    uint n = pc.scale * pc.scale;
-    Fold f;
-    if (pc.sample_index != 0u) {
-        f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
-    }
-    for (uint s = 0u; s < n; s++) {
-        uint cell = n - 1u - s;
-        ivec2 q = block + ivec2(cell % pc.scale, cell / pc.scale);
-        vec4 t = imageLoad(sample_target, q);
-        float index = float(pc.sample_index + s);
-        if (pc.sample_index == 0u && s == 0u) {
-            f = fold_first(t, index);
-        } else {
-            fold_next(f, t, index);
-        }
-    }
-    if (pc.sample_index + n == pc.sample_count) {
-        float count = float(pc.sample_count);
-        imageStore(gbuffer_color, p, f.sum / count);
-        imageStore(gbuffer_eye, p, fold_eye(f, count));
-    } else {
-        imageStore(color_sum, p, f.sum);
-        imageStore(gbuffer_eye, p, f.best);
-    }
+    resolve_blocks();
 }

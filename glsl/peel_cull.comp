@@ -36,24 +36,7 @@ layout(binding = 5, std430) writeonly buffer Draw { uint draw[4]; };
 // Per tile of the previous layer, its nearest depth.
 layout(binding = 6, std430) buffer Tiles { float tile_near[]; };
 
-layout(push_constant, std430) uniform CullPush {
-    vec4 eye;
-    vec4 right;
-    vec4 up;
-    vec4 forward;
-    vec2 center;
-    vec2 lens_u;
-    float f_px;
-    float near;
-    float far;
-    float splat_px;
-    float aperture_radius;
-    float focus_distance;
-    float min_point_size;
-    float max_point_size;
-    uint count;   // splats
-    uint stage;
-} pc;
+#include "splat_compute_push.glsl"
 
 // A surface is this many splat diameters thick for the peel (mirrors
 // splat_peel.frag; src/passes/splat_raster.rs, PEEL_THICKNESS_DIAMETERS).

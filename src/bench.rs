@@ -23,10 +23,11 @@ use crate::image_io::{encode_png, LinearImage};
 use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
 use crate::options::Lod;
-use crate::options::{AccumOptions, Method};
+use crate::options::{AccumOptions, Method, Raster};
 use crate::render::{RenderOptions, Renderer, SplatSize};
 pub use crate::report::{DeviceReport, LodReport, Upload};
 use crate::vk::{Context, FrameTimings};
+use clap::ValueEnum;
 
 /// Lens samples of the quality reference (`--quality`).
 pub const REFERENCE_SAMPLES: u32 = 256;
@@ -243,6 +244,9 @@ pub struct BenchOptions {
     pub ssaa: u32,
     /// The most samples per G-buffer raster pass (None: the device's best).
     pub samples_per_pass: Option<u32>,
+    /// How the measured frames' G-buffers are rasterised (the quality
+    /// reference always by sprites, the reference path).
+    pub raster: Raster,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
     /// The `--lod-px` values to measure (an axis of the matrix).
@@ -375,6 +379,10 @@ pub struct BenchReport {
     pub runs: u32,
     pub warmup: u32,
     pub ssaa: u32,
+    /// `--raster` of the measured frames ("sprites" or "compute"; absent
+    /// from reports before it existed).
+    #[serde(default)]
+    pub raster: String,
     pub quality_reference: Option<String>,
     pub cells: Vec<Cell>,
 }
@@ -406,7 +414,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     {
         return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
     }
-    let renderer = Renderer::new(ctx)?;
+    let mut renderer = Renderer::new(ctx)?;
     let total = frame_count(options);
     let mut done = 0u64;
     let mut cells = Vec::new();
@@ -436,11 +444,13 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     samples: REFERENCE_SAMPLES,
                 });
                 // Every point: what the LOD's cost is measured against.
+                renderer.set_raster(Raster::Sprites);
                 let r = renderer.render(&scene, &frame(reference, 0.0))?;
                 Some(r.image)
             } else {
                 None
             };
+            renderer.set_raster(options.raster);
             for (&lod_px, m) in options
                 .lod_px
                 .iter()
@@ -520,6 +530,11 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         runs: options.runs,
         warmup: options.warmup,
         ssaa: options.ssaa,
+        raster: options
+            .raster
+            .to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default(),
         quality_reference: options
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),

@@ -15,9 +15,11 @@ use glam::{Vec2, Vec3};
 
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
-use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass};
+use crate::options::Raster;
+use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass, Samples};
 use crate::passes::peel_cull::{PeelCull, PeelCullBuffers};
 use crate::passes::sample_plan::{PlannedPass, SamplePlan};
+use crate::passes::splat_compute::{self, ComputeRaster, Visibility};
 use crate::passes::splat_raster::{
     SampleTargets, SplatPush, SplatRaster, TargetsBefore, COLOR_FORMAT, EYE_FORMAT,
 };
@@ -142,6 +144,11 @@ pub struct GBufferPasses {
     peels: Vec<(u32, SplatRaster)>,
     /// The splats a peel may keep, before each peel pass.
     peel_cull: PeelCull,
+    /// The compute rasteriser, on devices with 64-bit buffer atomics.
+    compute: Option<ComputeRaster>,
+    /// The device's largest storage buffer binding, bytes: the compute
+    /// rasteriser's visibility words of one band.
+    max_storage_buffer_bytes: u64,
     resolve: GBufferResolve,
 }
 
@@ -164,6 +171,11 @@ impl GBufferPasses {
         Ok(GBufferPasses {
             resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
             peel_cull: PeelCull::new(ctx)?,
+            compute: match ctx.info.buffer_int64_atomics {
+                true => Some(ComputeRaster::new(ctx)?),
+                false => None,
+            },
+            max_storage_buffer_bytes: ctx.info.max_storage_buffer_range,
             rasters,
             peels,
         })
@@ -179,17 +191,43 @@ impl GBufferPasses {
     /// plan the device's sample counts allow otherwise
     /// ([`SamplePlan::best`]: each band draws every splat, as each pass
     /// does); else that plan.
+    ///
+    /// The compute rasteriser (`raster`) always takes the upscaled plan
+    /// (it has no point-size limit), in as few bands as make each band's
+    /// visibility words fit the budget and the device's storage buffer
+    /// range; `max_samples_per_pass` does not apply to it.
     pub fn plan(
         &self,
+        raster: Raster,
         ssaa: u32,
         max_samples_per_pass: Option<u32>,
         view: &RasterView,
         budget_bytes: u64,
         max_dimension: u32,
-    ) -> SamplePlan {
+    ) -> Result<SamplePlan> {
         let max = max_samples_per_pass.unwrap_or(u32::MAX);
         let (w, h) = (view.frame.full_width(), view.frame.full_height());
         let pixels = w as u64 * h as u64;
+        if raster == Raster::Compute {
+            if self.compute.is_none() {
+                return Err(Error::InvalidArgument(
+                    "--raster compute needs 64-bit atomics on storage buffers, which this device lacks"
+                        .into(),
+                ));
+            }
+            let k = ssaa as u64;
+            let limit = budget_bytes.min(self.max_storage_buffer_bytes);
+            let fits = |bands: u32| {
+                let rows = h.div_ceil(bands) as u64;
+                w as u64 * k * rows * k * splat_compute::WORD_BYTES <= limit
+            };
+            let bands = (1..=h).find(|&b| fits(b)).ok_or_else(|| {
+                Error::InvalidArgument(format!(
+                    "one row of {w} px at {ssaa}x{ssaa} samples does not fit the sample budget"
+                ))
+            })?;
+            return Ok(SamplePlan::upscaled(ssaa).in_bands(bands));
+        }
         let mut counts: Vec<u32> = self
             .rasters
             .iter()
@@ -213,10 +251,10 @@ impl GBufferPasses {
             };
             let fewer = (1..otherwise.passes.len() as u32).find(|&b| fits(b));
             if let Some(bands) = fewer {
-                return SamplePlan::upscaled(ssaa).in_bands(bands);
+                return Ok(SamplePlan::upscaled(ssaa).in_bands(bands));
             }
         }
-        otherwise
+        Ok(otherwise)
     }
 
     /// Samples per pixel of each depth-peel pass (one per later layer):
@@ -239,11 +277,22 @@ impl GBufferPasses {
             .unwrap_or(1)
     }
 
+    fn compute(&self) -> &ComputeRaster {
+        let compute = self.compute.as_ref();
+        compute.expect("a compute plan on a device with 64-bit atomics (checked by plan)")
+    }
+
     fn raster(&self, samples: u32, peel: bool) -> &SplatRaster {
         let list = if peel { &self.peels } else { &self.rasters };
         let found = list.iter().find(|(s, _)| *s == samples);
         &found.expect("a plan of the device's sample counts").1
     }
+}
+
+/// The targets of the first layer's raster passes.
+enum FirstTargets {
+    Sprites(SampleTargets),
+    Compute(Visibility),
 }
 
 /// The G-buffer images (with guard band) of every layer, in `GENERAL`
@@ -254,9 +303,10 @@ pub struct GBuffer {
     /// passes; a peeled layer is resolved in one pass, which neither reads
     /// nor writes it, so its image only fills the resolve's binding (1×1).
     color_sums: Vec<Image>,
-    targets: SampleTargets,
-    /// The depth peel's targets where its samples per pixel differ from
-    /// the plan's (else it draws into `targets`).
+    /// Where the first layer's raster passes draw.
+    targets: FirstTargets,
+    /// The depth peel's targets where the first layer's are not the
+    /// sprite targets of its samples per pixel (else it draws into them).
     peel_targets: Option<SampleTargets>,
     /// Each peel's splats, culled before it (None: the peel draws every
     /// splat).
@@ -273,11 +323,15 @@ impl GBuffer {
     /// `peel_samples` samples ([`GBufferPasses::peel_samples`]) and, with
     /// `cull_splats` (the frame's splat count), the buffers that cull each
     /// peel's splats ([`PeelCull`]; None: every peel draws every splat).
+    /// The first layer's passes draw with `raster` (a compute plan:
+    /// `compute_splats`, the frame's splat count).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Arc<Context>,
         view: &RasterView,
         plan: &SamplePlan,
+        raster: Raster,
+        compute_splats: u32,
         layers: u32,
         peel_samples: u32,
         cull_splats: Option<u32>,
@@ -322,19 +376,33 @@ impl GBuffer {
                 storage,
             )?);
         }
-        Ok(GBuffer {
-            layers: images,
-            color_sums,
-            targets: SampleTargets::new(
+        let targets = match raster {
+            Raster::Sprites => FirstTargets::Sprites(SampleTargets::new(
                 ctx,
                 scale * w + margin,
                 scale * band + margin,
                 plan.samples_per_pass,
-            )?,
+            )?),
+            Raster::Compute => {
+                assert_eq!(plan.samples_per_pass, 1, "a compute plan is upscaled");
+                FirstTargets::Compute(Visibility::new(
+                    ctx,
+                    scale * w,
+                    scale * band,
+                    compute_splats,
+                )?)
+            }
+        };
+        let shares = matches!(targets, FirstTargets::Sprites(_))
+            && peel_samples == plan.samples_per_pass
+            && scale == 1;
+        Ok(GBuffer {
+            layers: images,
+            color_sums,
+            targets,
             // The peel reads in place at the G-buffer's size: its targets
             // need no margin.
-            peel_targets: match layers > 1 && (peel_samples != plan.samples_per_pass || scale != 1)
-            {
+            peel_targets: match layers > 1 && !shares {
                 true => Some(SampleTargets::new(ctx, w, h, peel_samples)?),
                 false => None,
             },
@@ -376,13 +444,15 @@ impl GBuffer {
             "depth-peeled layers are of one lens position"
         );
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
-        let t = &self.targets;
         let samples = self.plan.samples_per_pass;
         let scale = self.plan.scale;
         let per_pass = self.plan.samples_per_pixel_per_pass();
         let per_lens = self.plan.passes.len() as u32 * per_pass;
         let sample_count = lens.len() as u32 * per_lens;
-        let extent = [t.sample.width(), t.sample.height()];
+        let extent = match &self.targets {
+            FirstTargets::Sprites(t) => [t.sample.width(), t.sample.height()],
+            FirstTargets::Compute(v) => [v.width(), v.height()],
+        };
         let background = self.background.to_array();
         let mut before = TargetsBefore {
             sample: Access::NONE,
@@ -392,21 +462,45 @@ impl GBuffer {
         let height = self.layers[0].color.height();
         for rows in self.plan.band_rows(height) {
             for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
-                let push = self
+                let mut push = self
                     .view
                     .push(planned.jitter, lens_u, extent, scale, rows.0);
-                passes.raster(samples, false).record(
-                    frame,
-                    &raster_name,
-                    &t.sample,
-                    &t.depth,
-                    None,
-                    before,
-                    splats,
-                    DrawCount::Direct(count),
-                    background,
-                    &push,
-                );
+                let sample = match &self.targets {
+                    FirstTargets::Sprites(t) => {
+                        passes.raster(samples, false).record(
+                            frame,
+                            &raster_name,
+                            &t.sample,
+                            &t.depth,
+                            None,
+                            before,
+                            splats,
+                            DrawCount::Direct(count),
+                            background,
+                            &push,
+                        );
+                        Samples::Target(&t.sample)
+                    }
+                    FirstTargets::Compute(target) => {
+                        // The one-sample form's largest splat, K times
+                        // wider: no point-size limit of the target's own.
+                        push.max_point_size = self.view.max_point_size * scale as f32;
+                        passes.compute().record(
+                            frame,
+                            &raster_name,
+                            target,
+                            before.sample,
+                            splats,
+                            count,
+                            &push,
+                        );
+                        Samples::Visibility {
+                            target,
+                            splats,
+                            background,
+                        }
+                    }
+                };
                 before.sample = Access::COMPUTE_READ;
                 before.depth = Access::DEPTH_WRITE;
                 let pass = ResolvePass {
@@ -420,11 +514,18 @@ impl GBuffer {
                 };
                 passes
                     .resolve
-                    .record(frame, &resolve_name, &self.resolve_images(t, 0), &pass);
+                    .record(frame, &resolve_name, &self.resolve_images(sample, 0), &pass);
             }
         }
+        if self.layers.len() == 1 {
+            return;
+        }
         let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
-        let peel = self.peel_targets.as_ref().unwrap_or(t);
+        let peel = match (&self.peel_targets, &self.targets) {
+            (Some(p), _) => p,
+            (None, FirstTargets::Sprites(t)) => t,
+            (None, FirstTargets::Compute(_)) => unreachable!("a compute plan has peel targets"),
+        };
         if self.peel_targets.is_some() {
             before.sample = Access::NONE;
             before.depth = Access::NONE;
@@ -479,7 +580,7 @@ impl GBuffer {
             passes.resolve.record(
                 frame,
                 "peel.resolve",
-                &self.resolve_images(peel, layer),
+                &self.resolve_images(Samples::Target(&peel.sample), layer),
                 &pass,
             );
             before.sample = Access::COMPUTE_READ;
@@ -487,9 +588,9 @@ impl GBuffer {
         }
     }
 
-    fn resolve_images<'a>(&'a self, targets: &'a SampleTargets, layer: usize) -> ResolveImages<'a> {
+    fn resolve_images<'a>(&'a self, sample: Samples<'a>, layer: usize) -> ResolveImages<'a> {
         ResolveImages {
-            sample: &targets.sample,
+            sample,
             color_sum: &self.color_sums[layer],
             gbuffer_eye: &self.layers[layer].eye,
             gbuffer_color: &self.layers[layer].color,

@@ -25,7 +25,7 @@ use pointlens::metrics;
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
     check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
-    LayeredOptions, Lod, Method, MethodKind, RdbAtomics, RdbMode, RdbOptions,
+    LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
 };
 use pointlens::render::{Renderer, Scene, SplatSize};
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
@@ -164,6 +164,11 @@ struct BenchArgs {
     /// tile the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
+    /// How the G-buffer's splats are rasterised: sprites (hardware point
+    /// sprites, the reference) or compute (compute shaders into a 64-bit
+    /// visibility buffer, every sample of a pixel in one pass).
+    #[arg(long, value_enum, default_value_t)]
+    raster: Raster,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
     /// (of every point: `--lod-px 0`).
     #[arg(long)]
@@ -261,6 +266,11 @@ struct RenderArgs {
     /// tile the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
+    /// How the G-buffer's splats are rasterised: sprites (hardware point
+    /// sprites, the reference) or compute (compute shaders into a 64-bit
+    /// visibility buffer, every sample of a pixel in one pass).
+    #[arg(long, value_enum, default_value_t)]
+    raster: Raster,
     /// Vertical field of view, degrees.
     #[arg(long, allow_negative_numbers = true)]
     fovy_deg: Option<f32>,
@@ -742,6 +752,7 @@ fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
         warmup: args.warmup.unwrap_or(default.warmup),
         ssaa: args.ssaa,
         samples_per_pass: args.samples_per_pass,
+        raster: args.raster,
         quality: args.quality,
         lod_px: args
             .lod_px
@@ -867,7 +878,8 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
         args.device.clone(),
     ))?;
     log::info!("device: {}", ctx.info.describe());
-    let renderer = Renderer::new(&ctx)?;
+    let mut renderer = Renderer::new(&ctx)?;
+    renderer.set_raster(args.raster);
     let scene = renderer.upload(&cloud, splat)?;
     drop(cloud); // The hierarchy holds the points from here on.
 

@@ -31,6 +31,17 @@ pub enum GatherWindow {
     Fixed,
 }
 
+/// How the G-buffer's splats are rasterised (`--raster`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum Raster {
+    /// Hardware point sprites (the reference).
+    #[default]
+    Sprites,
+    /// Compute shaders into a 64-bit visibility buffer (every sample of a
+    /// pixel in one pass, any splat size).
+    Compute,
+}
+
 /// Which rays an RDB bin receives (`--rdb-mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum RdbMode {

@@ -14,7 +14,7 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
-use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Lod, Method};
+use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Lod, Method, Raster};
 use crate::passes::output::{OutputConvert, OutputFormat};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
@@ -324,6 +324,8 @@ pub struct Renderer {
     /// Whether a depth peel draws only the splats it can keep
     /// ([`crate::passes::peel_cull`]).
     peel_cull: bool,
+    /// How the G-buffer's first layer is rasterised.
+    raster: Raster,
 }
 
 impl Renderer {
@@ -335,7 +337,15 @@ impl Renderer {
             output: OutputConvert::new(ctx)?,
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
             peel_cull: true,
+            raster: Raster::default(),
         })
+    }
+
+    /// How the G-buffer's first layer is rasterised (`--raster`; default
+    /// [`Raster::default`]). The compute rasteriser needs 64-bit buffer
+    /// atomics: a frame on a device without them is an error.
+    pub fn set_raster(&mut self, raster: Raster) {
+        self.raster = raster;
     }
 
     /// Whether each depth peel of `layered` first culls the splats it
@@ -570,12 +580,13 @@ impl Renderer {
         let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
         let layers = method.gbuffer_layers();
         let plan = self.gbuffer.plan(
+            self.raster,
             options.ssaa,
             options.samples_per_pass,
             &view,
             self.sample_budget_bytes,
             self.ctx.info.max_image_dimension_2d,
-        );
+        )?;
         let peel_samples = self.gbuffer.peel_samples(
             options.ssaa,
             options.samples_per_pass,
@@ -586,6 +597,8 @@ impl Renderer {
             &self.ctx,
             &view,
             &plan,
+            self.raster,
+            splats.count,
             layers,
             peel_samples,
             self.peel_cull.then_some(splats.count),

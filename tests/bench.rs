@@ -430,6 +430,7 @@ fn bench_fails_on_any_validation_message() {
         warmup: 0,
         ssaa: 1,
         samples_per_pass: None,
+        raster: pointlens::options::Raster::Sprites,
         quality: false,
         lod_px: vec![1.0],
         data_dir: common::root().join("data"),

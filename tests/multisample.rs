@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{root, with_gpu};
+use common::{differing, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
 use pointlens::image_io::LinearImage;
@@ -28,15 +28,6 @@ fn render(
     };
     let r = renderer.render(scene, &options).expect("render");
     (r.image, r.samples_per_pass)
-}
-
-/// Pixels that differ at all, of the total.
-fn differing(a: &LinearImage, b: &LinearImage) -> usize {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .filter(|(p, q)| p != q)
-        .count()
 }
 
 #[test]

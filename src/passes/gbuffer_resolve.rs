@@ -2,14 +2,17 @@
 //! running color sum and nearest eye depth, and after the last pass
 //! writes the G-buffer (mean color, coverage fraction). One sample per pass,
 //! or every sample in the upscaled plan's K×K blocks:
-//! `glsl/gbuffer_resolve.comp`; multisampled passes:
-//! `glsl/gbuffer_resolve_ms.comp`; both fold through `gbuffer_fold.glsl`.
+//! `glsl/gbuffer_resolve.comp`; the compute rasteriser's visibility
+//! words: `glsl/gbuffer_resolve_vis.comp` (both through
+//! `gbuffer_resolve_blocks.glsl`); multisampled passes:
+//! `glsl/gbuffer_resolve_ms.comp`; all fold through `gbuffer_fold.glsl`.
 
 use std::sync::Arc;
 
+use super::splat_compute::Visibility;
 use crate::error::Result;
 use crate::push_constants;
-use crate::vk::{groups, Access, Bind, Binding, ComputePipeline, Context, Frame, Image};
+use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
 
 push_constants! {
     struct Push {
@@ -18,6 +21,19 @@ push_constants! {
         sample_count: u32,
         scale: u32,
         first_row: i32,
+    }
+}
+
+push_constants! {
+    struct VisPush {
+        extent: [i32; 2],
+        sample_index: u32,
+        sample_count: u32,
+        scale: u32,
+        first_row: i32,
+        target_width: u32,
+        pad: u32,
+        background: [f32; 4],
     }
 }
 
@@ -34,10 +50,14 @@ push_constants! {
 }
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve.comp.spv"));
+static VIS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_vis.comp.spv"));
 static MS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_ms.comp.spv"));
 
 pub struct GBufferResolve {
     pipeline: ComputePipeline<Push>,
+    /// For the compute rasteriser's visibility words (on devices with
+    /// 64-bit buffer atomics).
+    visibility: Option<ComputePipeline<VisPush>>,
     /// For multisampled passes, on devices that have them.
     multisampled: Option<ComputePipeline<MsPush>>,
 }
@@ -66,10 +86,34 @@ pub struct ResolvePass {
     pub rows: (u32, u32),
 }
 
+/// Where a raster pass left its samples.
+#[derive(Clone, Copy)]
+pub enum Samples<'a> {
+    /// The sprite path's sample target: (r, g, b, z).
+    Target(&'a Image),
+    /// The compute rasteriser's words, the splats they index, and the
+    /// color of a sample no splat covers.
+    Visibility {
+        target: &'a Visibility,
+        splats: &'a Buffer,
+        background: [f32; 3],
+    },
+}
+
+impl Samples<'_> {
+    /// Samples per pixel of the target.
+    fn per_pixel(&self) -> u32 {
+        match self {
+            Samples::Target(image) => image.samples(),
+            Samples::Visibility { .. } => 1,
+        }
+    }
+}
+
 /// The images the pass reads and writes, all in `GENERAL` layout.
 pub struct ResolveImages<'a> {
-    /// The pass's sample target: (r, g, b, z).
-    pub sample: &'a Image,
+    /// The pass's samples.
+    pub sample: Samples<'a>,
     pub color_sum: &'a Image,
     pub gbuffer_eye: &'a Image,
     pub gbuffer_color: &'a Image,
@@ -80,8 +124,20 @@ impl GBufferResolve {
     /// reads multisampled storage images).
     pub fn new(ctx: &Arc<Context>, multisampled: bool) -> Result<GBufferResolve> {
         let bindings = [Binding::StorageImage; 4];
+        let image = Binding::StorageImage;
+        let buffer = Binding::StorageBuffer;
+        let vis_bindings = [buffer, image, image, image, buffer];
         Ok(GBufferResolve {
             pipeline: ComputePipeline::new(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
+            visibility: match ctx.info.buffer_int64_atomics {
+                true => Some(ComputePipeline::new(
+                    ctx,
+                    "gbuffer_resolve_vis",
+                    VIS_SPIRV,
+                    &vis_bindings,
+                )?),
+                false => None,
+            },
             multisampled: match multisampled {
                 true => Some(ComputePipeline::new(
                     ctx,
@@ -105,7 +161,7 @@ impl GBufferResolve {
         images: &ResolveImages<'r>,
         pass: &ResolvePass,
     ) {
-        let samples = images.sample.samples();
+        let samples = images.sample.per_pixel();
         assert!(
             pass.scale == 1 || samples == 1,
             "upscaled targets have one sample"
@@ -150,14 +206,47 @@ impl GBufferResolve {
                 ));
             }
             rec.barriers(&list);
+            let extent = [w as i32, end_row as i32];
+            let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
+            let image = match images.sample {
+                Samples::Target(image) => image,
+                Samples::Visibility {
+                    target,
+                    splats,
+                    background,
+                } => {
+                    let binds = [
+                        Bind::StorageBuffer(&target.words),
+                        Bind::StorageImage(images.color_sum),
+                        Bind::StorageImage(images.gbuffer_eye),
+                        Bind::StorageImage(images.gbuffer_color),
+                        Bind::StorageBuffer(splats),
+                    ];
+                    let [r, g, b] = background;
+                    let push = VisPush {
+                        extent,
+                        sample_index: pass.first_sample,
+                        sample_count: pass.sample_count,
+                        scale: pass.scale,
+                        first_row: first_row as i32,
+                        target_width: target.width(),
+                        pad: 0,
+                        background: [r, g, b, 0.0],
+                    };
+                    let pipeline = self
+                        .visibility
+                        .as_ref()
+                        .expect("visibility words on a device with 64-bit atomics");
+                    rec.dispatch(pipeline, &binds, &push, size);
+                    return;
+                }
+            };
             let binds = [
-                Bind::StorageImage(images.sample),
+                Bind::StorageImage(image),
                 Bind::StorageImage(images.color_sum),
                 Bind::StorageImage(images.gbuffer_eye),
                 Bind::StorageImage(images.gbuffer_color),
             ];
-            let extent = [w as i32, end_row as i32];
-            let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
             if samples == 1 {
                 assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
                 assert_eq!(
@@ -201,6 +290,7 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<Push>("gbuffer_resolve", SPIRV).unwrap();
+        check_push_layout::<VisPush>("gbuffer_resolve_vis", VIS_SPIRV).unwrap();
         check_push_layout::<MsPush>("gbuffer_resolve_ms", MS_SPIRV).unwrap();
     }
 }

@@ -26,6 +26,7 @@ pub mod peel_cull;
 pub mod pinhole;
 pub mod rdb;
 pub mod sample_plan;
+pub mod splat_compute;
 pub mod splat_raster;
 pub mod spread_disk;
 

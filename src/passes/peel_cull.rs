@@ -12,32 +12,9 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::splat_raster::{SplatPush, SplatVertex};
+use super::splat_raster::{SplatComputePush, SplatPush, SplatVertex};
 use crate::error::Result;
-use crate::push_constants;
 use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
-
-push_constants! {
-    /// Mirrors `glsl/peel_cull.comp`'s block: the peel's projection.
-    struct CullPush {
-        eye: [f32; 4],
-        right: [f32; 4],
-        up: [f32; 4],
-        forward: [f32; 4],
-        center: [f32; 2],
-        lens_u: [f32; 2],
-        f_px: f32,
-        near: f32,
-        far: f32,
-        splat_px: f32,
-        aperture_radius: f32,
-        focus_distance: f32,
-        min_point_size: f32,
-        max_point_size: f32,
-        count: u32,
-        stage: u32,
-    }
-}
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/peel_cull.comp.spv"));
 
@@ -49,7 +26,7 @@ const TILE: u32 = 8;
 const RUN: u32 = 256;
 
 pub struct PeelCull {
-    pipeline: ComputePipeline<CullPush>,
+    pipeline: ComputePipeline<SplatComputePush>,
 }
 
 /// A frame's buffers for `count` splats: each splat's flag, each run's
@@ -126,25 +103,7 @@ impl PeelCull {
         buffers: &'r PeelCullBuffers,
         push: &SplatPush,
     ) {
-        assert_eq!(push.jitter, [0.0, 0.0], "the peel is unjittered");
-        let base = CullPush {
-            eye: push.eye,
-            right: push.right,
-            up: push.up,
-            forward: push.forward,
-            center: push.center,
-            lens_u: push.lens_u,
-            f_px: push.f_px,
-            near: push.near,
-            far: push.far,
-            splat_px: push.splat_px,
-            aperture_radius: push.aperture_radius,
-            focus_distance: push.focus_distance,
-            min_point_size: push.min_point_size,
-            max_point_size: push.max_point_size,
-            count: buffers.count,
-            stage: 0,
-        };
+        let base = push.for_compute(buffers.count);
         let binds = [
             Bind::StorageBuffer(splats),
             Bind::StorageImage(previous),
@@ -171,7 +130,7 @@ impl PeelCull {
                     3 => 1,
                     _ => runs,
                 };
-                let push = CullPush { stage, ..base };
+                let push = SplatComputePush { stage, ..base };
                 rec.dispatch(&self.pipeline, &binds, &push, [size, 1, 1]);
             }
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::VERTEX_READ);
@@ -187,7 +146,7 @@ mod tests {
 
     #[test]
     fn push_constants_match_the_glsl_block() {
-        check_push_layout::<CullPush>("peel_cull", SPIRV).unwrap();
+        check_push_layout::<SplatComputePush>("peel_cull", SPIRV).unwrap();
         let cull = include_str!("../../glsl/peel_cull.comp");
         let thickness = format!(
             "const float PEEL_THICKNESS = {:?};",

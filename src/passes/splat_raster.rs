@@ -55,6 +55,59 @@ push_constants! {
     }
 }
 
+push_constants! {
+    /// The push constants of the compute passes over the splats
+    /// (`glsl/splat_compute_push.glsl`: the compute rasteriser and the
+    /// peel's cull): [`SplatPush`] without its jitter, with the splat
+    /// count and the pass's stage (128 bytes).
+    pub struct SplatComputePush {
+        pub eye: [f32; 4],
+        pub right: [f32; 4],
+        pub up: [f32; 4],
+        pub forward: [f32; 4],
+        pub center: [f32; 2],
+        pub extent: [f32; 2],
+        pub lens_u: [f32; 2],
+        pub f_px: f32,
+        pub near: f32,
+        pub far: f32,
+        pub splat_px: f32,
+        pub aperture_radius: f32,
+        pub focus_distance: f32,
+        pub max_point_size: f32,
+        pub min_point_size: f32,
+        pub count: u32,
+        pub stage: u32,
+    }
+}
+
+impl SplatPush {
+    /// The same projection for a compute pass over `count` splats (an
+    /// unjittered one: the compute passes take no jitter).
+    pub fn for_compute(&self, count: u32) -> SplatComputePush {
+        assert_eq!(self.jitter, [0.0, 0.0], "compute passes are unjittered");
+        SplatComputePush {
+            eye: self.eye,
+            right: self.right,
+            up: self.up,
+            forward: self.forward,
+            center: self.center,
+            extent: self.extent,
+            lens_u: self.lens_u,
+            f_px: self.f_px,
+            near: self.near,
+            far: self.far,
+            splat_px: self.splat_px,
+            aperture_radius: self.aperture_radius,
+            focus_distance: self.focus_distance,
+            max_point_size: self.max_point_size,
+            min_point_size: self.min_point_size,
+            count,
+            stage: 0,
+        }
+    }
+}
+
 /// The render targets of one raster pass.
 pub struct SampleTargets {
     /// (r, g, b, z) per sample; uncovered: (background, +∞).

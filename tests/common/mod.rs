@@ -226,3 +226,15 @@ pub fn options(camera: Camera, method: Method) -> RenderOptions {
         lod: pointlens::options::Lod::default(),
     }
 }
+
+/// Pixels that differ at all, of the total.
+pub fn differing(
+    a: &pointlens::image_io::LinearImage,
+    b: &pointlens::image_io::LinearImage,
+) -> usize {
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(p, q)| p != q)
+        .count()
+}

@@ -1,0 +1,50 @@
+#version 460
+// Resolves the compute rasteriser's visibility buffer (splat_compute.comp)
+// into the G-buffer: a target pixel's sample is its word's splat — linear
+// color as the vertex input reads the UNORM16 color, eye depth from the
+// word's upper half — or (background, +inf) where no splat covers it, as
+// the sprite path's cleared sample; then the fold of
+// gbuffer_resolve_blocks.glsl.
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+layout(binding = 0, std430) readonly buffer Visibility { uint64_t visibility[]; };
+layout(binding = 1, rgba32f) uniform image2D color_sum;
+layout(binding = 2, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
+layout(binding = 3, rgba16f) uniform writeonly image2D gbuffer_color;
+// The splats (24 bytes each: position and size, then the UNORM16 color),
+// read as pairs of words: splat i's color is pair 3i + 2 (one load).
+layout(binding = 4, std430) readonly buffer Splats { uvec2 splat_pairs[]; };
+
+layout(push_constant, std430) uniform VisPush {
+    ivec2 extent;        // of the G-buffer (y: the end of the band's rows)
+    uint sample_index;   // of this pass's first sample
+    uint sample_count;   // samples of the whole G-buffer
+    uint scale;          // target pixels per output pixel along each axis
+    int first_row;       // the band's first G-buffer row (the target's row 0)
+    uint target_width;   // visibility words per row
+    uint pad;
+    vec4 background;     // linear RGB of an uncovered sample
+} pc;
+
+// The last splat read: neighbouring samples are mostly of one splat.
+uint last_splat = ~0u;
+vec3 last_color;
+
+vec4 target_sample(ivec2 q) {
+    uint64_t word = visibility[uint(q.y) * pc.target_width + uint(q.x)];
+    if (word == ~uint64_t(0)) {
+        return vec4(pc.background.rgb, 1.0 / 0.0);
+    }
+    uint i = uint(word & 0xffffffffUL);
+    uvec2 c = splat_pairs[3u * i + 2u];
+    vec3 color = vec3(unpackUnorm2x16(c.x), unpackUnorm2x16(c.y).x);
+    return vec4(color, uintBitsToFloat(uint(word >> 32)));
+}
+
+#include "gbuffer_resolve_blocks.glsl"
+
+void main() {
+    resolve_blocks();
+}

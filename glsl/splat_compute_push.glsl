@@ -1,0 +1,23 @@
+// Push constants of the compute passes over the splats (splat_compute.comp,
+// peel_cull.comp; src/passes/splat_raster.rs, SplatComputePush): the
+// sprite path's projection (splat_raster.glsl) without its jitter, with
+// the splat count and the pass's stage. 128 bytes, lavapipe's limit.
+layout(push_constant, std430) uniform SplatComputePush {
+    vec4 eye;
+    vec4 right;
+    vec4 up;
+    vec4 forward;
+    vec2 center;
+    vec2 extent;   // the target's size, pixels
+    vec2 lens_u;
+    float f_px;
+    float near;
+    float far;
+    float splat_px;
+    float aperture_radius;
+    float focus_distance;
+    float max_point_size;
+    float min_point_size;
+    uint count;    // splats
+    uint stage;
+} pc;

@@ -1,0 +1,167 @@
+//! The compute rasteriser (`glsl/splat_compute.comp`, issue 28 item 2,
+//! `--raster compute`): the splats of one raster pass drawn by compute
+//! shaders into a 64-bit visibility buffer — per target pixel, the eye
+//! depth's bits above the splat index, kept by `atomicMin` — instead of
+//! lavapipe's point path, which costs per splat whatever its size. The
+//! resolve reads the words (`glsl/gbuffer_resolve_vis.comp`). The sprite
+//! path stays the reference: the two place and size splats with the same
+//! code (`glsl/splat_project.glsl`) and cover a pixel by the same rule, its
+//! centre inside the square; they differ where the sprite path rounds a
+//! position to its sub-pixel steps or a size to the point-size granularity
+//! (tests/compute_raster.rs states by how much).
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use super::splat_raster::{SplatComputePush, SplatPush, SplatVertex};
+use crate::error::{Error, Result};
+use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame};
+
+static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute.comp.spv"));
+
+/// Invocations per workgroup (the shader's `local_size_x`).
+const GROUP: u32 = 64;
+/// A splat covering more target pixels is drawn by a workgroup of its own
+/// (mirrors `LARGE_PIXELS` in the shader).
+pub const LARGE_PIXELS: u32 = 256;
+
+/// Bytes of one visibility word: a target pixel.
+pub const WORD_BYTES: u64 = 8;
+
+pub struct ComputeRaster {
+    pipeline: ComputePipeline<SplatComputePush>,
+}
+
+/// The buffers of one target of `width` × `height` pixels: its visibility
+/// words and the list of large splats (with the dispatch that draws them).
+pub struct Visibility {
+    /// One per target pixel (a sample).
+    pub words: Buffer,
+    large: Buffer,
+    width: u32,
+    height: u32,
+}
+
+impl Visibility {
+    /// The buffers of a `width` × `height` target for up to `splats` splats.
+    pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
+        let bytes = width as u64 * height as u64 * WORD_BYTES;
+        if bytes > ctx.info.max_storage_buffer_range {
+            return Err(Error::InvalidArgument(format!(
+                "a {width}x{height} visibility buffer is {bytes} bytes, beyond the device's \
+                 storage buffer range of {}",
+                ctx.info.max_storage_buffer_range
+            )));
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+        Ok(Visibility {
+            words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
+
+            large: Buffer::new(
+                ctx,
+                "large splats",
+                16 + 4 * splats.max(1) as u64,
+                usage | vk::BufferUsageFlags::INDIRECT_BUFFER,
+                MemoryLocation::GpuOnly,
+            )?,
+            width,
+            height,
+        })
+    }
+
+    /// Visibility words per row.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Rows of visibility words.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+}
+
+impl ComputeRaster {
+    pub fn new(ctx: &Arc<Context>) -> Result<ComputeRaster> {
+        if !ctx.info.buffer_int64_atomics {
+            return Err(Error::InvalidArgument(
+                "--raster compute needs 64-bit atomics on storage buffers, which this device lacks"
+                    .into(),
+            ));
+        }
+        let b = Binding::StorageBuffer;
+        Ok(ComputeRaster {
+            pipeline: ComputePipeline::new(ctx, "splat_compute", SPIRV, &[b, b, b])?,
+        })
+    }
+
+    /// Records one raster pass as pass `name`: `count` splats of `splats`
+    /// through `push` (the sprite path's, unjittered, for a target of the
+    /// visibility's size) into `target`, cleared first, after `before`
+    /// (the last access to its words: a resolve's read, or none), and the
+    /// barrier that hands the words to the resolve's compute reads.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        name: &str,
+        target: &'r Visibility,
+        before: Access,
+        splats: &'r Buffer,
+        count: u32,
+        push: &SplatPush,
+    ) {
+        assert_eq!(
+            push.extent,
+            [target.width as f32, target.height as f32],
+            "the projection is the target's"
+        );
+        assert!(
+            count as u64 * std::mem::size_of::<SplatVertex>() as u64 <= splats.size(),
+            "the splats are in the buffer"
+        );
+        let base = push.for_compute(count);
+        let binds = [
+            Bind::StorageBuffer(splats),
+            Bind::StorageBuffer(&target.words),
+            Bind::StorageBuffer(&target.large),
+        ];
+        frame.pass(name, |rec| {
+            // The words and the large list were last read by the previous
+            // pass's resolve and large-splat dispatch.
+            rec.memory_barrier(before, Access::FILL);
+            rec.memory_barrier(Access::INDIRECT_READ, Access::FILL);
+            rec.fill_u32(&target.words, u32::MAX);
+            rec.update_u32(&target.large, &[0, 1, 1, 0]);
+            rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
+            let small = SplatComputePush { stage: 0, ..base };
+            rec.dispatch(
+                &self.pipeline,
+                &binds,
+                &small,
+                [count.div_ceil(GROUP), 1, 1],
+            );
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::INDIRECT_READ);
+            let large = SplatComputePush { stage: 1, ..base };
+            rec.dispatch_indirect(&self.pipeline, &binds, &large, &target.large, 0);
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ);
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vk::check_push_layout;
+
+    #[test]
+    fn push_constants_match_the_glsl_block() {
+        check_push_layout::<SplatComputePush>("splat_compute", SPIRV).unwrap();
+        assert_eq!(std::mem::size_of::<SplatComputePush>(), 128);
+        let shader = include_str!("../../glsl/splat_compute.comp");
+        assert!(shader.contains(&format!("const uint LARGE_PIXELS = {LARGE_PIXELS}u;")));
+        assert!(shader.contains(&format!("layout(local_size_x = {GROUP}) in;")));
+    }
+}

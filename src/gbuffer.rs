@@ -208,6 +208,7 @@ impl GBufferPasses {
         let max = max_samples_per_pass.unwrap_or(u32::MAX);
         let (w, h) = (view.frame.full_width(), view.frame.full_height());
         let pixels = w as u64 * h as u64;
+        assert_ne!(raster, Raster::Auto, "the renderer resolves --raster auto");
         if raster == Raster::Compute {
             if self.compute.is_none() {
                 return Err(Error::InvalidArgument(
@@ -377,7 +378,7 @@ impl GBuffer {
             )?);
         }
         let targets = match raster {
-            Raster::Sprites => FirstTargets::Sprites(SampleTargets::new(
+            Raster::Sprites | Raster::Auto => FirstTargets::Sprites(SampleTargets::new(
                 ctx,
                 scale * w + margin,
                 scale * band + margin,

@@ -165,8 +165,10 @@ struct BenchArgs {
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
     /// How the G-buffer's splats are rasterised: sprites (hardware point
-    /// sprites, the reference) or compute (compute shaders into a 64-bit
-    /// visibility buffer, every sample of a pixel in one pass).
+    /// sprites, the reference), compute (compute shaders into a 64-bit
+    /// visibility buffer, every sample of a pixel in one pass), or auto:
+    /// compute where the device has 64-bit buffer atomics and no
+    /// --samples-per-pass is given, else sprites.
     #[arg(long, value_enum, default_value_t)]
     raster: Raster,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
@@ -267,8 +269,10 @@ struct RenderArgs {
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
     /// How the G-buffer's splats are rasterised: sprites (hardware point
-    /// sprites, the reference) or compute (compute shaders into a 64-bit
-    /// visibility buffer, every sample of a pixel in one pass).
+    /// sprites, the reference), compute (compute shaders into a 64-bit
+    /// visibility buffer, every sample of a pixel in one pass), or auto:
+    /// compute where the device has 64-bit buffer atomics and no
+    /// --samples-per-pass is given, else sprites.
     #[arg(long, value_enum, default_value_t)]
     raster: Raster,
     /// Vertical field of view, degrees.

@@ -34,8 +34,11 @@ pub enum GatherWindow {
 /// How the G-buffer's splats are rasterised (`--raster`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum Raster {
-    /// Hardware point sprites (the reference).
+    /// Compute where the device has 64-bit buffer atomics, else sprites
+    /// (docs/BENCHMARKS.md, "The compute rasteriser").
     #[default]
+    Auto,
+    /// Hardware point sprites (the reference).
     Sprites,
     /// Compute shaders into a 64-bit visibility buffer (every sample of a
     /// pixel in one pass, any splat size).

@@ -330,7 +330,7 @@ pub struct Renderer {
 
 impl Renderer {
     pub fn new(ctx: &Arc<Context>) -> Result<Renderer> {
-        Ok(Renderer {
+        let renderer = Renderer {
             ctx: ctx.clone(),
             gbuffer: GBufferPasses::new(ctx)?,
             methods: Methods::new(ctx)?,
@@ -338,7 +338,8 @@ impl Renderer {
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
             peel_cull: true,
             raster: Raster::default(),
-        })
+        };
+        Ok(renderer)
     }
 
     /// How the G-buffer's first layer is rasterised (`--raster`; default
@@ -346,6 +347,26 @@ impl Renderer {
     /// atomics: a frame on a device without them is an error.
     pub fn set_raster(&mut self, raster: Raster) {
         self.raster = raster;
+    }
+
+    /// The raster of a frame of `options`: `auto` is the compute raster
+    /// where the device has 64-bit buffer atomics, except that a limit on
+    /// the samples per pass asks for the sprite path's plans (the compute
+    /// raster takes every sample in one pass).
+    fn frame_raster(&self, options: &RenderOptions) -> Result<Raster> {
+        Ok(match (self.raster, options.samples_per_pass) {
+            (Raster::Auto, Some(_)) => Raster::Sprites,
+            (Raster::Auto, None) if self.ctx.info.buffer_int64_atomics => Raster::Compute,
+            (Raster::Auto, None) => Raster::Sprites,
+            (Raster::Compute, Some(_)) => {
+                return Err(Error::InvalidArgument(
+                    "--samples-per-pass limits the sprite raster's passes; the compute raster \
+                     takes every sample in one pass (use --raster sprites)"
+                        .into(),
+                ))
+            }
+            (chosen, _) => chosen,
+        })
     }
 
     /// Whether each depth peel of `layered` first culls the splats it
@@ -579,8 +600,9 @@ impl Renderer {
 
         let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
         let layers = method.gbuffer_layers();
+        let raster = self.frame_raster(options)?;
         let plan = self.gbuffer.plan(
-            self.raster,
+            raster,
             options.ssaa,
             options.samples_per_pass,
             &view,
@@ -597,7 +619,7 @@ impl Renderer {
             &self.ctx,
             &view,
             &plan,
-            self.raster,
+            raster,
             splats.count,
             layers,
             peel_samples,

@@ -152,6 +152,20 @@ fn bad_input_gives_one_line_and_no_output() {
         &out,
     );
     assert_fails(&["render", &b, "-o", &out_s, "--ssaa", "0"], "--ssaa", &out);
+    assert_fails(
+        &[
+            "render",
+            &b,
+            "-o",
+            &out_s,
+            "--raster",
+            "compute",
+            "--samples-per-pass",
+            "4",
+        ],
+        "--samples-per-pass limits the sprite raster's passes",
+        &out,
+    );
     for (flags, phrase) in [
         (
             &["--lod-px", "-1"][..],

@@ -11,7 +11,7 @@ use glam::Vec3;
 use pointlens::bench::BenchModel;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
-use pointlens::options::{FastWeights, GatherWindow, Method, RdbMode};
+use pointlens::options::{FastWeights, GatherWindow, Method, Raster, RdbMode};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 
 /// Renders `method` with `samples_per_pass` (None: the device's plan) and
@@ -41,7 +41,9 @@ fn multisampled_passes_match_one_sample_passes_on_the_bundled_scenes() {
                 .contains(ash::vk::SampleCountFlags::TYPE_4),
             "the test device offers no 4-sample G-buffer"
         );
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
+        // The sprite path's plans.
+        renderer.set_raster(Raster::Sprites);
         for model in [BenchModel::Bunny, BenchModel::Mug] {
             let cloud = model.load(&root().join("data"), 0).unwrap();
             let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
@@ -121,7 +123,9 @@ fn multisampled_passes_match_one_sample_passes_on_the_bundled_scenes() {
 #[test]
 fn one_sample_per_pass_is_the_device_independent_form() {
     with_gpu(|ctx| {
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
+        // The sprite path's plans.
+        renderer.set_raster(Raster::Sprites);
         let model = BenchModel::Bunny;
         let cloud = model.load(&root().join("data"), 0).unwrap();
         let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
@@ -167,6 +171,8 @@ fn one_sample_per_pass_is_the_device_independent_form() {
 fn bands_of_the_upscaled_target_give_the_whole_target_s_image() {
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
+        // The sprite path's plans.
+        renderer.set_raster(Raster::Sprites);
         let model = BenchModel::Mug;
         let cloud = model.load(&root().join("data"), 0).unwrap();
         let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();

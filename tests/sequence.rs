@@ -679,8 +679,14 @@ fn render_without_a_method_is_layered_with_two_layers_and_its_help_gives_the_com
     );
     render(&out("layered.png"), &["--method", "layered"]);
     render(&out("rdb.png"), &["--method", "rdb"]);
+    // The raster by docs/BENCHMARKS.md's table: compute where the device
+    // has 64-bit buffer atomics (lavapipe has).
+    render(&out("compute.png"), &["--raster", "compute"]);
+    render(&out("sprites.png"), &["--raster", "sprites"]);
     assert_eq!(bytes(out("default.png")), bytes(out("layered2.png")));
     assert_eq!(bytes(out("default.png")), bytes(out("layered.png")));
+    assert_eq!(bytes(out("default.png")), bytes(out("compute.png")));
+    assert_ne!(bytes(out("default.png")), bytes(out("sprites.png")));
     // Not a method whose image would equal any other's here.
     assert_ne!(bytes(out("default.png")), bytes(out("rdb.png")));
     let o = pointlens(&["render", "--help"]);

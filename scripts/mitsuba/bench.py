@@ -38,13 +38,15 @@ SCENES = {
     # R = 0.012: CoC 0 at the chest to 25 px at the back of the bunny.
     "bunny": {
         "file": "data/bunny_colored.ply",
-        "flags": ["--focus-pixel", "360,343", "--aperture-radius", "0.012"],
+        "flags": ["--aperture-radius", "0.012"],
+        "focus_640x480": (360, 343),
         "accum": [16, 64],
     },
     # The same points, uncolored (gray): blur shows only at silhouettes.
     "bun_zipper": {
         "file": "data/bun_zipper.ply",
-        "flags": ["--focus-pixel", "360,343", "--aperture-radius", "0.012"],
+        "flags": ["--aperture-radius", "0.012"],
+        "focus_640x480": (360, 343),
         "accum": [16, 64],
     },
     # The PCL stereo scan from its sensor (as `bench`'s mug), focused on the
@@ -53,9 +55,23 @@ SCENES = {
         "file": "data/pcl_table_scene_mug_rgb.ply",
         "flags": [
             "--eye", "0,0,0", "--target", "0,0,1", "--up", "0,-1,0", "--fovy-deg", "27.95",
-            "--focus-pixel", "380,330", "--aperture-radius", "0.015",
+            "--aperture-radius", "0.015",
         ],
+        "focus_640x480": (380, 330),
         # accum 64 takes about 2 minutes here on 2 cores (lavapipe).
+        "accum": [16],
+    },
+    # The bundled LiDAR tile (aerial, z up) in a tilt-shift view: an
+    # oblique camera over the tile, focused on the middle of the frame,
+    # R = 10 ft, so the near field and the far edge blur and a band across
+    # the middle is sharp.
+    "autzen": {
+        "file": "data/autzen_trim.las",
+        "flags": [
+            "--eye", "0,-520,300", "--target", "0,80,-20", "--up", "0,0,1", "--fovy-deg", "45",
+            "--aperture-radius", "10",
+        ],
+        "focus_640x480": (320, 240),
         "accum": [16],
     },
 }
@@ -110,6 +126,9 @@ def parse_args(argv):
     p.add_argument("--variant", default="llvm_ad_rgb")
     p.add_argument("--device", default=None)
     p.add_argument("--label", default=None)
+    p.add_argument("--width", type=int, default=640)
+    p.add_argument("--height", type=int, default=480)
+    p.add_argument("--raster", default=None, choices=["sprites", "compute"])
     try:
         args = p.parse_args(argv)
     except SystemExit as e:
@@ -124,6 +143,8 @@ def parse_args(argv):
         fail("--scenes: no scene given")
     if args.reps < 1:
         fail("--reps must be at least 1")
+    if not (16 <= args.width <= 8192 and 16 <= args.height <= 8192):
+        fail("--width and --height must be 16 to 8192")
     if args.ref_spp < 1 or args.pinhole_spp < 1:
         fail("--ref-spp and --pinhole-spp must be positive")
     for name, n in [("--spp", v) for v in args.spp] + [("--ref-spp", args.ref_spp),
@@ -137,9 +158,22 @@ def methods(args, scene):
     """pointlens methods: (name as `bench` names it, render flags); accum's
     sample counts from --accum, else the scene's."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
-         ("rdb9", ["--method", "rdb", "--rdb-bins", "9"])]
+         ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
+         ("layered2", ["--method", "layered", "--layers", "2"]),
+         ("layered4", ["--method", "layered", "--layers", "4"])]
     m += [(f"accum{s}", ["--method", "accum", "--samples", str(s)]) for s in args.accum or SCENES[scene]["accum"]]
-    return m
+    raster = ["--raster", args.raster] if args.raster else []
+    return [(name, flags + raster) for name, flags in m]
+
+
+def scene_flags(args, scene):
+    """The scene's camera flags at the run's size: its focus pixel, given
+    at 640×480, scaled to the frame (pointlens fails with a clear line if
+    it sees no point there)."""
+    fx, fy = SCENES[scene]["focus_640x480"]
+    focus = f"{fx * args.width // 640},{fy * args.height // 480}"
+    return ["--width", str(args.width), "--height", str(args.height), *SCENES[scene]["flags"],
+            "--focus-pixel", focus]
 
 
 class Bench:
@@ -234,7 +268,7 @@ class Bench:
         ply = self.repo / SCENES[scene]["file"]
         # The DOF camera, as pointlens resolves it (auto-framing, --focus-pixel).
         cam_text = self.pointlens("render", str(ply), "-o", str(d / "camera_probe.exr"), "--method", "pinhole",
-                                  *SCENES[scene]["flags"], *self.device_flags(), "--print-camera",
+                                  *scene_flags(a, scene), *self.device_flags(), "--print-camera",
                                   what=f"pointlens --print-camera ({scene})")
         try:
             cam = json.loads(cam_text)
@@ -545,6 +579,7 @@ def environment(a, mi, dr, results):
         "repeat_limit_s": a.repeat_limit_s,
         "ref_spp": a.ref_spp,
         "pinhole_spp": a.pinhole_spp,
+        "raster": a.raster or "sprites (pointlens's default)",
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
         "load_average_1min": results.get("load_average_1min"),
     }
@@ -594,8 +629,7 @@ def chart(path, results):
         ax.set_xscale("log")
         ax.set_xlabel("frame / render time, s (log)")
         ax.set_ylabel(f"PSNR dB vs Mitsuba {results['environment']['ref_spp']} spp")
-        ax.set_title(f"{scene}: {info['points']:,} splats, 640×480" if info["camera"]["width"] == 640
-                     else f"{scene}: {info['points']:,} splats")
+        ax.set_title(f"{scene}: {info['points']:,} splats, {info['camera']['width']}×{info['camera']['height']}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(loc="lower right", fontsize=8)
     env = results["environment"]

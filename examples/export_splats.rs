@@ -2,7 +2,10 @@
 //! diameter and linear RGB — for another renderer to draw the same splats
 //! (`scripts/bench-vs-mitsuba` builds Mitsuba 3 squares from it).
 //!
-//! `cargo run --release --example export_splats -- INPUT.ply OUT.bin [--splat-size W]`
+//! `cargo run --release --example export_splats -- INPUT OUT.bin [--splat-size W]`
+//!
+//! INPUT is any cloud `render` reads (PLY, LAS, LAZ), in the coordinates
+//! `render` draws it in (a LAS file re-centred as by default).
 //!
 //! The splats are the leaves of the splat hierarchy that `Renderer::upload`
 //! builds (`render::splat_tree`), in its Morton order: by default each
@@ -18,7 +21,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context as _};
-use pointlens::input::ply::load_ply;
+use pointlens::input::load_cloud;
 use pointlens::render::{splat_tree, SplatSize};
 use pointlens::tree::median;
 
@@ -53,9 +56,9 @@ fn run() -> anyhow::Result<()> {
         }
     }
     let [input, output] = positional.as_slice() else {
-        bail!("usage: export_splats INPUT.ply OUT.bin [--splat-size W]");
+        bail!("usage: export_splats INPUT OUT.bin [--splat-size W]");
     };
-    let cloud = load_ply(input)?;
+    let cloud = load_cloud(input, None, &mut |_, _| {})?;
     let splat = splat_size.map_or(SplatSize::Spacing, SplatSize::World);
     let tree = splat_tree(&cloud, splat, pointlens::available_threads());
     let d: Vec<f32> = tree.leaves().iter().map(|v| v.position_size[3]).collect();

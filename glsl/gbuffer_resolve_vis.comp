@@ -28,10 +28,6 @@ layout(push_constant, std430) uniform VisPush {
     vec4 background;     // linear RGB of an uncovered sample
 } pc;
 
-// The last splat read: neighbouring samples are mostly of one splat.
-uint last_splat = ~0u;
-vec3 last_color;
-
 vec4 target_sample(ivec2 q) {
     uint64_t word = visibility[uint(q.y) * pc.target_width + uint(q.x)];
     if (word == ~uint64_t(0)) {

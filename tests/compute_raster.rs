@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{differing, root, with_gpu};
+use common::{differing, rasters, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
 use pointlens::metrics::psnr;
@@ -14,16 +14,6 @@ use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
 fn render(renderer: &mut Renderer, scene: &Scene, options: &RenderOptions, r: Raster) -> Rendered {
     renderer.set_raster(r);
     renderer.render(scene, options).expect("render")
-}
-
-/// The G-buffer raster passes of a frame (the depth peel's excluded).
-fn rasters(r: &Rendered) -> u32 {
-    r.timings
-        .passes
-        .iter()
-        .filter(|p| p.name.ends_with(".raster") && !p.name.starts_with("peel"))
-        .map(|p| p.count)
-        .sum()
 }
 
 /// The two rasterisers take the same samples (the K×K grid of pixel-cell

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{differing, root, with_gpu};
+use common::{differing, rasters, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
 use pointlens::image_io::LinearImage;
@@ -183,13 +183,6 @@ fn bands_of_the_upscaled_target_give_the_whole_target_s_image() {
             samples_per_pass: None,
             background: Vec3::new(0.05, 0.1, 0.2),
             lod: pointlens::options::Lod::default(),
-        };
-        let rasters = |r: &pointlens::render::Rendered| {
-            r.timings
-                .passes
-                .iter()
-                .find(|p| p.name.ends_with(".raster") && !p.name.starts_with("peel"))
-                .map_or(0, |p| p.count)
         };
         for method in [Method::Pinhole, Method::accum(3)] {
             let options = RenderOptions { method, ..base };

@@ -16,7 +16,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::splat_raster::{SplatComputePush, SplatPush, SplatVertex};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame};
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute.comp.spv"));
@@ -48,17 +48,13 @@ impl Visibility {
     /// The buffers of a `width` × `height` target for up to `splats` splats.
     pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
         let bytes = width as u64 * height as u64 * WORD_BYTES;
-        if bytes > ctx.info.max_storage_buffer_range {
-            return Err(Error::InvalidArgument(format!(
-                "a {width}x{height} visibility buffer is {bytes} bytes, beyond the device's \
-                 storage buffer range of {}",
-                ctx.info.max_storage_buffer_range
-            )));
-        }
+        assert!(
+            bytes <= ctx.info.max_storage_buffer_range,
+            "the plan's bands keep the words within the storage buffer range"
+        );
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
         Ok(Visibility {
             words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
-
             large: Buffer::new(
                 ctx,
                 "large splats",
@@ -83,13 +79,10 @@ impl Visibility {
 }
 
 impl ComputeRaster {
+    /// The pipeline, on a device with 64-bit buffer atomics (the caller
+    /// checks: `GBufferPasses` makes it only there).
     pub fn new(ctx: &Arc<Context>) -> Result<ComputeRaster> {
-        if !ctx.info.buffer_int64_atomics {
-            return Err(Error::InvalidArgument(
-                "--raster compute needs 64-bit atomics on storage buffers, which this device lacks"
-                    .into(),
-            ));
-        }
+        assert!(ctx.info.buffer_int64_atomics, "64-bit buffer atomics");
         let b = Binding::StorageBuffer;
         Ok(ComputeRaster {
             pipeline: ComputePipeline::new(ctx, "splat_compute", SPIRV, &[b, b, b])?,

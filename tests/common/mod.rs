@@ -238,3 +238,13 @@ pub fn differing(
         .filter(|(p, q)| p != q)
         .count()
 }
+
+/// The G-buffer raster passes of a frame (the depth peel's excluded).
+pub fn rasters(r: &pointlens::render::Rendered) -> u32 {
+    r.timings
+        .passes
+        .iter()
+        .filter(|p| p.name.ends_with(".raster") && !p.name.starts_with("peel"))
+        .map(|p| p.count)
+        .sum()
+}

@@ -30,7 +30,7 @@ void main() {
     }
     float zq = imageLoad(gbuffer_eye, q).z;
     vec2 tile = imageLoad(tile_radius, q / pc.tile).xy;
-    int r = int(floor(tile.x));
+    int r = int(min(floor(tile.x), float(max(pc.extent.x, pc.extent.y))));
     // precise: no contraction into fused multiply-adds and no hoisting of
     // the products, so that both paths round alike on every compiler.
     precise vec4 sum = vec4(0.0);
@@ -44,12 +44,8 @@ void main() {
             imageStore(result, q, vec4(0.0));
             return;
         }
-        for (int dy = -r; dy <= r; ++dy) {
-            for (int dx = -r; dx <= r; ++dx) {
-                ivec2 p = q + ivec2(dx, dy);
-                if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, pc.extent))) {
-                    continue;
-                }
+        for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
+            for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
                 float d2 = float(dx * dx + dy * dy);
                 if (d2 > 0.25 * cw.x * cw.x) {
                     continue;
@@ -61,12 +57,11 @@ void main() {
         imageStore(result, q, sum / weight);
         return;
     }
-    for (int dy = -r; dy <= r; ++dy) {
-        for (int dx = -r; dx <= r; ++dx) {
+    // The window clipped to the G-buffer (a radius may exceed it: the
+    // guard band is bounded, docs/ARCHITECTURE.md).
+    for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
+        for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
             ivec2 p = q + ivec2(dx, dy);
-            if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, pc.extent))) {
-                continue;
-            }
             vec2 cw = imageLoad(coc_weight, p).xy;
             float d2 = float(dx * dx + dy * dy);
             if (d2 > 0.25 * cw.x * cw.x) {

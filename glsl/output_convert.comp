@@ -1,7 +1,7 @@
 #version 460
-// Converts a frame's result (rgba16f, inside the guard band) to the output
-// file's pixels in a host-visible buffer, so that the host only copies
-// them out:
+// Converts a frame's result (rgba16f, inside the guard band), under the
+// frame's veil (crate::veil) when it has one, to the output file's pixels
+// in a host-visible buffer, so that the host only copies them out:
 //   format 0: linear RGBA f32 (EXR), one pixel per invocation (f16 → f32
 //     is exact);
 //   format 1: sRGB 8-bit RGB (PNG), tightly packed, 4 pixels (12 bytes,
@@ -15,16 +15,78 @@ layout(binding = 0, rgba16f) uniform readonly image2D result;
 layout(binding = 1, std430) readonly buffer Srgb8Lut { uint srgb8_lut[]; }; // byte b of word i: code of half bits 4i + b
 layout(binding = 2, std430) writeonly buffer Output { uint words[]; };
 
+// Mirrors crate::veil::VeilSplat: the splats too near the lens for the
+// G-buffer, nearest first.
+struct VeilSplat {
+    vec2 centre_px;     // pinhole position p, output pixels
+    float lens_per_px;  // sign · 2 / c: u_q = lens_per_px · (q − p)
+    float half_side;    // s / c: half the side of its lens square
+    vec4 color;         // linear rgb, coverage 1
+};
+layout(binding = 3, std430) readonly buffer Veil { VeilSplat veil[]; };
+
 layout(push_constant, std430) uniform Push {
     ivec2 origin;  // result pixel of output pixel (0, 0): the guard band
     ivec2 size;    // output width, height
     uint format;   // 0: linear f32 RGBA, 1: sRGB 8-bit RGB
     uint count;    // invocations with work: pixels (format 0) or 4-pixel groups (format 1)
+    uint veil_count; // disks of the veil (0: the result as it is)
 } pc;
+
+// Mirrors crate::veil::VEIL_CELLS: lens cells per axis.
+const int CELLS = 16;
+
+// The cells whose centre lies in the unit disk, a bit per cell, a word per
+// row (crate::veil::VeilGrid; a test checks they agree), and their count.
+const uint DISK[CELLS] = uint[](
+    0x07E0u, 0x1FF8u, 0x3FFCu, 0x7FFEu, 0x7FFEu, 0xFFFFu, 0xFFFFu, 0xFFFFu,
+    0xFFFFu, 0xFFFFu, 0xFFFFu, 0x7FFEu, 0x7FFEu, 0x3FFCu, 0x1FF8u, 0x07E0u);
+const uint DISK_CELLS = 208u;
+
+// The cells [lo, hi] of one axis whose centres lie in [a − h, a + h]
+// (crate::veil::cell_range).
+ivec2 cell_range(float a, float h) {
+    float n = float(CELLS);
+    float lo = max(ceil((a - h + 1.0) * n / 2.0 - 0.5), 0.0);
+    float hi = min(floor((a + h + 1.0) * n / 2.0 - 0.5), n - 1.0);
+    return ivec2(lo, hi);
+}
+
+// The veil over `under` at output pixel p (crate::veil::Veil::apply): each
+// lens cell in the disk takes the nearest veil point whose lens square
+// holds its centre, else `under`; the pixel is their mean.
+vec4 veiled(ivec2 p, vec4 under) {
+    uint marked[CELLS];
+    for (int j = 0; j < CELLS; ++j) {
+        marked[j] = 0u;
+    }
+    vec2 q = vec2(p) + 0.5;
+    vec4 over = vec4(0.0);
+    uint count = 0u;
+    for (uint k = 0u; k < pc.veil_count && count < DISK_CELLS; ++k) {
+        vec2 u = veil[k].lens_per_px * (q - veil[k].centre_px);
+        ivec2 ci = cell_range(u.x, veil[k].half_side);
+        ivec2 cj = cell_range(u.y, veil[k].half_side);
+        if (ci.x > ci.y || cj.x > cj.y) {
+            continue;
+        }
+        uint span = (0xFFFFFFFFu >> uint(31 - (ci.y - ci.x))) << uint(ci.x);
+        for (int j = cj.x; j <= cj.y; ++j) {
+            uint fresh = span & DISK[j] & ~marked[j];
+            marked[j] |= fresh;
+            uint n = uint(bitCount(fresh));
+            count += n;
+            over += float(n) * veil[k].color;
+        }
+    }
+    float total = float(DISK_CELLS);
+    return over / total + (float(DISK_CELLS - count) / total) * under;
+}
 
 vec4 pixel(uint i) {
     ivec2 p = ivec2(int(i % uint(pc.size.x)), int(i / uint(pc.size.x)));
-    return imageLoad(result, pc.origin + p);
+    vec4 c = imageLoad(result, pc.origin + p);
+    return pc.veil_count == 0u ? c : veiled(p, c);
 }
 
 uint srgb8(float v) {

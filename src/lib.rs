@@ -31,6 +31,7 @@ pub mod report;
 pub mod sequence;
 pub mod synth;
 pub mod tree;
+pub mod veil;
 #[allow(unsafe_code)]
 pub mod vk;
 

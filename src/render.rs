@@ -20,6 +20,7 @@ use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
+use crate::veil::{Veil, VeilRule, VeilSplat};
 use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point
@@ -113,6 +114,11 @@ struct FrameSplats {
     count: u32,
     view: SceneView,
     lod: LodReport,
+    /// The splats too near the lens for the G-buffer ([`crate::veil`]),
+    /// composited by the output pass: at least one long (the pass reads
+    /// `veil.splats_in_view.len()` of them).
+    veil_splats: Buffer,
+    veil: Veil,
 }
 
 /// What selected a frame's splats: the camera, the LOD rule, what the
@@ -123,6 +129,8 @@ struct SplatsKey {
     lod: Lod,
     widening: Widening,
     point_size_max: f32,
+    /// Which splats the method takes out of its G-buffer into the veil.
+    veil: VeilRule,
 }
 
 /// A cloud ready to render: its splat hierarchy (DESIGN §3) on the host;
@@ -174,8 +182,19 @@ impl Scene {
         *last = None;
         let camera = &key.camera;
         let threads = crate::available_threads();
-        let traversal = self.tree.traverse(camera, key.lod, key.widening, threads);
+        let mut traversal = self.tree.traverse(camera, key.lod, key.widening, threads);
         let started = Instant::now();
+        let splat_px = match self.splat {
+            SplatSize::Pixels(p) => Some(p),
+            _ => None,
+        };
+        let (drawn, veil) = crate::veil::split(
+            camera,
+            std::mem::take(&mut traversal.splats),
+            key.veil,
+            splat_px,
+        );
+        traversal.splats = drawn;
         let eye_from_world = camera.eye_from_world_transform();
         let depths = depth_range_with(&eye_from_world, traversal.splats.iter().map(Splat::centre));
         let (near, _) = clip_range(depths);
@@ -233,9 +252,21 @@ impl Scene {
                 bytes.len() >> 20
             ))
         })?;
+        let veiled_splats = veil.splats;
+        let veil_splats = Buffer::with_bytes(
+            &self.ctx,
+            "veil",
+            match veil.is_empty() {
+                true => bytemuck::bytes_of(&EMPTY_VEIL),
+                false => bytemuck::cast_slice(&veil.splats_in_view),
+            },
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
         let splats = Arc::new(FrameSplats {
             vertices,
             count,
+            veil_splats,
+            veil,
             view: SceneView {
                 depths,
                 max_splat_px,
@@ -246,6 +277,7 @@ impl Scene {
                 nodes_visited: traversal.nodes_visited,
                 splats_emitted: count as u64,
                 inner_emitted: traversal.inner_emitted,
+                veiled: veiled_splats,
                 traversal_ms: traversal.ms,
                 splats_upload_ms: started.elapsed().as_secs_f64() * 1e3,
                 cached: false,
@@ -273,6 +305,15 @@ fn points_of(cloud: &PointCloud) -> Points<'_> {
 pub fn vertices_of(splats: &[Splat]) -> &[SplatVertex] {
     bytemuck::cast_slice(splats)
 }
+
+/// The veil of a frame without one (a buffer is never empty; the output
+/// pass reads none of it).
+const EMPTY_VEIL: VeilSplat = VeilSplat {
+    centre_px: [0.0; 2],
+    lens_per_px: 0.0,
+    half_side: 0.0,
+    color: [0.0; 4],
+};
 
 /// The vertex of a frame that emits none (a buffer is never empty).
 const EMPTY_VERTEX: SplatVertex = SplatVertex {
@@ -478,6 +519,7 @@ impl Renderer {
                 },
             },
             point_size_max: max_point,
+            veil: method.veil_rule(),
         })?;
         let seen = splats.view;
         let max_coc_px = method.guard_coc_px(camera, seen.depths);
@@ -485,7 +527,7 @@ impl Renderer {
         let view = RasterView {
             frame: FrameView {
                 camera: *camera,
-                guard: Camera::guard_band_px(max_coc_px, seen.max_splat_px),
+                guard: camera.guard_band_px(max_coc_px, seen.max_splat_px),
                 max_coc_px,
                 depths: seen.depths,
             },
@@ -641,8 +683,14 @@ impl Renderer {
         );
         let input = gbuffer.output();
         let result = dof.record(&mut frame, &input);
-        self.output
-            .record(&mut frame, result, &view.frame, format, &readback.result);
+        self.output.record(
+            &mut frame,
+            result,
+            &view.frame,
+            (&splats.veil_splats, splats.veil.splats_in_view.len() as u32),
+            format,
+            &readback.result,
+        );
         readback.record(&mut frame, &input);
         let mut timings = frame.submit_and_wait()?;
 

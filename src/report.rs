@@ -79,6 +79,10 @@ pub struct LodReport {
     /// rule): no traversal in this frame.
     #[serde(default)]
     pub cached: bool,
+    /// Splats too near the lens for the G-buffer, composited as a veil
+    /// instead (`crate::veil`).
+    #[serde(default)]
+    pub veiled: u64,
 }
 
 /// One rendered frame: what was rendered, each pass's GPU time, the frame's
@@ -183,6 +187,9 @@ impl FrameReport {
             "splats: {} emitted ({} inner nodes), {} nodes visited, {rule}{cached}\n",
             l.splats_emitted, l.inner_emitted, l.nodes_visited
         );
+        if l.veiled > 0 {
+            s += &format!("splats too near the lens, drawn as a veil: {}\n", l.veiled);
+        }
         s += &format!("{:<20} {:>10.3}\n", "traversal wall", l.traversal_ms);
         s += &format!(
             "{:<20} {:>10.3}\n",

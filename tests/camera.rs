@@ -320,11 +320,32 @@ fn lens_offset_is_the_thin_lens_ray_geometry() {
 
 #[test]
 fn guard_band() {
+    let cam = Camera {
+        width: 64,
+        height: 48,
+        ..oblique_camera()
+    };
     // ⌈max CoC / 2 + max splat / 2⌉
-    assert_eq!(Camera::guard_band_px(5.0, 3.0), 4); // ⌈2.5 + 1.5⌉ = 4
-    assert_eq!(Camera::guard_band_px(4.2, 1.0), 3); // ⌈2.1 + 0.5⌉ = ⌈2.6⌉ = 3
-    assert_eq!(Camera::guard_band_px(0.0, 1.0), 1); // ⌈0.5⌉ = 1
-    assert_eq!(Camera::guard_band_px(0.0, 0.0), 0);
+    assert_eq!(cam.guard_band_px(5.0, 3.0), 4); // ⌈2.5 + 1.5⌉ = 4
+    assert_eq!(cam.guard_band_px(4.2, 1.0), 3); // ⌈2.1 + 0.5⌉ = ⌈2.6⌉ = 3
+    assert_eq!(cam.guard_band_px(0.0, 1.0), 1); // ⌈0.5⌉ = 1
+    assert_eq!(cam.guard_band_px(0.0, 0.0), 0);
+    // Bounded by half the larger side, whatever the blur (a point at the
+    // lens has an infinite CoC).
+    assert_eq!(cam.max_guard_px(), 32);
+    assert_eq!(cam.guard_band_px(62.0, 1.0), 32); // ⌈31 + 0.5⌉ = 32
+    assert_eq!(cam.guard_band_px(61.0, 1.0), 31);
+    assert_eq!(cam.guard_band_px(1e9, 0.0), 32);
+    assert_eq!(cam.guard_band_px(f32::INFINITY, 1.0), 32);
+    assert_eq!(cam.guard_band_px(f32::NAN, 1.0), 32);
+    let odd = Camera {
+        width: 33,
+        height: 65,
+        ..cam
+    };
+    assert_eq!(odd.max_guard_px(), 33);
+    // A CoC above twice the bound is the veil's (crate::veil).
+    assert_eq!(cam.veil_coc_px(), 64.0);
 }
 
 // ---------------------------------------------------------------- camera file

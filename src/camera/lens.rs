@@ -143,9 +143,35 @@ impl Camera {
     }
 
     /// Guard band in pixels around the frame (DESIGN §3):
-    /// ⌈max CoC / 2 + max splat / 2⌉, both arguments in pixels.
-    pub fn guard_band_px(max_coc_px: f32, max_splat_px: f32) -> u32 {
-        (max_coc_px / 2.0 + max_splat_px / 2.0).ceil() as u32
+    /// ⌈max CoC / 2 + max splat / 2⌉, both arguments in pixels, bounded by
+    /// [`Camera::max_guard_px`] (a NaN or infinite argument gives the
+    /// bound).
+    pub fn guard_band_px(&self, max_coc_px: f32, max_splat_px: f32) -> u32 {
+        let wanted = (max_coc_px / 2.0 + max_splat_px / 2.0).ceil();
+        let bound = self.max_guard_px();
+        if wanted.is_nan() || wanted >= bound as f32 {
+            bound
+        } else {
+            wanted.max(0.0) as u32
+        }
+    }
+
+    /// The widest guard band a frame gets: ⌈max(W, H) / 2⌉ pixels, so the
+    /// G-buffer is at most twice the frame on each axis (DESIGN §3: the
+    /// band stops at a size tied to the frame; docs/ARCHITECTURE.md, "Every
+    /// camera renders"). Light from beyond it reaches the frame only
+    /// through CoCs wider than the frame, spread at most 1/(π·bound²) per
+    /// pixel each.
+    pub fn max_guard_px(&self) -> u32 {
+        self.width.max(self.height).div_ceil(2)
+    }
+
+    /// The CoC (pixels) above which a point in front of the focus plane
+    /// is a veil ([`Camera::veil_of`]) for the methods that blur a
+    /// G-buffer: the widest blur the largest guard band holds on both
+    /// sides of a pixel, 2 · [`Camera::max_guard_px`].
+    pub fn veil_coc_px(&self) -> f32 {
+        2.0 * self.max_guard_px() as f32
     }
 }
 

@@ -11,6 +11,7 @@ use super::{DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::{lens_samples, Camera};
 use crate::error::Result;
 use crate::options::{check_samples, AccumOptions};
+use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 /// The accumulation reference with its options.
@@ -27,10 +28,16 @@ impl DofMethod for Accum {
         lens_samples(self.0.samples)
     }
 
-    /// The points' CoCs only: the uniform background does not move with
-    /// the lens.
-    fn guard_coc_px(&self, camera: &Camera, depths: Option<(f32, f32)>) -> f32 {
-        depths.map_or(0.0, |(lo, hi)| camera.max_coc_px(lo, hi))
+    /// None: each lens sample's own (sheared) projection places every
+    /// point, so the band holds only the splats' squares (a sprite whose
+    /// centre is outside the target is not drawn).
+    fn guard_coc_px(&self, _: &Camera, _: Option<(f32, f32)>) -> f32 {
+        0.0
+    }
+
+    /// Only what no raster draws: splats nearer than the near plane.
+    fn veil_rule(&self) -> VeilRule {
+        VeilRule::BeyondNear
     }
 
     fn prepare<'m>(&'m self, _: &Arc<Context>, _: &FrameView) -> Result<Box<dyn DofFrame + 'm>> {

@@ -210,7 +210,10 @@ impl DofFrame for FastFrame<'_> {
                 &DilatePush {
                     tiles,
                     tile: TILE as i32,
-                    reach: (view.max_coc_px / 2.0 / TILE as f32).ceil() as i32 + 1,
+                    // No farther than the grid of tiles reaches.
+                    reach: ((view.max_coc_px / 2.0 / TILE as f32).ceil() as i32)
+                        .min(tiles[0].max(tiles[1]))
+                        + 1,
                     fixed_radius: match options.window {
                         GatherWindow::Tiles => 0.0,
                         GatherWindow::Fixed => (view.max_coc_px / 2.0).max(0.5),

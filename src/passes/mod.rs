@@ -15,6 +15,7 @@ use glam::{Vec2, Vec3};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::options::Method;
+use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 pub mod accum;
@@ -101,6 +102,13 @@ pub trait DofMethod {
     /// 1, the pinhole G-buffer, by default.
     fn gbuffer_layers(&self) -> u32 {
         1
+    }
+
+    /// Which splats the method takes out of its G-buffer into the veil
+    /// (`crate::veil`): by default those whose blur the guard band cannot
+    /// hold.
+    fn veil_rule(&self) -> VeilRule {
+        VeilRule::Blurred
     }
 
     /// The largest CoC (pixels) the guard band must hold, given the eye

@@ -21,6 +21,7 @@ push_constants! {
         size: [i32; 2],
         format: u32,
         count: u32,
+        veil_count: u32,
     }
 }
 
@@ -81,6 +82,7 @@ impl OutputConvert {
                     Binding::StorageImage,
                     Binding::StorageBuffer,
                     Binding::StorageBuffer,
+                    Binding::StorageBuffer,
                 ],
             )?,
             srgb8_lut,
@@ -88,14 +90,16 @@ impl OutputConvert {
     }
 
     /// Records, as pass `output`, the conversion of the output part of
-    /// `result` (G-buffer sized, `GENERAL`, last written by compute) into
-    /// `out` (host-visible, at least [`OutputFormat::buffer_bytes`]), made
-    /// visible to the host.
+    /// `result` (G-buffer sized, `GENERAL`, last written by compute), under
+    /// the first `veil.1` points of `veil.0` (`crate::veil::VeilSplat`,
+    /// written by the host), into `out` (host-visible, at least
+    /// [`OutputFormat::buffer_bytes`]), made visible to the host.
     pub fn record<'r>(
         &'r self,
         frame: &mut Frame<'r>,
         result: &'r Image,
         view: &FrameView,
+        veil: (&'r Buffer, u32),
         format: OutputFormat,
         out: &'r Buffer,
     ) {
@@ -119,6 +123,7 @@ impl OutputConvert {
                     Bind::StorageImage(result),
                     Bind::StorageBuffer(&self.srgb8_lut),
                     Bind::StorageBuffer(out),
+                    Bind::StorageBuffer(veil.0),
                 ],
                 &Push {
                     origin: [g, g],
@@ -128,6 +133,7 @@ impl OutputConvert {
                         OutputFormat::Srgb8 => 1,
                     },
                     count,
+                    veil_count: veil.1,
                 },
                 [gx, groups.div_ceil(gx).max(1), 1],
             );

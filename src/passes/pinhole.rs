@@ -5,6 +5,7 @@ use std::sync::Arc;
 use super::{DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::Camera;
 use crate::error::Result;
+use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 /// The pinhole method: no pass of its own.
@@ -13,6 +14,11 @@ pub struct Pinhole;
 impl DofMethod for Pinhole {
     fn guard_coc_px(&self, _: &Camera, _: Option<(f32, f32)>) -> f32 {
         0.0
+    }
+
+    /// No blur, no veil: the pinhole image draws what it can.
+    fn veil_rule(&self) -> VeilRule {
+        VeilRule::None
     }
 
     fn prepare<'m>(&'m self, _: &Arc<Context>, _: &FrameView) -> Result<Box<dyn DofFrame + 'm>> {

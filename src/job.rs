@@ -118,6 +118,8 @@ pub struct JobSpec {
 pub struct RenderJob {
     spec: JobSpec,
     pattern: Option<FramePattern>,
+    /// The file of a single image: `-o` with `%%` read as `%`.
+    single: PathBuf,
     range: FrameRange,
 }
 
@@ -166,6 +168,16 @@ pub struct Outcome {
     pub cameras: Vec<(u32, CameraSpec)>,
 }
 
+/// `path` with its folder resolved (links, `.` and `..`): two names of one
+/// file resolve alike. The folder exists (checked before).
+fn resolved_file(path: &Path) -> Option<PathBuf> {
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(parent).ok()?.join(path.file_name()?))
+}
+
 impl RenderJob {
     /// Checks `spec` before any cloud is read: the output's format and name
     /// against the shot, the motion's numbers, the frame range, the folder
@@ -206,9 +218,14 @@ impl RenderJob {
                 FrameRange { first, last }
             }
         };
+        let single = match &pattern {
+            Some(_) => spec.output.clone(),
+            None => FramePattern::single_image(&spec.output)?,
+        };
         let job = RenderJob {
             spec,
             pattern,
+            single,
             range,
         };
         job.check_folders()?;
@@ -238,14 +255,22 @@ impl RenderJob {
     pub fn output_of(&self, number: u32) -> PathBuf {
         match &self.pattern {
             Some(p) => p.path(number),
-            None => self.spec.output.clone(),
+            None => self.single.clone(),
         }
     }
 
     /// Every frame's folder (a pattern may number folders: out_%02d/f.png)
     /// and the timings file's, so a long run does not end without a place
     /// for its result.
+    /// The timings file may not be a frame's image (it would replace it).
     fn check_folders(&self) -> Result<()> {
+        let timings = match &self.spec.timings_json {
+            Some(p) => {
+                check_parent_dir(p, "--timings-json")?;
+                Some((p, resolved_file(p)))
+            }
+            None => None,
+        };
         let mut last_dir = None;
         for number in self.range.first..=self.range.last {
             let output = self.output_of(number);
@@ -253,11 +278,17 @@ impl RenderJob {
                 check_parent_dir(&output, "-o")?;
                 last_dir = output.parent().map(Path::to_path_buf);
             }
+            if let Some((path, resolved)) = &timings {
+                if resolved.is_some() && *resolved == resolved_file(&output) {
+                    return Err(invalid(format!(
+                        "--timings-json {} is the image of frame {number} (-o {}): name another file",
+                        path.display(),
+                        output.display()
+                    )));
+                }
+            }
         }
-        match &self.spec.timings_json {
-            Some(p) => check_parent_dir(p, "--timings-json"),
-            None => Ok(()),
-        }
+        Ok(())
     }
 
     /// The camera fields of frame `number`: the camera file's, then the

@@ -319,12 +319,13 @@ struct RenderArgs {
         long,
         value_name = "DEG",
         requires = "frames",
+        conflicts_with = "path",
         allow_negative_numbers = true
     )]
     orbit: Option<f64>,
     /// Focus pull: focus distance at frame 1 (linear to --focus-to at frame N).
     #[arg(long, value_name = "S", requires_all = ["frames", "focus_to"],
-          conflicts_with_all = ["focus_distance", "focus_pixel"], allow_negative_numbers = true)]
+          conflicts_with_all = ["focus_distance", "focus_pixel", "path"], allow_negative_numbers = true)]
     focus_from: Option<f32>,
     /// Focus distance at frame N.
     #[arg(
@@ -336,7 +337,7 @@ struct RenderArgs {
     focus_to: Option<f32>,
     /// Aperture pull: aperture radius at frame 1 (linear to --aperture-to).
     #[arg(long, value_name = "R", requires_all = ["frames", "aperture_to"],
-          conflicts_with_all = ["aperture_radius", "f_number"], allow_negative_numbers = true)]
+          conflicts_with_all = ["aperture_radius", "f_number", "path"], allow_negative_numbers = true)]
     aperture_from: Option<f32>,
     /// Aperture radius at frame N.
     #[arg(

@@ -346,6 +346,29 @@ impl FramePattern {
     /// The pattern in `path`, or None when it holds no `%d`. Errors: more
     /// than one frame number, or a `%` that is neither `%d`, `%0Nd` nor `%%`.
     pub fn parse(path: &Path) -> Result<Option<FramePattern>> {
+        Ok(FramePattern::parse_with_literal(path)?.0)
+    }
+
+    /// The file a name without a frame number writes: `%%` is a `%` there
+    /// too (one rule for images and sequences), so `50%%.png` writes
+    /// `50%.png`. A name without `%` is returned as it is (bytes that are
+    /// not UTF-8 included).
+    pub fn single_image(path: &Path) -> Result<PathBuf> {
+        if !path.to_string_lossy().contains('%') {
+            return Ok(path.to_path_buf());
+        }
+        match FramePattern::parse_with_literal(path)? {
+            (None, literal) => Ok(PathBuf::from(literal)),
+            (Some(_), _) => Err(invalid(format!(
+                "{}: a frame number pattern names a sequence",
+                path.display()
+            ))),
+        }
+    }
+
+    /// The pattern, if any, and the text after it (the whole name, with
+    /// `%%` as `%`, when there is none).
+    fn parse_with_literal(path: &Path) -> Result<(Option<FramePattern>, String)> {
         let text = path.to_string_lossy();
         let bad = |why: &str| {
             invalid(format!(
@@ -392,10 +415,16 @@ impl FramePattern {
                 after: String::new(),
             });
         }
-        Ok(pattern.map(|p| FramePattern {
-            after: literal,
-            ..p
-        }))
+        Ok(match pattern {
+            Some(p) => (
+                Some(FramePattern {
+                    after: literal,
+                    ..p
+                }),
+                String::new(),
+            ),
+            None => (None, literal),
+        })
     }
 
     /// The path of frame `frame`.

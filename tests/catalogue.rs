@@ -244,6 +244,20 @@ fn catalogue() -> Vec<Case> {
             "missing",
         ),
         case(
+            "render {dir}/count-1e12.laz -o {out} R",
+            "declares 1000000000000 points",
+        ),
+        case(
+            "render {dir}/count-1e15.laz -o {out} R",
+            "which this 4368-byte file cannot hold",
+        ),
+        no_output("info {dir}/count-1e15.laz", "a wrong point count"),
+        // The timings would replace the image.
+        case(
+            "render {bunny} -o {out} R --timings-json {out}",
+            "is the image of frame",
+        ),
+        case(
             "render {bunny} -o {out} R --origin 1,2,nan",
             "--origin",
         ),
@@ -289,6 +303,20 @@ fn catalogue() -> Vec<Case> {
         case(
             "render {bunny} -o {dir}/s_%04d.png R --path {dir}/not-json.json",
             "not-json.json",
+        ),
+        // A path sets each frame's camera: the motions of --frames beside
+        // it were once ignored without a word.
+        case(
+            "render {bunny} -o {dir}/s_%04d.png R --path {dir}/decreasing.json --orbit 90",
+            "--orbit",
+        ),
+        case(
+            "render {bunny} -o {dir}/s_%04d.png R --path {dir}/decreasing.json --focus-from 1 --focus-to 2",
+            "--focus-from",
+        ),
+        case(
+            "render {bunny} -o {dir}/s_%04d.png R --path {dir}/decreasing.json --aperture-from 0 --aperture-to 1",
+            "--aperture-from",
         ),
         case(
             "render {bunny} -o {dir}/s_%04d.png R --frames 4000000000",
@@ -544,6 +572,16 @@ fn write_inputs(dir: &Path) {
     let mut table = laz.clone();
     table[data..data + 8].copy_from_slice(&(laz.len() as i64 + 1_000_000).to_le_bytes());
     w("chunk-table-outside.laz", &table);
+    // LAS 1.4's 64-bit point count (at 247) beyond any file: the `las`
+    // crate's seek past the records failed as "Invalid argument".
+    for (name, count) in [
+        ("count-1e12.laz", 1_000_000_000_000u64),
+        ("count-1e15.laz", 1_000_000_000_000_000),
+    ] {
+        let mut huge = laz.clone();
+        huge[247..255].copy_from_slice(&count.to_le_bytes());
+        w(name, &huge);
+    }
     // A PNG smaller than the bunny's.
     pointlens::image_io::write_image(
         &pointlens::image_io::LinearImage::new(4, 3, [0.5; 4]),

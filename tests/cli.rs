@@ -381,3 +381,26 @@ fn rdb_memory_budget_tiles_the_frame_without_changing_a_bit() {
     let tiled = render("tiled.exr", &["--rdb-memory-mb", "1"]);
     assert!(whole == tiled, "the tiled EXR differs from the untiled one");
 }
+
+/// `%%` is a `%` in every output name, a single image's too (it used to
+/// write `50%%.png` literally).
+#[test]
+fn a_percent_sign_is_written_the_same_for_images_and_sequences() {
+    let dir = scratch("cli-percent");
+    let bunny = bunny();
+    for (name, frames) in [("50%%.png", None), ("s%%_%02d.png", Some("2"))] {
+        let out = dir.join(name).display().to_string();
+        let mut args = vec![
+            "render", &bunny, "-o", &out, "--width", "16", "--height", "12", "--method", "pinhole",
+        ];
+        if let Some(n) = frames {
+            args.extend(["--frames", n]);
+        }
+        let o = pointlens(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    assert_eq!(
+        common::file_names(&dir),
+        ["50%.png", "s%_01.png", "s%_02.png"]
+    );
+}

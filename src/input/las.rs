@@ -160,8 +160,26 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
     {
         data_end = w;
     }
+    // The count as declared (LAS 1.4's 64-bit field, else the legacy
+    // one): the `las` crate seeks past that many records, which fails with
+    // the OS's "Invalid argument" far beyond any file.
+    let declared = raw
+        .large_file
+        .map_or(u64::from(raw.number_of_point_records), |l| {
+            l.number_of_point_records
+        });
+    let declared_bytes = declared.saturating_mul(record_len);
     file.rewind().map_err(io)?;
-    let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| las_error(path, e))?;
+    let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| {
+        if declared_bytes > file_len {
+            fail(format!(
+                "the header declares {declared} points ({declared_bytes} bytes of records), \
+                 which this {file_len}-byte file cannot hold: a wrong point count"
+            ))
+        } else {
+            las_error(path, e)
+        }
+    })?;
     let points = header.number_of_points();
     if header.point_format().is_compressed {
         check_chunk_table(

@@ -252,6 +252,19 @@ fn catalogue() -> Vec<Case> {
             "which this 4368-byte file cannot hold",
         ),
         no_output("info {dir}/count-1e15.laz", "a wrong point count"),
+        // Cameras beyond ±1e18 name what is out of range (they used to
+        // say "up is parallel to the view direction").
+        case("render {bunny} -o {out} R --eye 1e20,0,0", "eye: [100000000000000000000, 0, 0] is beyond"),
+        case("render {bunny} -o {out} R --target 0,-1e20,0", "target: [0, -100000000000000000000, 0] is beyond"),
+        case("render {bunny} -o {out} R --fovy-deg 1e-30", "a 1e-30° field of view puts the automatic eye that far"),
+        case(
+            "render {bunny} -o {out} R --focal-length-mm 1e30 --sensor-height-mm 24",
+            "field of view puts the automatic eye that far",
+        ),
+        case(
+            "render {bunny} -o {dir}/s_%04d.png R --path {dir}/keyframe-1e308.json",
+            "eye: [inf, 0, 0] is beyond",
+        ),
         // The timings would replace the image.
         case(
             "render {bunny} -o {out} R --timings-json {out}",
@@ -549,6 +562,10 @@ fn write_inputs(dir: &Path) {
     w(
         "decreasing.json",
         br#"{"keyframes": [{"frame": 3}, {"frame": 2}]}"#,
+    );
+    w(
+        "keyframe-1e308.json",
+        br#"{"keyframes": [{"frame": 1, "eye": [0, 0, 1]}, {"frame": 2, "eye": [1e308, 0, 0]}]}"#,
     );
     std::fs::create_dir_all(dir.join("d_1")).unwrap();
     w(

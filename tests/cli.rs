@@ -404,3 +404,21 @@ fn a_percent_sign_is_written_the_same_for_images_and_sequences() {
         ["50%.png", "s%_01.png", "s%_02.png"]
     );
 }
+
+/// An `up` whose length overflows single precision is still a direction:
+/// the image is the unit vector's, byte for byte.
+#[test]
+fn an_up_of_1e30_is_a_direction() {
+    let dir = scratch("cli-up");
+    let bunny = bunny();
+    let mut images = Vec::new();
+    for up in ["0,1,0", "0,1e30,0", "0,1e-30,0"] {
+        let out = dir.join(format!("up-{up}.png")).display().to_string();
+        let o = pointlens(&[
+            "render", &bunny, "-o", &out, "--width", "24", "--height", "16", "--up", up,
+        ]);
+        assert!(o.status.success(), "--up {up}: {}", stderr(&o));
+        images.push(std::fs::read(&out).unwrap());
+    }
+    assert!(images[1] == images[0] && images[2] == images[0]);
+}

@@ -7,12 +7,26 @@ use glam::{DVec3, Vec3};
 use super::file::{camera_error, resolve_fovy, validate, Coordinates};
 use super::{Camera, CameraSpec, DEFAULT_HEIGHT, DEFAULT_WIDTH};
 use crate::error::Result;
+use crate::input::MAX_COORDINATE;
 
 /// Margin that auto-framing leaves on each side of the image, as a fraction
 /// of the image width (left and right) or height (top and bottom).
 pub const FRAMING_MARGIN: f32 = 0.05;
 
 /// Whether `up` can orient a camera looking along `forward` (not parallel).
+/// `v` scaled into single precision's range where its length over- or
+/// underflows (an `up` of 1e30 is a direction like any other); otherwise
+/// `v` itself, bit for bit.
+fn in_range_direction(v: Vec3) -> Vec3 {
+    let length = v.length();
+    let largest = v.abs().max_element();
+    if (length.is_finite() && length > 1e-18) || !(largest.is_finite() && largest > 0.0) {
+        v
+    } else {
+        (v / largest).normalize()
+    }
+}
+
 fn up_is_usable(forward: Vec3, up: Vec3) -> bool {
     forward.normalize().cross(up.normalize()).length() > 1e-6
 }
@@ -124,7 +138,7 @@ pub fn resolve(
     let width = spec.width.unwrap_or(DEFAULT_WIDTH);
     let height = spec.height.unwrap_or(DEFAULT_HEIGHT);
     let fovy_deg = resolve_fovy(spec, width, height)?;
-    let up = spec.up.map_or(Vec3::Y, Vec3::from_array);
+    let up = in_range_direction(spec.up.map_or(Vec3::Y, Vec3::from_array));
 
     let diagonal = (cloud_max - cloud_min).length();
     let diagonal = if diagonal.is_finite() { diagonal } else { 0.0 };
@@ -165,6 +179,30 @@ pub fn resolve(
             auto_frame_eye(target, up, width, height, fovy_deg, pts, near)
         }
     };
+    // Beyond ±1e18 the squares of distances overflow f32 and every test
+    // after this one would fail for a reason it does not name (an eye at
+    // 1e20 used to be "up is parallel to the view direction").
+    for (name, at, automatic) in [
+        ("target", target, spec.target.is_none()),
+        ("eye", eye, spec.eye.is_none()),
+    ] {
+        if !at.is_finite() || at.abs().max_element() > MAX_COORDINATE {
+            let why = match (name, automatic) {
+                ("eye", true) => format!(
+                    ": a {fovy_deg:e}° field of view puts the automatic eye that far; widen it \
+                     (fovy_deg, or a shorter focal_length_mm for the sensor)"
+                ),
+                _ => String::new(),
+            };
+            return Err(camera_error(
+                name,
+                format!(
+                    "{at} is beyond ±{MAX_COORDINATE:e} scene units (the lens maths would \
+                     overflow single precision){why}"
+                ),
+            ));
+        }
+    }
     if eye == target {
         return Err(camera_error(
             "eye",

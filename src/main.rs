@@ -817,6 +817,19 @@ fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
         bail!("--points must be at least 1");
     }
     check_parent_dir(output, "-o")?;
+    let need = pointlens::synth::least_file_bytes(output, points);
+    if let Some(free) = pointlens::synth::free_bytes(output) {
+        if need > free {
+            bail!(
+                "{}: {points} points need at least {:.1} GB, the disk has {:.1} GB free",
+                output.display(),
+                need as f64 / 1e9,
+                free as f64 / 1e9
+            );
+        }
+    }
+    // A signal removes the file in writing, as `render`'s do.
+    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
     let bar = progress(points, "{bar:30} {pos}/{len} points, {elapsed}", quiet);
     let t = Instant::now();
     let written = if pointlens::input::las::has_las_extension(output) {

@@ -265,6 +265,13 @@ fn catalogue() -> Vec<Case> {
             "render {bunny} -o {dir}/s_%04d.png R --path {dir}/keyframe-1e308.json",
             "eye: [inf, 0, 0] is beyond",
         ),
+        // synth checks the disk before writing (it used to write a 25.8 GB
+        // temporary for this count before anything stopped it).
+        case(
+            "synth --points 18446744073709551615 -o {dir}/big.ply",
+            "the disk has",
+        ),
+        case("synth --points 10000000000000 -o {dir}/big.laz", "need at least 80000.0 GB"),
         // The timings would replace the image.
         case(
             "render {bunny} -o {out} R --timings-json {out}",

@@ -140,6 +140,28 @@ fn a_signal_while_the_file_is_written_leaves_neither_it_nor_its_temporary() {
     }
 }
 
+/// `synth` removes the file it is writing on a signal, as `render` does
+/// (it used to leave a hidden temporary of hundreds of megabytes).
+#[test]
+fn a_signal_during_synth_leaves_no_file() {
+    for signal in [SIGTERM, SIGINT] {
+        let dir = scratch(&format!("signals-synth-{signal}"));
+        let out = dir.join("big.ply").display().to_string();
+        // 750 MB: seconds of writing.
+        let mut child = pointlens()
+            .args(["synth", "--points", "50000000", "-o", &out, "-q"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        wait_for_temporary(&dir, &mut child);
+        send(&child, signal);
+        let status = wait(&mut child, Duration::from_secs(60));
+        assert_eq!(status.signal(), Some(signal), "{status}");
+        assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
+    }
+}
+
 #[test]
 fn a_sequence_finishes_the_frame_being_written_on_one_signal_and_drops_it_on_two() {
     let frames = |dir: &Path| {

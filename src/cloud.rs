@@ -31,6 +31,11 @@ pub struct PointCloud {
     /// clouds are re-centred (see `las`); PLY clouds keep the file's
     /// coordinates (zero) unless `--origin` is given.
     pub origin: DVec3,
+    /// Whether the file says its z axis points up: LAS/LAZ always (by
+    /// their specification), a PLY whose header has a `comment up z` line
+    /// ([`crate::input::ply::says_z_up`]). The default camera then looks
+    /// at the cloud obliquely with z up (`camera::resolve_for`).
+    pub z_up: bool,
     /// Per-point classification codes (ASPRS classes), when the file had them.
     pub classifications: Option<Vec<u8>>,
     /// What `info` prints about the file beyond the cloud itself, in order:

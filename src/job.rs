@@ -319,7 +319,7 @@ impl RenderJob {
         let (lo, hi) = cloud.bounds();
         let resolve = |spec: &CameraSpec| -> Result<Camera> {
             let in_scene = spec.in_scene(origin)?;
-            camera::resolve(&in_scene, lo, hi, &cloud.positions)
+            camera::resolve_for(&in_scene, lo, hi, &cloud.positions, cloud.z_up)
         };
         let first_spec = self.spec_of(file.as_ref(), self.range.first)?;
         let coordinates = first_spec.coordinates.unwrap_or_default();

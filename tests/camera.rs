@@ -1337,3 +1337,55 @@ fn rdb_lens_cells_are_half_open() {
         );
     }
 }
+
+// ------------------------------------------------------- z-up default view
+
+/// A z-up cloud's default camera (LAS, or a PLY saying so): z up, the eye
+/// on the −y side 30° above the target's horizon, every point in view; a
+/// given up keeps the view along −z.
+#[test]
+fn a_z_up_cloud_is_seen_obliquely_with_z_up() {
+    // A flat field 100 × 60 units, 2 deep: LiDAR's shape.
+    let points: Vec<Vec3> = (0..=10)
+        .flat_map(|i| {
+            (0..=6).map(move |j| {
+                Vec3::new(
+                    10.0 * i as f32 - 50.0,
+                    10.0 * j as f32 - 30.0,
+                    (i + j) as f32 % 3.0 - 1.0,
+                )
+            })
+        })
+        .collect();
+    let (lo, hi) = (Vec3::new(-50.0, -30.0, -1.0), Vec3::new(50.0, 30.0, 1.0));
+    let spec = CameraSpec::default();
+    let cam = camera::resolve_for(&spec, lo, hi, &points, true).unwrap();
+    assert_eq!(cam.up, Vec3::Z);
+    let view = (cam.target - cam.eye).normalize();
+    let down = (-view.z).asin().to_degrees();
+    assert!((down - camera::Z_UP_VIEW_DOWN_DEG).abs() < 1e-3, "{down}°");
+    assert!(view.x.abs() < 1e-6 && view.y > 0.0, "{view}");
+    for p in &points {
+        let (px, _) = cam.project(*p).unwrap();
+        assert!(
+            px.x > 0.0 && px.x < cam.width as f32 && px.y > 0.0 && px.y < cam.height as f32,
+            "{p} at {px}"
+        );
+    }
+    // Not z-up, or an up given: the view straight down −z of before.
+    let plain = camera::resolve(&spec, lo, hi, &points).unwrap();
+    assert_eq!(
+        camera::resolve_for(&spec, lo, hi, &points, false).unwrap(),
+        plain
+    );
+    assert_eq!(plain.up, Vec3::Y);
+    assert!(((plain.target - plain.eye).normalize() + Vec3::Z).length() < 1e-6);
+    let given = CameraSpec {
+        up: Some([0.0, 1.0, 0.0]),
+        ..CameraSpec::default()
+    };
+    assert_eq!(
+        camera::resolve_for(&given, lo, hi, &points, true).unwrap(),
+        camera::resolve(&given, lo, hi, &points).unwrap()
+    );
+}

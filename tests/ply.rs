@@ -712,3 +712,38 @@ fn local_spacing_equals_brute_force() {
         );
     }
 }
+
+/// A PLY header may say its cloud is z-up (`comment up z`, documented in
+/// README): LiDAR exported to PLY then opens in the same oblique view.
+#[test]
+fn a_comment_says_the_cloud_is_z_up() {
+    use pointlens::input::ply::says_z_up;
+    for yes in ["up z", "up: z", "Up = +Z", " up   z "] {
+        assert!(says_z_up(yes), "{yes}");
+    }
+    for no in ["up y", "z up", "upz axis", "", "made by something"] {
+        assert!(!says_z_up(no), "{no}");
+    }
+    let dir = scratch("ply-z-up");
+    let header = |comment: &str| {
+        format!(
+            "ply\nformat ascii 1.0\n{comment}element vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 1 1\n"
+        )
+    };
+    for (name, comment, z_up) in [
+        ("plain.ply", "", false),
+        ("comment.ply", "comment up z\n", true),
+        ("obj-info.ply", "obj_info up: z\n", true),
+        ("other.ply", "comment up y\n", false),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, header(comment)).unwrap();
+        assert_eq!(load_ply(&path).unwrap().z_up, z_up, "{name}");
+    }
+    // Binary files too.
+    let path = dir.join("binary.ply");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\ncomment up z\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    bytes.extend([1.0f32, 2.0, 3.0].iter().flat_map(|v| v.to_le_bytes()));
+    std::fs::write(&path, bytes).unwrap();
+    assert!(load_ply(&path).unwrap().z_up);
+}

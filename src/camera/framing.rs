@@ -62,8 +62,10 @@ fn framing_points(points: &[Vec3], lo: Vec3, hi: Vec3) -> impl Iterator<Item = V
 /// depth z = d + q·forward, the condition f_px·|x| / z ≤ (1/2 − margin)·W
 /// (and likewise for y and H) gives
 /// d ≥ f_px·|x| / ((1/2 − margin)·W) − q·forward.
+#[allow(clippy::too_many_arguments)]
 fn auto_frame_eye(
     target: Vec3,
+    back: Vec3,
     up: Vec3,
     width: u32,
     height: u32,
@@ -74,7 +76,7 @@ fn auto_frame_eye(
     let probe = Camera {
         width,
         height,
-        eye: target + Vec3::Z,
+        eye: target + back,
         target,
         up,
         fovy_deg,
@@ -94,7 +96,25 @@ fn auto_frame_eye(
             .max(near);
         d = d.max(need - ahead);
     }
-    target + Vec3::new(0.0, 0.0, d)
+    target + d * back
+}
+
+/// How far below the horizon the default camera of a z-up cloud looks, in
+/// degrees: an oblique view, from the −y side (south, for LiDAR), of the
+/// whole cloud.
+pub const Z_UP_VIEW_DOWN_DEG: f32 = 30.0;
+
+/// The default view of a cloud: the direction from the target to an
+/// automatic eye, and the default up. Along +z with y up, unless the
+/// data is z-up: then from the −y side, [`Z_UP_VIEW_DOWN_DEG`] above the
+/// horizon, with z up.
+fn default_view(z_up: bool) -> (Vec3, Vec3) {
+    if z_up {
+        let down = Z_UP_VIEW_DOWN_DEG.to_radians();
+        (Vec3::new(0.0, -down.cos(), down.sin()), Vec3::Z)
+    } else {
+        (Vec3::Z, Vec3::Y)
+    }
 }
 
 /// Resolves a camera spec into a [`Camera`], field by field: the spec's
@@ -104,7 +124,8 @@ fn auto_frame_eye(
 /// * field of view: `fovy_deg`, else 2·atan(h / 2f) from `focal_length_mm` and
 ///   `sensor_height_mm` (one without the other is an error naming the missing
 ///   one), else 40°.
-/// * up: +y. target: the centre of the bounding box `cloud_min`..`cloud_max`.
+/// * up: +y (+z for a z-up cloud, [`resolve_for`]). target: the centre of
+///   the bounding box `cloud_min`..`cloud_max`.
 /// * eye: auto-framed — looking along −z at the target from the nearest
 ///   distance at which every point of `points` (the bounding-box corners if
 ///   it is empty) projects inside the image with a 5 % margin on each side
@@ -128,6 +149,22 @@ pub fn resolve(
     cloud_max: Vec3,
     points: &[Vec3],
 ) -> Result<Camera> {
+    resolve_for(spec, cloud_min, cloud_max, points, false)
+}
+
+/// [`resolve`] for a cloud that says whether its z axis points up
+/// (`PointCloud::z_up`: LAS/LAZ, or a PLY saying so). For a z-up cloud the
+/// defaults change: up is +z, and the automatic eye looks at the target
+/// from the −y side, [`Z_UP_VIEW_DOWN_DEG`] below the horizon (an oblique
+/// view of the whole cloud instead of a view straight down). A given `up`
+/// keeps the view of [`resolve`] (along −z).
+pub fn resolve_for(
+    spec: &CameraSpec,
+    cloud_min: Vec3,
+    cloud_max: Vec3,
+    points: &[Vec3],
+    z_up: bool,
+) -> Result<Camera> {
     validate(spec)?;
     if spec.coordinates == Some(Coordinates::File) || spec.origin.is_some() {
         return Err(camera_error(
@@ -138,7 +175,8 @@ pub fn resolve(
     let width = spec.width.unwrap_or(DEFAULT_WIDTH);
     let height = spec.height.unwrap_or(DEFAULT_HEIGHT);
     let fovy_deg = resolve_fovy(spec, width, height)?;
-    let up = in_range_direction(spec.up.map_or(Vec3::Y, Vec3::from_array));
+    let (back, default_up) = default_view(z_up && spec.up.is_none());
+    let up = in_range_direction(spec.up.map_or(default_up, Vec3::from_array));
 
     let diagonal = (cloud_max - cloud_min).length();
     let diagonal = if diagonal.is_finite() { diagonal } else { 0.0 };
@@ -159,7 +197,7 @@ pub fn resolve(
     let eye = match spec.eye {
         Some(e) => DVec3::from_array(e).as_vec3(),
         None => {
-            if !up_is_usable(-Vec3::Z, up) {
+            if !up_is_usable(-back, up) {
                 return Err(camera_error(
                     "up",
                     format!(
@@ -176,7 +214,7 @@ pub fn resolve(
             }
             let near = if diagonal > 0.0 { 1e-3 * diagonal } else { 1.0 };
             let pts = framing_points(points, cloud_min, cloud_max);
-            auto_frame_eye(target, up, width, height, fovy_deg, pts, near)
+            auto_frame_eye(target, back, up, width, height, fovy_deg, pts, near)
         }
     };
     // Beyond ±1e18 the squares of distances overflow f32 and every test

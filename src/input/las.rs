@@ -546,6 +546,7 @@ pub fn load_las(
     to_scene(&mut cloud.positions, &axes).map_err(fail)?;
     cloud.origin = DVec3::new(axes[0].origin, axes[1].origin, axes[2].origin);
     cloud.classifications = Some(classes);
+    cloud.z_up = true;
     cloud.attributes = attributes(&format);
     cloud.file_info = file_info(
         &header,

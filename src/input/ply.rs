@@ -106,7 +106,10 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
                 chunk_bytes,
             )
             .map_err(io)?;
-            return Ok(cloud.map_or(Direct::Declined(None), Direct::Read));
+            let z_up = declares_z_up(&header);
+            return Ok(cloud.map_or(Direct::Declined(None), |c| {
+                Direct::Read(PointCloud { z_up, ..c })
+            }));
         }
         // ASCII is read whole: its lines are found in memory.
         drop(input);
@@ -137,9 +140,33 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
         .map_err(io)?
     };
     Ok(match cloud {
-        Some(cloud) => Direct::Read(cloud),
+        Some(cloud) => Direct::Read(PointCloud {
+            z_up: declares_z_up(&header),
+            ..cloud
+        }),
         None => Direct::Declined(Some(bytes)),
     })
+}
+
+/// Whether the header says the cloud is z-up: a `comment` or `obj_info`
+/// line reading `up z` (also `up: z`, `up = +z`, any case), as pointlens
+/// documents for PLY files (LAS is z-up by specification).
+pub fn declares_z_up(header: &ply_rs_bw::ply::Header) -> bool {
+    header
+        .comments
+        .iter()
+        .chain(&header.obj_infos)
+        .any(|line| says_z_up(line))
+}
+
+/// `up z`, `up: z`, `up = +z` (any case, any spaces).
+pub fn says_z_up(line: &str) -> bool {
+    let squeezed: String = line
+        .chars()
+        .filter(|c| !c.is_whitespace() && *c != ':' && *c != '=' && *c != '+')
+        .flat_map(char::to_lowercase)
+        .collect();
+    squeezed == "upz"
 }
 
 /// [`load_ply`] through the general reader alone (ply-rs, a map per
@@ -241,6 +268,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         normals: layout.normals.then(|| Vec::with_capacity(rows.len())),
         has_colors: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
+        z_up: declares_z_up(&header),
         ..PointCloud::default()
     };
     for (i, row) in rows.iter().enumerate() {

@@ -807,8 +807,13 @@ fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointClou
 
 fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
     let cloud = load(input, origin, quiet)?;
-    let spacing = pointlens::tree::median_spacing(&cloud.positions, pointlens::available_threads());
+    let (spacing, limited) =
+        pointlens::tree::spacing_summary(&cloud.positions, pointlens::available_threads());
     out!("{}", cloud.info_text(input, spacing))?;
+    out!(
+        "isolated_points: {limited} (splats limited to {} times their neighbours' median spacing)\n",
+        pointlens::tree::ISOLATED_LIMIT
+    )?;
     Ok(())
 }
 

@@ -385,3 +385,25 @@ fn tree_median_spacing_is_near_the_exact_one() {
         );
     }
 }
+
+/// `limit_isolated`: a stray among a surface's points is bounded by twice
+/// the blocks' median; a region whose hundreds of points are all sparse
+/// keeps its spacing.
+#[test]
+fn isolated_spacings_are_limited_by_the_blocks_around() {
+    use pointlens::tree::{limit_isolated, ISOLATED_BLOCK, ISOLATED_LIMIT};
+    let mut spacing = vec![1.0f32; 4 * ISOLATED_BLOCK];
+    spacing[300] = 40.0; // a stray in the second block
+    for s in &mut spacing[2 * ISOLATED_BLOCK..] {
+        *s = 10.0; // two sparse blocks
+    }
+    spacing[3 * ISOLATED_BLOCK + 7] = 15.0; // within 2 × the sparse median
+    let before = spacing.clone();
+    assert_eq!(limit_isolated(&mut spacing, 2), 1);
+    assert_eq!(spacing[300], ISOLATED_LIMIT * 1.0);
+    for (i, (a, b)) in before.iter().zip(&spacing).enumerate() {
+        if i != 300 {
+            assert_eq!(a, b, "spacing {i}");
+        }
+    }
+}

@@ -37,7 +37,8 @@ use glam::{Vec2, Vec3};
 
 pub use morton::morton_order;
 pub use spacing::{
-    exact_spacing, median, median_spacing, tree_spacing, SPACING_BIAS, SPACING_NEIGHBOURS,
+    exact_spacing, limit_isolated, median, median_spacing, spacing_summary, tree_spacing,
+    tree_spacing_limited, ISOLATED_BLOCK, ISOLATED_LIMIT, SPACING_BIAS, SPACING_NEIGHBOURS,
     SPACING_WINDOW,
 };
 pub use traverse::{max_coc_px, min_coc_px, Traversal, Widening};
@@ -128,6 +129,8 @@ pub struct SplatTree {
     leaf_cone_rad: f32,
     /// Where each step of the build went.
     pub build: BuildTimes,
+    /// Leaves whose spacing [`limit_isolated`] bounded (isolated points).
+    pub isolated_limited: u64,
 }
 
 /// Wall times of the build's steps, milliseconds.
@@ -182,12 +185,14 @@ impl SplatTree {
         let sorted_ms = ms_since(started);
 
         let spacing_started = Instant::now();
+        let mut isolated_limited = 0;
         match size {
             LeafSize::World(w) => leaves.iter_mut().for_each(|v| v.position_size[3] = w),
             LeafSize::Zero | LeafSize::PerPoint(_) => {}
             LeafSize::SpacingTimes(k) => {
                 let in_order: Vec<Vec3> = leaves.iter().map(Splat::centre).collect();
-                let spacing = tree_spacing(&in_order, threads);
+                let (spacing, limited) = tree_spacing_limited(&in_order, threads);
+                isolated_limited = limited;
                 drop(in_order);
                 let fallback = median(spacing.clone());
                 for (v, s) in leaves.iter_mut().zip(spacing) {
@@ -257,6 +262,7 @@ impl SplatTree {
                 levels_ms,
                 total_ms: ms_since(started),
             },
+            isolated_limited,
         }
     }
 

@@ -40,6 +40,74 @@ pub fn tree_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
     spacing
 }
 
+/// [`tree_spacing`] with isolated points limited ([`limit_isolated`]), and
+/// how many were.
+pub fn tree_spacing_limited(p: &[Vec3], threads: usize) -> (Vec<f32>, u64) {
+    let mut spacing = tree_spacing(p, threads);
+    let limited = limit_isolated(&mut spacing, threads);
+    (spacing, limited)
+}
+
+/// A point's spacing may exceed its neighbourhood's by at most this factor
+/// ([`limit_isolated`]).
+pub const ISOLATED_LIMIT: f32 = 2.0;
+
+/// Points per block of the neighbourhood in [`limit_isolated`].
+pub const ISOLATED_BLOCK: usize = 256;
+
+/// Bounds each spacing of `spacing` (points in Morton order) by the
+/// density of the hierarchy around it: [`ISOLATED_LIMIT`] × the median of
+/// the median spacings of its block of [`ISOLATED_BLOCK`] consecutive
+/// points in Morton order and the two blocks beside it. A point far from
+/// the others (a bird, a wire, a stray return) takes its own spacing, and
+/// with it its splat, from its far neighbours: tens of times the surfaces'
+/// around it, a square tens of pixels wide; so do a few dozen such returns
+/// together (a sparse layer of noise above trees), which are each other's
+/// nearest neighbours. The blocks around them are mostly the surfaces'
+/// points, whose spacing is the local density; a region where hundreds of
+/// consecutive points are sparse (the far field of a terrestrial scan) is
+/// its own neighbourhood and keeps its sizes. Returns how many spacings
+/// were limited.
+pub fn limit_isolated(spacing: &mut [f32], threads: usize) -> u64 {
+    let n = spacing.len();
+    if n < 3 {
+        return 0;
+    }
+    let block_median: Vec<f32> = spacing
+        .chunks(ISOLATED_BLOCK)
+        .map(|block| {
+            let mut v: Vec<f32> = block.iter().copied().filter(|s| *s > 0.0).collect();
+            if v.is_empty() {
+                return 0.0;
+            }
+            let mid = v.len() / 2;
+            *v.select_nth_unstable_by(mid, f32::total_cmp).1
+        })
+        .collect();
+    let blocks = block_median.len();
+    let bound_of = |b: usize| {
+        let mut around = [
+            block_median[b.saturating_sub(1)],
+            block_median[b],
+            block_median[(b + 1).min(blocks - 1)],
+        ];
+        around.sort_by(f32::total_cmp);
+        ISOLATED_LIMIT * around[1]
+    };
+    let counts = par_chunks(spacing, ISOLATED_BLOCK, threads, |b, out| {
+        let bound = bound_of(b);
+        let mut limited = 0u64;
+        if bound > 0.0 {
+            for s in out.iter_mut().filter(|s| **s > bound) {
+                *s = bound;
+                limited += 1;
+            }
+        }
+        limited
+    });
+    counts.into_iter().sum()
+}
+
 /// How much the window's estimate exceeds the exact k-nearest-neighbour
 /// spacing (it picks the nearest among fewer candidates), divided out: the
 /// ratio of the mean spacings, measured on the bundled clouds with two
@@ -51,9 +119,17 @@ pub const SPACING_BIAS: f32 = 1.096;
 /// than two points): what `info` prints, in the time of a tree build
 /// rather than the exact k-NN search's.
 pub fn median_spacing(positions: &[Vec3], threads: usize) -> f32 {
+    spacing_summary(positions, threads).0
+}
+
+/// [`median_spacing`] and how many points [`limit_isolated`] limits: what
+/// `info` prints.
+pub fn spacing_summary(positions: &[Vec3], threads: usize) -> (f32, u64) {
     let order = morton_order(positions, threads);
     let in_order: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
-    median(tree_spacing(&in_order, threads))
+    let spacing = tree_spacing(&in_order, threads);
+    let limited = limit_isolated(&mut spacing.clone(), threads);
+    (median(spacing), limited)
 }
 
 /// Where the second Morton order's cube starts, in units of the first's

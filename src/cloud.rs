@@ -36,6 +36,14 @@ pub struct PointCloud {
     /// ([`crate::input::ply::says_z_up`]). The default camera then looks
     /// at the cloud obliquely with z up (`camera::resolve_for`).
     pub z_up: bool,
+    /// Whether the colors are the file's RGB (LAS: a color format whose
+    /// values are not all zero; PLY: `has_colors`).
+    pub has_rgb: bool,
+    /// Per-point LAS intensities, for `--color intensity`.
+    pub intensities: Option<Vec<u16>>,
+    /// Per-point LAS return number and count of returns
+    /// ([`crate::color::pack_return`]), for `--color return`.
+    pub returns: Option<Vec<u8>>,
     /// Per-point classification codes (ASPRS classes), when the file had them.
     pub classifications: Option<Vec<u8>>,
     /// What `info` prints about the file beyond the cloud itself, in order:

@@ -17,6 +17,7 @@ pub mod bench;
 pub mod camera;
 pub mod chart;
 pub mod cloud;
+pub mod color;
 pub mod error;
 pub mod gbuffer;
 pub mod image_io;

@@ -347,6 +347,12 @@ struct RenderArgs {
         allow_negative_numbers = true
     )]
     aperture_to: Option<f32>,
+    /// What a point's color shows: rgb (the default where the file has
+    /// colors), intensity (LiDAR, grey; the default without colors),
+    /// elevation (viridis over the up axis), classification (ASPRS
+    /// classes) or return (single, first, intermediate, last).
+    #[arg(long, value_enum, value_name = "MODE")]
+    color: Option<pointlens::color::ColorMode>,
     /// A camera path: JSON keyframes of camera-file fields with a frame
     /// number each (docs/SEQUENCES.md); renders its first to last frame.
     #[arg(long, value_name = "PATH.json", conflicts_with = "frames")]
@@ -886,7 +892,11 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     job::watch_signals(job.is_sequence(), stop.clone())?;
 
     let t_load = Instant::now();
-    let cloud = load(&args.input, args.origin, quiet)?;
+    let mut cloud = load(&args.input, args.origin, quiet)?;
+    if let Some(mode) = args.color {
+        pointlens::color::apply(&mut cloud, mode)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
+    }
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
     let plan = job.plan(&cloud)?;
     if plan.frames.is_empty() {

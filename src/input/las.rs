@@ -429,12 +429,11 @@ pub fn load_las(
     reserve(&mut cloud.colors, n, path)?;
     let mut classes = Vec::new();
     reserve(&mut classes, n, path)?;
-    // With RGB the intensity is kept as well, until the RGB is known not
-    // to be all zero.
+    // Intensities and returns are kept for `--color` (crate::color).
     let mut intensities = Vec::new();
-    if format.has_color {
-        reserve(&mut intensities, n, path)?;
-    }
+    reserve(&mut intensities, n, path)?;
+    let mut returns = Vec::new();
+    reserve(&mut returns, n, path)?;
 
     // The positions hold each point's integer codes (through bytemuck, in
     // place) until the whole file is read: then the codes' exact range
@@ -470,6 +469,15 @@ pub fn load_las(
         fill_axis(codes, 1, data.y_raw(), &mut code_lo[1], &mut code_hi[1]);
         fill_axis(codes, 2, data.z_raw(), &mut code_lo[2], &mut code_hi[2]);
         classes.extend(data.classification());
+        returns.extend(
+            data.return_number()
+                .zip(data.number_of_returns())
+                .map(|(r, n)| crate::color::pack_return(r, n)),
+        );
+        for i in data.intensity() {
+            (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
+            intensities.push(i);
+        }
         match data.rgb() {
             Some(rgb) => {
                 for (r, g, b) in rgb {
@@ -478,17 +486,10 @@ pub fn load_las(
                         .colors
                         .push(Vec3::new(f32::from(r), f32::from(g), f32::from(b)));
                 }
-                for i in data.intensity() {
-                    (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
-                    intensities.push(i);
-                }
             }
-            None => {
-                for i in data.intensity() {
-                    (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
-                    cloud.colors.push(Vec3::splat(f32::from(i)));
-                }
-            }
+            None => cloud
+                .colors
+                .resize(cloud.colors.len() + got as usize, Vec3::ZERO),
         }
         done += got;
         progress(done, total);
@@ -519,19 +520,17 @@ pub fn load_las(
             "intensity as grey"
         };
         let lut = table(&grey(int_lo, int_hi));
-        if format.has_color {
-            for (c, &i) in cloud.colors.iter_mut().zip(&intensities) {
-                *c = Vec3::splat(lut[usize::from(i)]);
-            }
-        } else {
-            map_colors(&mut cloud.colors, &|c| Vec3::splat(lut[c.x as usize]));
+        for (c, &i) in cloud.colors.iter_mut().zip(&intensities) {
+            *c = Vec3::splat(lut[usize::from(i)]);
         }
         cloud.has_colors = true;
     } else {
         color_source = "none (no rgb, constant intensity)";
         cloud.colors.fill(DEFAULT_COLOR);
     }
-    drop(intensities);
+    cloud.has_rgb = format.has_color && rgb_max > 0;
+    cloud.intensities = Some(intensities);
+    cloud.returns = Some(returns);
 
     let tr = [t.x, t.y, t.z];
     let mut axes = [Axis::new(1.0, 0.0, 0.0, 0.0); 3];

@@ -267,6 +267,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         colors: Vec::with_capacity(rows.len()),
         normals: layout.normals.then(|| Vec::with_capacity(rows.len())),
         has_colors: layout.colors.is_some(),
+        has_rgb: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
         z_up: declares_z_up(&header),
         ..PointCloud::default()
@@ -1017,6 +1018,7 @@ fn read_binary(
         colors,
         normals: layout.normals.then_some(normals),
         has_colors: layout.colors.is_some(),
+        has_rgb: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
         ..PointCloud::default()
     }))
@@ -1112,6 +1114,7 @@ fn read_ascii(
         colors,
         normals: layout.normals.then_some(normals),
         has_colors: layout.colors.is_some(),
+        has_rgb: layout.colors.is_some(),
         attributes: vertex.properties.keys().cloned().collect(),
         ..PointCloud::default()
     })

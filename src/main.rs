@@ -24,8 +24,8 @@ use pointlens::job::{self, JobEvent, JobSpec, Outcome, Passes, Plan, RenderJob, 
 use pointlens::metrics;
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
-    check_samples_per_pass, check_ssaa, AccumOptions, FastOptions, FastWeights, GatherWindow,
-    LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
+    check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastOptions, FastWeights,
+    GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
 };
 use pointlens::render::{Renderer, Scene, SplatSize};
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
@@ -347,6 +347,12 @@ struct RenderArgs {
         allow_negative_numbers = true
     )]
     aperture_to: Option<f32>,
+    /// Eye-dome lighting: shading from depth alone (as Potree and
+    /// CloudCompare), applied before the blur; STRENGTH 1 is Potree's
+    /// default, RADIUS_PX the neighbours' distance (default 1.4). Not with
+    /// --method accum.
+    #[arg(long, value_name = "STRENGTH[,RADIUS_PX]", value_parser = EdlOptions::parse)]
+    edl: Option<EdlOptions>,
     /// What a point's color shows: rgb (the default where the file has
     /// colors), intensity (LiDAR, grey; the default without colors),
     /// elevation (viridis over the up axis), classification (ASPRS
@@ -913,6 +919,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     log::info!("device: {}", ctx.info.describe());
     let mut renderer = Renderer::new(&ctx)?;
     renderer.set_raster(args.raster);
+    renderer.set_edl(args.edl);
     let scene = renderer.upload(&cloud, splat)?;
     drop(cloud); // The hierarchy holds the points from here on.
 

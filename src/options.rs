@@ -117,6 +117,52 @@ impl Default for AccumOptions {
     }
 }
 
+/// Eye-dome lighting (`--edl STRENGTH[,RADIUS_PX]`, `passes::edl`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EdlOptions {
+    /// 0 changes nothing; 1 is Potree's default.
+    pub strength: f32,
+    /// How far the neighbours are, output pixels.
+    pub radius_px: f32,
+}
+
+/// The default neighbour distance of eye-dome lighting (Potree's).
+pub const DEFAULT_EDL_RADIUS_PX: f32 = 1.4;
+
+impl EdlOptions {
+    /// Parses `STRENGTH[,RADIUS_PX]`: strength finite in [0, 100], radius
+    /// in [1, 32] pixels (default [`DEFAULT_EDL_RADIUS_PX`]).
+    pub fn parse(s: &str) -> std::result::Result<EdlOptions, String> {
+        let bad = || format!("--edl takes STRENGTH[,RADIUS_PX] (e.g. 1 or 1,2), not '{s}'");
+        let mut parts = s.split(',');
+        let strength: f32 = parts
+            .next()
+            .and_then(|v| v.trim().parse().ok())
+            .ok_or_else(bad)?;
+        let radius_px: f32 = match parts.next() {
+            Some(v) => v.trim().parse().map_err(|_| bad())?,
+            None => DEFAULT_EDL_RADIUS_PX,
+        };
+        if parts.next().is_some() {
+            return Err(bad());
+        }
+        if !(0.0..=100.0).contains(&strength) {
+            return Err(format!(
+                "--edl strength must be in [0, 100], not {strength}"
+            ));
+        }
+        if !(1.0..=32.0).contains(&radius_px) {
+            return Err(format!(
+                "--edl radius must be in [1, 32] pixels, not {radius_px}"
+            ));
+        }
+        Ok(EdlOptions {
+            strength,
+            radius_px,
+        })
+    }
+}
+
 /// Options of the layered method (DESIGN §6).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct LayeredOptions {

@@ -14,7 +14,10 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
-use crate::options::{check_lod, check_samples_per_pass, check_ssaa, Lod, Method, Raster};
+use crate::options::{
+    check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster,
+};
+use crate::passes::edl::Edl;
 use crate::passes::output::{OutputConvert, OutputFormat};
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods};
@@ -367,6 +370,9 @@ pub struct Renderer {
     peel_cull: bool,
     /// How the G-buffer's first layer is rasterised.
     raster: Raster,
+    /// Eye-dome lighting of the G-buffer (`--edl`), if asked for.
+    edl: Option<EdlOptions>,
+    edl_pass: Edl,
 }
 
 impl Renderer {
@@ -379,8 +385,17 @@ impl Renderer {
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
             peel_cull: true,
             raster: Raster::default(),
+            edl: None,
+            edl_pass: Edl::new(ctx)?,
         };
         Ok(renderer)
+    }
+
+    /// Eye-dome lighting of the G-buffer's first layer before the
+    /// depth-of-field method (`--edl`; None: off). `accum` refuses it: it
+    /// averages a G-buffer per lens position and has no one image to shade.
+    pub fn set_edl(&mut self, edl: Option<EdlOptions>) {
+        self.edl = edl;
     }
 
     /// How the G-buffer's first layer is rasterised (`--raster`; default
@@ -631,6 +646,13 @@ impl Renderer {
             ));
         }
         check_lod(&options.lod)?;
+        if self.edl.is_some() && matches!(options.method, Method::Accum(_)) {
+            return Err(Error::InvalidArgument(
+                "--edl shades the one G-buffer a depth-of-field method blurs; accum averages \
+                 a G-buffer per lens position and has none to shade (use --method layered)"
+                    .into(),
+            ));
+        }
         // What the frame before last left and the last one did not take is
         // freed; the rest is this frame's to take (`vk::pool`).
         self.ctx.next_frame();
@@ -682,6 +704,9 @@ impl Renderer {
             method.gbuffer_label(),
         );
         let input = gbuffer.output();
+        if let Some(edl) = self.edl {
+            self.edl_pass.record(&mut frame, &input, edl);
+        }
         let result = dof.record(&mut frame, &input);
         self.output.record(
             &mut frame,

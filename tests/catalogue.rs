@@ -272,6 +272,12 @@ fn catalogue() -> Vec<Case> {
             "the disk has",
         ),
         case("synth --points 10000000000000 -o {dir}/big.laz", "need at least 80000.0 GB"),
+        // Eye-dome lighting.
+        case("render {bunny} -o {out} R --edl 1 --method accum", "accum averages"),
+        case("render {bunny} -o {out} R --edl -1", "--edl strength"),
+        case("render {bunny} -o {out} R --edl 1,2,3", "STRENGTH[,RADIUS_PX]"),
+        case("render {bunny} -o {out} R --edl 1,64", "--edl radius"),
+        case("render {bunny} -o {out} R --color bogus", "--color"),
         // The timings would replace the image.
         case(
             "render {bunny} -o {out} R --timings-json {out}",

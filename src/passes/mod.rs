@@ -19,6 +19,7 @@ use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 pub mod accum;
+pub mod edl;
 pub mod fast;
 pub mod gbuffer_resolve;
 pub mod layered;

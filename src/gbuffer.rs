@@ -15,7 +15,7 @@ use glam::{Vec2, Vec3};
 
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
-use crate::options::Raster;
+use crate::options::{Raster, SplatShape};
 use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass, Samples};
 use crate::passes::peel_cull::{PeelCull, PeelCullBuffers};
 use crate::passes::sample_plan::{PlannedPass, SamplePlan};
@@ -157,22 +157,23 @@ pub struct GBufferPasses {
 const PLANNED_COUNTS: [u32; 4] = [1, 2, 4, 8];
 
 impl GBufferPasses {
-    pub fn new(ctx: &Arc<Context>) -> Result<GBufferPasses> {
+    /// The passes drawing splats of `shape`.
+    pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<GBufferPasses> {
         let supported = ctx.info.gbuffer_sample_counts.as_raw();
         let rasters = PLANNED_COUNTS
             .into_iter()
             .filter(|s| supported & s != 0)
-            .map(|s| SplatRaster::new(ctx, s, false).map(|r| (s, r)))
+            .map(|s| SplatRaster::new(ctx, s, false, shape).map(|r| (s, r)))
             .collect::<Result<Vec<_>>>()?;
         let peels = rasters
             .iter()
-            .map(|(s, _)| SplatRaster::new(ctx, *s, true).map(|r| (*s, r)))
+            .map(|(s, _)| SplatRaster::new(ctx, *s, true, shape).map(|r| (*s, r)))
             .collect::<Result<Vec<_>>>()?;
         Ok(GBufferPasses {
             resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
             peel_cull: PeelCull::new(ctx)?,
             compute: match ctx.info.buffer_int64_atomics {
-                true => Some(ComputeRaster::new(ctx)?),
+                true => Some(ComputeRaster::new(ctx, shape)?),
                 false => None,
             },
             max_storage_buffer_bytes: ctx.info.max_storage_buffer_range,

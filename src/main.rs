@@ -26,6 +26,7 @@ use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
     check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastOptions, FastWeights,
     GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
+    SplatShape,
 };
 use pointlens::render::{Renderer, Scene, SplatSize};
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
@@ -347,6 +348,11 @@ struct RenderArgs {
         allow_negative_numbers = true
     )]
     aperture_to: Option<f32>,
+    /// The shape of a splat: square (the default) or disc (the circle of
+    /// the same diameter, anti-aliased through the G-buffer's samples
+    /// alike).
+    #[arg(long, value_enum, default_value_t, value_name = "SHAPE")]
+    splat_shape: SplatShape,
     /// Eye-dome lighting: shading from depth alone (as Potree and
     /// CloudCompare), applied before the blur; STRENGTH 1 is Potree's
     /// default, RADIUS_PX the neighbours' distance (default 1.4). Not with
@@ -920,6 +926,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     let mut renderer = Renderer::new(&ctx)?;
     renderer.set_raster(args.raster);
     renderer.set_edl(args.edl);
+    renderer.set_splat_shape(args.splat_shape)?;
     let scene = renderer.upload(&cloud, splat)?;
     drop(cloud); // The hierarchy holds the points from here on.
 

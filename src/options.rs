@@ -45,6 +45,17 @@ pub enum Raster {
     Compute,
 }
 
+/// The shape of a splat in the image (`--splat-shape`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum SplatShape {
+    /// A screen-aligned square (DESIGN §3).
+    #[default]
+    Square,
+    /// The disc inscribed in that square: a screen-aligned circle of the
+    /// same diameter, anti-aliased through the G-buffer's samples alike.
+    Disc,
+}
+
 /// Which rays an RDB bin receives (`--rdb-mode`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum RdbMode {

@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{
-    check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster,
+    check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
 };
 use crate::passes::edl::Edl;
 use crate::passes::output::{OutputConvert, OutputFormat};
@@ -379,7 +379,7 @@ impl Renderer {
     pub fn new(ctx: &Arc<Context>) -> Result<Renderer> {
         let renderer = Renderer {
             ctx: ctx.clone(),
-            gbuffer: GBufferPasses::new(ctx)?,
+            gbuffer: GBufferPasses::new(ctx, SplatShape::Square)?,
             methods: Methods::new(ctx)?,
             output: OutputConvert::new(ctx)?,
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
@@ -389,6 +389,19 @@ impl Renderer {
             edl_pass: Edl::new(ctx)?,
         };
         Ok(renderer)
+    }
+
+    /// The shape splats are drawn with (`--splat-shape`; default square):
+    /// remakes the G-buffer's raster pipelines for it.
+    pub fn set_splat_shape(&mut self, shape: SplatShape) -> Result<()> {
+        if shape == SplatShape::Disc && !self.ctx.info.sample_rate_shading {
+            return Err(Error::VulkanSetup(
+                "disc splats need per-sample shading (sampleRateShading), which this device lacks"
+                    .into(),
+            ));
+        }
+        self.gbuffer = GBufferPasses::new(&self.ctx, shape)?;
+        Ok(())
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the

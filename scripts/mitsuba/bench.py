@@ -129,6 +129,7 @@ def parse_args(argv):
     p.add_argument("--width", type=int, default=640)
     p.add_argument("--height", type=int, default=480)
     p.add_argument("--raster", default=None, choices=["sprites", "compute"])
+    p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     try:
         args = p.parse_args(argv)
     except SystemExit as e:
@@ -206,7 +207,8 @@ class Bench:
         tj = out_exr.with_suffix(".timings.json")
         started = time.perf_counter()
         self.pointlens("render", str(self.repo / SCENES[scene]["file"]), "-o", str(out_exr),
-                       "--camera", str(camera), *flags, *self.device_flags(), "--timings-json", str(tj),
+                       "--camera", str(camera), "--splat-shape", self.args.splat_shape, *flags,
+                       *self.device_flags(), "--timings-json", str(tj),
                        what=f"pointlens render ({scene}, {name})")
         process_s = time.perf_counter() - started
         t = json.loads(tj.read_text())
@@ -303,7 +305,7 @@ class Bench:
         # at the default level of detail).
         self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--lod-px", "0"], pl_pin,
                               d / "camera_pinhole.json")
-        mscene, minfo = ss.build_scene(self.mi, pin, positions, diameters, colors)
+        mscene, minfo = ss.build_scene(self.mi, pin, positions, diameters, colors, shape=a.splat_shape)
         img, _ = self.mitsuba_render(mscene, a.pinhole_spp, 7)
         mi_pin = d / "mitsuba_pinhole_check.exr"
         ss.write_exr(self.mi, mi_pin, img)
@@ -317,7 +319,8 @@ class Bench:
                            ("psnr_without_tie_order", {"ties": False})):
             changed = minfo["enlarged_to_min_px"] if "min_px" in extra else minfo["tie_points_moved"]
             if changed >= 0.001 * len(positions):
-                raw, _ = ss.build_scene(self.mi, pin, positions, diameters, colors, **extra)
+                raw, _ = ss.build_scene(self.mi, pin, positions, diameters, colors, shape=a.splat_shape,
+                                        **extra)
                 img, _ = self.mitsuba_render(raw, a.pinhole_spp, 7)
                 ss.write_exr(self.mi, d / "mitsuba_pinhole_variant.exr", img)
                 check[key] = self.compare(pl_pin, d / "mitsuba_pinhole_variant.exr")["psnr"]
@@ -332,7 +335,7 @@ class Bench:
         del mscene
 
         self.cold_jit()
-        mscene, minfo = ss.build_scene(self.mi, cam, positions, diameters, colors)
+        mscene, minfo = ss.build_scene(self.mi, cam, positions, diameters, colors, shape=a.splat_shape)
         info["mitsuba_build_ms"] = minfo["build_s"] * 1e3
         info["squares"] = minfo
         return d, info, mscene, (positions, diameters, colors)
@@ -346,7 +349,7 @@ class Bench:
         mi = self.mi
         out = {}
         for md in (0, 1, 2):
-            scene, _ = ss.build_scene(mi, cam, *splats, max_depth=md)
+            scene, _ = ss.build_scene(mi, cam, *splats, max_depth=md, shape=self.args.splat_shape)
             img, _ = ss.render(mi, self.dr, scene, 8, 3)
             out[f"scene_max_depth_{md}"] = float(img.mean())
 
@@ -583,7 +586,8 @@ def environment(a, mi, dr, results):
         "repeat_limit_s": a.repeat_limit_s,
         "ref_spp": a.ref_spp,
         "pinhole_spp": a.pinhole_spp,
-        "raster": a.raster or "sprites (pointlens's default)",
+        "raster": a.raster or "pointlens's default",
+        "splat_shape": a.splat_shape,
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
         "load_average_1min": results.get("load_average_1min"),
     }

@@ -105,9 +105,17 @@ def tie_levels(cam, positions, sides):
     return level, time.perf_counter() - started
 
 
-def square_mesh(cam, positions, diameters, min_px=1.0, ties=True):
+# Sides of the polygon that stands for a disc splat (`--splat-shape disc`).
+DISC_SIDES = 32
+
+
+def square_mesh(cam, positions, diameters, min_px=1.0, ties=True, shape="square"):
     """Vertices (4N×3), faces (2N×3, uint32) of the camera-facing squares,
-    and facts about them.
+    and facts about them. With shape "disc", each splat is instead the disc
+    inscribed in its square (pointlens `--splat-shape disc`): a regular
+    polygon of DISC_SIDES sides, its radius scaled so that its area is the
+    disc's (a triangle fan, DISC_SIDES faces a splat; the tie order is the
+    squares', which hold the discs).
 
     pointlens draws a splat as a point sprite of f_px·d/z pixels clamped to
     at least `min_px` (glsl/splat_raster.vert: clamp(size, 1, max)); to draw
@@ -146,6 +154,21 @@ def square_mesh(cam, positions, diameters, min_px=1.0, ties=True):
             p = eye + (p - eye) * scale[:, None]
             d = d * scale
     h = (d / 2.0)[:, None]
+    if shape == "disc":
+        n = DISC_SIDES
+        # A regular n-gon of circumradius ρ has area (n/2)·sin(2π/n)·ρ².
+        rho = h * np.sqrt(np.pi / (0.5 * n * np.sin(2.0 * np.pi / n)))
+        angles = 2.0 * np.pi * np.arange(n) / n
+        # Counter-clockwise seen from the camera (right, then up'), as below.
+        rim = (np.cos(angles)[None, :, None] * right[None, None, :]
+               + np.sin(angles)[None, :, None] * up[None, None, :])
+        ring = p[:, None, :] + rho[:, :, None] * rim
+        vertices = np.concatenate([p[:, None, :], ring], axis=1).reshape(-1, 3).astype(np.float32)
+        base = (np.arange(len(p), dtype=np.uint32) * (n + 1))[:, None, None]
+        k = np.arange(n, dtype=np.uint32)
+        fan = np.stack([np.zeros(n, np.uint32), 1 + k, 1 + (k + 1) % n], axis=1)[None, :, :]
+        faces = (base + fan).reshape(-1, 3)
+        return vertices, faces, facts
     # Counter-clockwise seen from the camera: the face normal
     # (v1 − v0) × (v2 − v0) ∝ right × up' = −forward points at the camera,
     # the side an area emitter emits from.
@@ -190,11 +213,11 @@ def sensor_dict(mi, cam, sample_count=1):
     return sensor
 
 
-def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, ties=True):
+def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, ties=True, shape="square"):
     """The Mitsuba scene and facts about its build (square_mesh's, and
     build_s: the seconds of all of it but the tie ordering)."""
     started = time.perf_counter()
-    vertices, faces, facts = square_mesh(cam, positions, diameters, min_px, ties)
+    vertices, faces, facts = square_mesh(cam, positions, diameters, min_px, ties, shape)
     props = mi.Properties()
     props["emitter"] = mi.load_dict(
         {"type": "area", "radiance": {"type": "mesh_attribute", "name": "face_color"}}
@@ -205,8 +228,9 @@ def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, 
     params = mi.traverse(mesh)
     params["vertex_positions"] = vertices.ravel()
     params["faces"] = faces.ravel()
-    # Both triangles of a square carry its color.
-    mesh.add_attribute("face_color", 3, np.repeat(colors.astype(np.float32), 2, axis=0).ravel())
+    # Every triangle of a splat carries its color.
+    per_splat = len(faces) // max(len(colors), 1)
+    mesh.add_attribute("face_color", 3, np.repeat(colors.astype(np.float32), per_splat, axis=0).ravel())
     params.update()
     scene = mi.load_dict(
         {

@@ -17,9 +17,11 @@ use gpu_allocator::MemoryLocation;
 
 use super::splat_raster::{SplatComputePush, SplatPush, SplatVertex};
 use crate::error::Result;
+use crate::options::SplatShape;
 use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame};
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute.comp.spv"));
+static DISC_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute_disc.comp.spv"));
 
 /// Invocations per workgroup (the shader's `local_size_x`).
 const GROUP: u32 = 64;
@@ -81,11 +83,15 @@ impl Visibility {
 impl ComputeRaster {
     /// The pipeline, on a device with 64-bit buffer atomics (the caller
     /// checks: `GBufferPasses` makes it only there).
-    pub fn new(ctx: &Arc<Context>) -> Result<ComputeRaster> {
+    pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<ComputeRaster> {
         assert!(ctx.info.buffer_int64_atomics, "64-bit buffer atomics");
         let b = Binding::StorageBuffer;
+        let spirv = match shape {
+            SplatShape::Square => SPIRV,
+            SplatShape::Disc => DISC_SPIRV,
+        };
         Ok(ComputeRaster {
-            pipeline: ComputePipeline::new(ctx, "splat_compute", SPIRV, &[b, b, b])?,
+            pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b])?,
         })
     }
 

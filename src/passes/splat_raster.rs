@@ -8,6 +8,7 @@ use std::sync::Arc;
 use ash::vk;
 
 use crate::error::Result;
+use crate::options::SplatShape;
 use crate::push_constants;
 use crate::vk::{
     Access, Bind, Binding, Buffer, Context, DrawCount, Frame, Image, PointPipeline,
@@ -157,6 +158,9 @@ pub struct SplatRaster {
 static VERT: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.vert.spv"));
 static FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster.frag.spv"));
 static PEEL_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel.frag.spv"));
+static DISC_FRAG: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_raster_disc.frag.spv"));
+static DISC_PEEL_FRAG: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/splat_peel_disc.frag.spv"));
 
 /// How thick a surface is for the depth peel, in splat diameters: a layer
 /// keeps only splats beyond the previous layer's sample by more than this
@@ -175,10 +179,17 @@ pub struct TargetsBefore {
 impl SplatRaster {
     /// The pipeline for targets of `samples` samples per pixel; the depth
     /// peel's when `peel` (shaded once per pixel, whatever the samples).
-    pub fn new(ctx: &Arc<Context>, samples: u32, peel: bool) -> Result<SplatRaster> {
-        let (name, fragment_spirv, fragment_bindings): (_, _, &[Binding]) = match peel {
-            false => ("splat_raster", FRAG, &[]),
-            true => ("splat_peel", PEEL_FRAG, &[Binding::StorageImage]),
+    pub fn new(
+        ctx: &Arc<Context>,
+        samples: u32,
+        peel: bool,
+        shape: SplatShape,
+    ) -> Result<SplatRaster> {
+        let (name, fragment_spirv, fragment_bindings): (_, _, &[Binding]) = match (peel, shape) {
+            (false, SplatShape::Square) => ("splat_raster", FRAG, &[]),
+            (false, SplatShape::Disc) => ("splat_raster", DISC_FRAG, &[]),
+            (true, SplatShape::Square) => ("splat_peel", PEEL_FRAG, &[Binding::StorageImage]),
+            (true, SplatShape::Disc) => ("splat_peel", DISC_PEEL_FRAG, &[Binding::StorageImage]),
         };
         let pipeline = PointPipeline::new(
             ctx,

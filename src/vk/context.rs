@@ -97,6 +97,9 @@ pub struct DeviceInfo {
     /// 64-bit integer atomics on storage buffers (`shaderInt64` and
     /// `shaderBufferInt64Atomics`), enabled when present.
     pub buffer_int64_atomics: bool,
+    /// Whether fragment shaders may run once per sample
+    /// (`sampleRateShading`): the disc splats' sprites need it.
+    pub sample_rate_shading: bool,
     /// The largest storage-buffer binding, bytes.
     pub max_storage_buffer_range: u64,
 }
@@ -282,7 +285,8 @@ impl Context {
         let features = vk::PhysicalDeviceFeatures::default()
             .large_points(true)
             .shader_storage_image_multisample(multisampled_storage)
-            .shader_int64(info.buffer_int64_atomics);
+            .shader_int64(info.buffer_int64_atomics)
+            .sample_rate_shading(info.sample_rate_shading);
         let mut features12 = vk::PhysicalDeviceVulkan12Features::default()
             .shader_buffer_int64_atomics(info.buffer_int64_atomics);
         let mut features13 = vk::PhysicalDeviceVulkan13Features::default()
@@ -855,6 +859,7 @@ fn pick_device(
         let core = features2.features;
         let buffer_int64_atomics =
             core.shader_int64 == vk::TRUE && features12.shader_buffer_int64_atomics == vk::TRUE;
+        let sample_rate_shading = core.sample_rate_shading == vk::TRUE;
         let info = DeviceInfo {
             index,
             name,
@@ -872,6 +877,7 @@ fn pick_device(
             max_image_array_layers: props.limits.max_image_array_layers,
             gbuffer_sample_counts,
             buffer_int64_atomics,
+            sample_rate_shading,
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
         };
         candidates.push((pd, family as u32, info));

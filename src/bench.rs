@@ -23,7 +23,7 @@ use crate::image_io::{encode_png, LinearImage};
 use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
 use crate::options::Lod;
-use crate::options::{AccumOptions, Method, Raster};
+use crate::options::{AccumOptions, Method, Raster, SplatShape};
 use crate::render::{RenderOptions, Renderer, SplatSize};
 pub use crate::report::{DeviceReport, LodReport, Upload};
 use crate::vk::{Context, FrameTimings};
@@ -247,6 +247,8 @@ pub struct BenchOptions {
     /// How the measured frames' G-buffers are rasterised (the quality
     /// reference always by sprites, the reference path).
     pub raster: Raster,
+    /// The shape of the splats (`--splat-shape`), the reference's too.
+    pub splat_shape: SplatShape,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
     /// The `--lod-px` values to measure (an axis of the matrix).
@@ -383,6 +385,10 @@ pub struct BenchReport {
     /// from reports before it existed).
     #[serde(default)]
     pub raster: String,
+    /// `--splat-shape` ("square" or "disc"; absent from reports before it
+    /// existed, which were squares).
+    #[serde(default = "square")]
+    pub splat_shape: String,
     pub quality_reference: Option<String>,
     pub cells: Vec<Cell>,
 }
@@ -415,6 +421,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
     }
     let mut renderer = Renderer::new(ctx)?;
+    renderer.set_splat_shape(options.splat_shape)?;
     let total = frame_count(options);
     let mut done = 0u64;
     let mut cells = Vec::new();
@@ -532,6 +539,11 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         ssaa: options.ssaa,
         raster: options
             .raster
+            .to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default(),
+        splat_shape: options
+            .splat_shape
             .to_possible_value()
             .map(|v| v.get_name().to_string())
             .unwrap_or_default(),
@@ -695,4 +707,9 @@ fn csv_field(s: &str) -> String {
 
 fn one() -> u32 {
     1
+}
+
+/// The splat shape of reports written before `--splat-shape` existed.
+fn square() -> String {
+    "square".into()
 }

@@ -172,6 +172,9 @@ struct BenchArgs {
     /// --samples-per-pass is given, else sprites.
     #[arg(long, value_enum, default_value_t)]
     raster: Raster,
+    /// The shape of the splats: square (the default) or disc.
+    #[arg(long, value_enum, default_value_t, value_name = "SHAPE")]
+    splat_shape: SplatShape,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
     /// (of every point: `--lod-px 0`).
     #[arg(long)]
@@ -776,6 +779,7 @@ fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
         ssaa: args.ssaa,
         samples_per_pass: args.samples_per_pass,
         raster: args.raster,
+        splat_shape: args.splat_shape,
         quality: args.quality,
         lod_px: args
             .lod_px

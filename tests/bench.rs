@@ -431,6 +431,7 @@ fn bench_fails_on_any_validation_message() {
         ssaa: 1,
         samples_per_pass: None,
         raster: pointlens::options::Raster::Sprites,
+        splat_shape: pointlens::options::SplatShape::Square,
         quality: false,
         lod_px: vec![1.0],
         data_dir: common::root().join("data"),

@@ -158,8 +158,10 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatComputePush>("splat_compute", SPIRV).unwrap();
+        check_push_layout::<SplatComputePush>("splat_compute_disc", DISC_SPIRV).unwrap();
         assert_eq!(std::mem::size_of::<SplatComputePush>(), 128);
-        let shader = include_str!("../../glsl/splat_compute.comp");
+        assert!(include_str!("../../glsl/splat_compute_disc.comp").contains("#define SPLAT_DISC"));
+        let shader = include_str!("../../glsl/splat_compute_main.glsl");
         assert!(shader.contains(&format!("const uint LARGE_PIXELS = {LARGE_PIXELS}u;")));
         assert!(shader.contains(&format!("layout(local_size_x = {GROUP}) in;")));
     }

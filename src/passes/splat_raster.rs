@@ -276,12 +276,38 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatPush>("splat_raster.vert", VERT).unwrap();
-        let peel = include_str!("../../glsl/splat_peel.frag");
+        let peel = include_str!("../../glsl/splat_peel_frag.glsl");
         let thickness = format!("const float PEEL_THICKNESS = {PEEL_THICKNESS_DIAMETERS:?};");
         assert!(
             peel.contains(&thickness),
-            "glsl/splat_peel.frag: {thickness}"
+            "glsl/splat_peel_frag.glsl: {thickness}"
         );
+        // Both shapes' shaders are the one body, the disc's with SPLAT_DISC.
+        for (file, text, disc) in [
+            (
+                "splat_raster.frag",
+                include_str!("../../glsl/splat_raster.frag"),
+                false,
+            ),
+            (
+                "splat_raster_disc.frag",
+                include_str!("../../glsl/splat_raster_disc.frag"),
+                true,
+            ),
+            (
+                "splat_peel.frag",
+                include_str!("../../glsl/splat_peel.frag"),
+                false,
+            ),
+            (
+                "splat_peel_disc.frag",
+                include_str!("../../glsl/splat_peel_disc.frag"),
+                true,
+            ),
+        ] {
+            assert!(text.contains("_frag.glsl\""), "{file} includes its body");
+            assert_eq!(text.contains("#define SPLAT_DISC"), disc, "{file}");
+        }
         assert_eq!(std::mem::size_of::<SplatPush>(), 128);
     }
 }

@@ -45,10 +45,12 @@ const uint DISK_CELLS = 208u;
 
 // The cells [lo, hi] of one axis whose centres lie in [a − h, a + h]
 // (crate::veil::cell_range).
+// precise: no fused multiply-adds, so that the GPU rounds as the CPU
+// mirror does and a cell centre on a square's edge falls alike.
 ivec2 cell_range(float a, float h) {
     float n = float(CELLS);
-    float lo = max(ceil((a - h + 1.0) * n / 2.0 - 0.5), 0.0);
-    float hi = min(floor((a + h + 1.0) * n / 2.0 - 0.5), n - 1.0);
+    precise float lo = max(ceil((a - h + 1.0) * n / 2.0 - 0.5), 0.0);
+    precise float hi = min(floor((a + h + 1.0) * n / 2.0 - 0.5), n - 1.0);
     return ivec2(lo, hi);
 }
 
@@ -64,7 +66,7 @@ vec4 veiled(ivec2 p, vec4 under) {
     vec4 over = vec4(0.0);
     uint count = 0u;
     for (uint k = 0u; k < pc.veil_count && count < DISK_CELLS; ++k) {
-        vec2 u = veil[k].lens_per_px * (q - veil[k].centre_px);
+        precise vec2 u = veil[k].lens_per_px * (q - veil[k].centre_px);
         ivec2 ci = cell_range(u.x, veil[k].half_side);
         ivec2 cj = cell_range(u.y, veil[k].half_side);
         if (ci.x > ci.y || cj.x > cj.y) {

@@ -256,6 +256,16 @@ impl Scene {
             ))
         })?;
         let veiled_splats = veil.splats;
+        let veil_bytes = std::mem::size_of_val(veil.splats_in_view.as_slice()) as u64;
+        if veil_bytes > info.max_storage_buffer_range {
+            return Err(Error::InvalidArgument(format!(
+                "{} splats at the lens ({} MiB) exceed the device's largest storage buffer \
+                 ({} MiB); raise --lod-px or --lod-blur",
+                veil.splats_in_view.len(),
+                veil_bytes >> 20,
+                info.max_storage_buffer_range >> 20
+            )));
+        }
         let veil_splats = Buffer::with_bytes(
             &self.ctx,
             "veil",

@@ -31,6 +31,10 @@ use crate::camera::Camera;
 use crate::gbuffer::{clip_range, depth_range_with};
 use crate::tree::Splat;
 
+/// The relative margin over the near plane within which `accum` veils a
+/// splat rather than drawing it ([`VeilRule::BeyondNear`]).
+pub const NEAR_MARGIN: f32 = 1e-3;
+
 /// Lens cells per axis of the veil's grid (`glsl/output_convert.comp`
 /// mirrors it): 16 × 16 cells, 208 of them in the lens disk.
 pub const VEIL_CELLS: u32 = 16;
@@ -185,17 +189,21 @@ pub fn split(
         VeilRule::Blurred => {
             z > 0.0 && z < camera.focus_distance && camera.coc_px(z) > camera.veil_coc_px()
         }
-        VeilRule::BeyondNear => z > 0.0 && z <= near,
+        // A margin over the near plane, so that no splat the host keeps
+        // falls at it by the GPU's rounding (then neither drawn nor veiled).
+        VeilRule::BeyondNear => z > 0.0 && z <= near * (1.0 + NEAR_MARGIN),
     };
-    let (mut kept, mut layers) = (Vec::with_capacity(splats.len()), Vec::new());
-    for s in splats {
+    // In place: a frame's splats may be most of the host's memory.
+    let mut kept = splats;
+    let mut layers = Vec::new();
+    kept.retain(|s| {
         let z = eye_from_world.apply(s.centre()).z;
-        if veiled(z) {
-            layers.push((z, s));
-        } else {
-            kept.push(s);
+        let out = veiled(z);
+        if out {
+            layers.push((z, *s));
         }
-    }
+        !out
+    });
     let veiled_count = layers.len() as u64;
     // Nearest first; ties keep the splats' order (a stable sort).
     layers.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -208,7 +216,8 @@ pub fn split(
         let e = eye_from_world.apply(s.centre());
         let centre = Vec2::new(w / 2.0 + f_px * e.x / z, h / 2.0 - f_px * e.y / z);
         let c = camera.coc_px(z);
-        let side = splat_px.unwrap_or(f_px * s.position_size[3] / z);
+        // At least a pixel, as both rasters draw a splat.
+        let side = splat_px.unwrap_or(f_px * s.position_size[3] / z).max(1.0);
         if !(centre.is_finite() && c.is_finite() && c > 0.0 && side > 0.0) {
             continue;
         }
@@ -384,6 +393,13 @@ mod tests {
         // The near plane of [0.001, 2] is 0.0005: accum draws all three.
         let (kept, veil) = split(&camera, splats.clone(), VeilRule::BeyondNear, None);
         assert_eq!((kept.len(), veil.splats), (3, 0));
+        // That of [1e-7, 1] is 1e-6 (far · 1e-6): the nearest is veiled,
+        // and one just above the plane too (the margin), not one above it.
+        let near = vec![at(1e-7), at(1.0005e-6), at(1.1e-6), at(1.0)];
+        let (kept, veil) = split(&camera, near.clone(), VeilRule::BeyondNear, None);
+        assert_eq!(kept, vec![near[2], near[3]]);
+        assert_eq!(veil.splats, 2);
+        assert_eq!(veil.splats_in_view.len(), 2);
         // A pinhole camera has no veil.
         let pinhole = Camera {
             aperture_radius: 0.0,

@@ -1388,4 +1388,27 @@ fn a_z_up_cloud_is_seen_obliquely_with_z_up() {
         camera::resolve_for(&given, lo, hi, &points, true).unwrap(),
         camera::resolve(&given, lo, hi, &points).unwrap()
     );
+    // A given eye straight above: +z cannot orient it, so +y does (a
+    // top-down LiDAR view without --up).
+    let above = CameraSpec {
+        eye: Some([0.0, 0.0, 100.0]),
+        target: Some([0.0, 0.0, 0.0]),
+        ..CameraSpec::default()
+    };
+    assert_eq!(
+        camera::resolve_for(&above, lo, hi, &points, true)
+            .unwrap()
+            .up,
+        Vec3::Y
+    );
+    let oblique = CameraSpec {
+        eye: Some([0.0, -100.0, 50.0]),
+        ..above
+    };
+    assert_eq!(
+        camera::resolve_for(&oblique, lo, hi, &points, true)
+            .unwrap()
+            .up,
+        Vec3::Z
+    );
 }

@@ -256,10 +256,10 @@ fn catalogue() -> Vec<Case> {
         // say "up is parallel to the view direction").
         case("render {bunny} -o {out} R --eye 1e20,0,0", "eye: [100000000000000000000, 0, 0] is beyond"),
         case("render {bunny} -o {out} R --target 0,-1e20,0", "target: [0, -100000000000000000000, 0] is beyond"),
-        case("render {bunny} -o {out} R --fovy-deg 1e-30", "a 1e-30° field of view puts the automatic eye that far"),
+        case("render {bunny} -o {out} R --fovy-deg 1e-30", "to fit the cloud's extent in a 1e-30° field of view"),
         case(
             "render {bunny} -o {out} R --focal-length-mm 1e30 --sensor-height-mm 24",
-            "field of view puts the automatic eye that far",
+            "field of view; widen it",
         ),
         case(
             "render {bunny} -o {dir}/s_%04d.png R --path {dir}/keyframe-1e308.json",

@@ -13,7 +13,6 @@ use crate::input::MAX_COORDINATE;
 /// of the image width (left and right) or height (top and bottom).
 pub const FRAMING_MARGIN: f32 = 0.05;
 
-/// Whether `up` can orient a camera looking along `forward` (not parallel).
 /// `v` scaled into single precision's range where its length over- or
 /// underflows (an `up` of 1e30 is a direction like any other); otherwise
 /// `v` itself, bit for bit.
@@ -27,6 +26,7 @@ fn in_range_direction(v: Vec3) -> Vec3 {
     }
 }
 
+/// Whether `up` can orient a camera looking along `forward` (not parallel).
 fn up_is_usable(forward: Vec3, up: Vec3) -> bool {
     forward.normalize().cross(up.normalize()).length() > 1e-6
 }
@@ -227,8 +227,9 @@ pub fn resolve_for(
         if !at.is_finite() || at.abs().max_element() > MAX_COORDINATE {
             let why = match (name, automatic) {
                 ("eye", true) => format!(
-                    ": a {fovy_deg:e}° field of view puts the automatic eye that far; widen it \
-                     (fovy_deg, or a shorter focal_length_mm for the sensor)"
+                    ": the automatic eye stands that far to fit the cloud's extent in a \
+                     {fovy_deg:e}° field of view; widen it (fovy_deg, or a shorter \
+                     focal_length_mm for the sensor), or give an eye"
                 ),
                 _ => String::new(),
             };
@@ -247,6 +248,13 @@ pub fn resolve_for(
             format!("must differ from the target, both are {eye}"),
         ));
     }
+    // A z-up cloud's default up, +z, cannot orient a given eye looking
+    // straight down (or up): there the default of other clouds, +y.
+    let up = if spec.up.is_none() && z_up && !up_is_usable(target - eye, up) {
+        Vec3::Y
+    } else {
+        up
+    };
     if !up_is_usable(target - eye, up) {
         return Err(camera_error(
             "up",

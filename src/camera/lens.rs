@@ -167,7 +167,7 @@ impl Camera {
     }
 
     /// The CoC (pixels) above which a point in front of the focus plane
-    /// is a veil ([`Camera::veil_of`]) for the methods that blur a
+    /// is a veil ([`crate::veil::split`]) for the methods that blur a
     /// G-buffer: the widest blur the largest guard band holds on both
     /// sides of a pixel, 2 · [`Camera::max_guard_px`].
     pub fn veil_coc_px(&self) -> f32 {

@@ -171,7 +171,9 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
     let declared_bytes = declared.saturating_mul(record_len);
     file.rewind().map_err(io)?;
     let header = las::Header::new(BufReader::new(&mut *file)).map_err(|e| {
-        if declared_bytes > file_len {
+        let seek_beyond = matches!(&e, las::Error::Io(io)
+            if io.kind() == std::io::ErrorKind::InvalidInput);
+        if seek_beyond && declared_bytes > file_len {
             fail(format!(
                 "the header declares {declared} points ({declared_bytes} bytes of records), \
                  which this {file_len}-byte file cannot hold: a wrong point count"

@@ -261,8 +261,8 @@ impl RenderJob {
 
     /// Every frame's folder (a pattern may number folders: out_%02d/f.png)
     /// and the timings file's, so a long run does not end without a place
-    /// for its result.
-    /// The timings file may not be a frame's image (it would replace it).
+    /// for its result. The timings file may not be a frame's image (it would
+    /// replace it).
     fn check_folders(&self) -> Result<()> {
         let timings = match &self.spec.timings_json {
             Some(p) => {
@@ -279,7 +279,12 @@ impl RenderJob {
                 last_dir = output.parent().map(Path::to_path_buf);
             }
             if let Some((path, resolved)) = &timings {
-                if resolved.is_some() && *resolved == resolved_file(&output) {
+                // Folders are resolved (I/O) only for a frame of the same
+                // file name: not once per frame of a long sequence.
+                if resolved.is_some()
+                    && output.file_name() == path.file_name()
+                    && *resolved == resolved_file(&output)
+                {
                     return Err(invalid(format!(
                         "--timings-json {} is the image of frame {number} (-o {}): name another file",
                         path.display(),

@@ -380,6 +380,8 @@ pub struct Renderer {
     peel_cull: bool,
     /// How the G-buffer's first layer is rasterised.
     raster: Raster,
+    /// The shape the G-buffer's pipelines draw.
+    splat_shape: SplatShape,
     /// Eye-dome lighting of the G-buffer (`--edl`), if asked for.
     edl: Option<EdlOptions>,
     edl_pass: Edl,
@@ -387,23 +389,27 @@ pub struct Renderer {
 
 impl Renderer {
     pub fn new(ctx: &Arc<Context>) -> Result<Renderer> {
-        let renderer = Renderer {
+        let splat_shape = SplatShape::default();
+        Ok(Renderer {
             ctx: ctx.clone(),
-            gbuffer: GBufferPasses::new(ctx, SplatShape::Square)?,
+            gbuffer: GBufferPasses::new(ctx, splat_shape)?,
             methods: Methods::new(ctx)?,
             output: OutputConvert::new(ctx)?,
             sample_budget_bytes: ctx.info.device_local_heap_bytes / 4,
             peel_cull: true,
             raster: Raster::default(),
+            splat_shape,
             edl: None,
             edl_pass: Edl::new(ctx)?,
-        };
-        Ok(renderer)
+        })
     }
 
     /// The shape splats are drawn with (`--splat-shape`; default square):
-    /// remakes the G-buffer's raster pipelines for it.
+    /// remakes the G-buffer's raster pipelines for a new one.
     pub fn set_splat_shape(&mut self, shape: SplatShape) -> Result<()> {
+        if shape == self.splat_shape {
+            return Ok(());
+        }
         if shape == SplatShape::Disc && !self.ctx.info.sample_rate_shading {
             return Err(Error::VulkanSetup(
                 "disc splats need per-sample shading (sampleRateShading), which this device lacks"
@@ -411,6 +417,7 @@ impl Renderer {
             ));
         }
         self.gbuffer = GBufferPasses::new(&self.ctx, shape)?;
+        self.splat_shape = shape;
         Ok(())
     }
 

@@ -152,17 +152,19 @@ pub fn write_ply_with_chunk(
 /// [`write_ply`] and [`write_las`] write them), LAZ a stated lower bound of
 /// 8 bytes a point (measured: 11.1 for 10^6 points).
 pub fn least_file_bytes(path: &Path, count: u64) -> u64 {
-    let per_point = match path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-    {
-        Some("laz") => 8,
-        Some("las") => 26,
-        _ => RECORD_BYTES as u64,
+    let per_point = match (crate::input::las::has_las_extension(path), is_laz(path)) {
+        (true, true) => 8,
+        (true, false) => 26,
+        (false, _) => RECORD_BYTES as u64,
     };
     count.saturating_mul(per_point)
+}
+
+/// Whether `path` names a LAZ file (`.laz`, any case): [`write_las`]
+/// compresses it.
+fn is_laz(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("laz"))
 }
 
 /// The bytes free to this user on the file system that holds `path`'s
@@ -210,10 +212,7 @@ pub fn write_las(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -> Resu
     };
     let mut builder = Builder::from((1, 2));
     builder.point_format = las::point::Format::new(2).map_err(fail)?;
-    builder.point_format.is_compressed = crate::input::las::has_las_extension(path)
-        && path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
+    builder.point_format.is_compressed = is_laz(path);
     builder.generating_software = "pointlens synth".into();
     let axis = Transform {
         scale: LAS_SCALE,

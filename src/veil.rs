@@ -197,24 +197,24 @@ pub fn split(
     let mut kept = splats;
     let mut layers = Vec::new();
     kept.retain(|s| {
-        let z = eye_from_world.apply(s.centre()).z;
-        let out = veiled(z);
+        let e = eye_from_world.apply(s.centre());
+        let out = veiled(e.z);
         if out {
-            layers.push((z, *s));
+            layers.push((e, *s));
         }
         !out
     });
     let veiled_count = layers.len() as u64;
     // Nearest first; ties keep the splats' order (a stable sort).
-    layers.sort_by(|a, b| a.0.total_cmp(&b.0));
+    layers.sort_by(|a, b| a.0.z.total_cmp(&b.0.z));
     let f_px = camera.f_px();
     let (w, h) = (camera.width as f32, camera.height as f32);
     // The frame's pixel centres span [0.5, W − 0.5] × [0.5, H − 0.5].
     let (lo, hi) = (Vec2::splat(0.5), Vec2::new(w - 0.5, h - 0.5));
     let mut splats_in_view = Vec::new();
-    for (z, s) in layers {
-        let e = eye_from_world.apply(s.centre());
-        let centre = Vec2::new(w / 2.0 + f_px * e.x / z, h / 2.0 - f_px * e.y / z);
+    for (e, s) in layers {
+        let z = e.z;
+        let centre = camera.pixel_of_eye(e);
         let c = camera.coc_px(z);
         // At least a pixel, as both rasters draw a splat.
         let side = splat_px.unwrap_or(f_px * s.position_size[3] / z).max(1.0);

@@ -79,12 +79,17 @@ impl Camera {
         if e.z.is_nan() || e.z <= 0.0 {
             return None;
         }
+        Some((self.pixel_of_eye(e), e.z))
+    }
+
+    /// The pixel position of eye-space point `e` (z > 0) under
+    /// [`Camera::project`]: for callers that hold eye coordinates.
+    pub fn pixel_of_eye(&self, e: Vec3) -> Vec2 {
         let f = self.f_px();
-        let px = Vec2::new(
+        Vec2::new(
             self.width as f32 / 2.0 + f * e.x / e.z,
             self.height as f32 / 2.0 - f * e.y / e.z,
-        );
-        Some((px, e.z))
+        )
     }
 
     /// Circle-of-confusion diameter in pixels of a point at eye depth `z`:

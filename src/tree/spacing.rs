@@ -75,14 +75,7 @@ pub fn limit_isolated(spacing: &mut [f32], threads: usize) -> u64 {
     }
     let block_median: Vec<f32> = spacing
         .chunks(ISOLATED_BLOCK)
-        .map(|block| {
-            let mut v: Vec<f32> = block.iter().copied().filter(|s| *s > 0.0).collect();
-            if v.is_empty() {
-                return 0.0;
-            }
-            let mid = v.len() / 2;
-            *v.select_nth_unstable_by(mid, f32::total_cmp).1
-        })
+        .map(|block| median(block.iter().copied().filter(|s| *s > 0.0).collect()))
         .collect();
     let blocks = block_median.len();
     let bound_of = |b: usize| {
@@ -119,17 +112,22 @@ pub const SPACING_BIAS: f32 = 1.096;
 /// than two points): what `info` prints, in the time of a tree build
 /// rather than the exact k-NN search's.
 pub fn median_spacing(positions: &[Vec3], threads: usize) -> f32 {
-    spacing_summary(positions, threads).0
+    median(morton_spacing(positions, threads))
 }
 
 /// [`median_spacing`] and how many points [`limit_isolated`] limits: what
 /// `info` prints.
 pub fn spacing_summary(positions: &[Vec3], threads: usize) -> (f32, u64) {
-    let order = morton_order(positions, threads);
-    let in_order: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
-    let spacing = tree_spacing(&in_order, threads);
+    let spacing = morton_spacing(positions, threads);
     let limited = limit_isolated(&mut spacing.clone(), threads);
     (median(spacing), limited)
+}
+
+/// [`tree_spacing`] of `positions` (any order), in Morton order.
+fn morton_spacing(positions: &[Vec3], threads: usize) -> Vec<f32> {
+    let order = morton_order(positions, threads);
+    let in_order: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
+    tree_spacing(&in_order, threads)
 }
 
 /// Where the second Morton order's cube starts, in units of the first's

@@ -27,7 +27,8 @@ layout(binding = 3, std430) readonly buffer Veil { VeilSplat veil[]; };
 
 layout(push_constant, std430) uniform Push {
     ivec2 origin;  // result pixel of output pixel (0, 0): the guard band
-    ivec2 size;    // output width, height
+    ivec2 size;    // output width, height (the window's)
+    ivec2 window;  // the frame's pixel of output pixel (0, 0): a tile's origin
     uint format;   // 0: linear f32 RGBA, 1: sRGB 8-bit RGB
     uint count;    // invocations with work: pixels (format 0) or 4-pixel groups (format 1)
     uint veil_count; // disks of the veil (0: the result as it is)
@@ -54,7 +55,7 @@ ivec2 cell_range(float a, float h) {
     return ivec2(lo, hi);
 }
 
-// The veil over `under` at output pixel p (crate::veil::Veil::apply): each
+// The veil over `under` at output pixel p of the window (crate::veil::Veil::apply): each
 // lens cell in the disk takes the nearest veil point whose lens square
 // holds its centre, else `under`; the pixel is their mean.
 vec4 veiled(ivec2 p, vec4 under) {
@@ -62,7 +63,7 @@ vec4 veiled(ivec2 p, vec4 under) {
     for (int j = 0; j < CELLS; ++j) {
         marked[j] = 0u;
     }
-    vec2 q = vec2(p) + 0.5;
+    vec2 q = vec2(p + pc.window) + 0.5;
     vec4 over = vec4(0.0);
     uint count = 0u;
     for (uint k = 0u; k < pc.veil_count && count < DISK_CELLS; ++k) {

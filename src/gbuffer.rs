@@ -65,9 +65,12 @@ impl RasterView {
         let (right, up, forward) = c.basis();
         let g = self.frame.guard as f32;
         let k = scale as f32;
+        let w = &self.frame.window;
+        // The whole frame's centre, moved by the window's origin (a tile of
+        // a poster sees its part of the one projection).
         let centre = [
-            c.width as f32 / 2.0 + g,
-            c.height as f32 / 2.0 + g - first_row as f32,
+            c.width as f32 / 2.0 + g - w.x as f32,
+            c.height as f32 / 2.0 + g - (w.y + first_row) as f32,
         ];
         SplatPush {
             eye: c.eye.extend(0.0).to_array(),
@@ -345,7 +348,7 @@ impl GBuffer {
         if w > max || h > max {
             return Err(Error::InvalidArgument(format!(
                 "image {}x{} with a {} px guard band is {w}x{h}, beyond the device limit of {max} px",
-                frame.camera.width, frame.camera.height, frame.guard
+                frame.window.width, frame.window.height, frame.guard
             )));
         }
         assert!(layers >= 1, "a G-buffer has at least one layer");

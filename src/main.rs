@@ -362,6 +362,11 @@ struct RenderArgs {
     /// --method accum.
     #[arg(long, value_name = "STRENGTH[,RADIUS_PX]", value_parser = EdlOptions::parse)]
     edl: Option<EdlOptions>,
+    /// Render each frame in tiles of at most N×N pixels, each with the
+    /// whole frame's guard band (default: the whole frame at once where
+    /// its G-buffer fits the device's images, else tiles of 2048).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    tile_px: Option<u32>,
     /// What a point's color shows: rgb (the default where the file has
     /// colors), intensity (LiDAR, grey; the default without colors),
     /// elevation (viridis over the up axis), classification (ASPRS
@@ -930,6 +935,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     let mut renderer = Renderer::new(&ctx)?;
     renderer.set_raster(args.raster);
     renderer.set_edl(args.edl);
+    renderer.set_tile_px(args.tile_px);
     renderer.set_splat_shape(args.splat_shape)?;
     let scene = renderer.upload(&cloud, splat)?;
     drop(cloud); // The hierarchy holds the points from here on.

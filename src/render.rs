@@ -19,8 +19,9 @@ use crate::options::{
 };
 use crate::passes::edl::Edl;
 use crate::passes::output::{OutputConvert, OutputFormat};
+use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
-use crate::passes::{DofInput, DofMethod, FrameView, Methods};
+use crate::passes::{DofInput, DofMethod, FrameView, Methods, Window};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
 use crate::veil::{Veil, VeilRule, VeilSplat};
@@ -385,6 +386,8 @@ pub struct Renderer {
     /// Eye-dome lighting of the G-buffer (`--edl`), if asked for.
     edl: Option<EdlOptions>,
     edl_pass: Edl,
+    /// At most this many output pixels a side per G-buffer (`--tile-px`).
+    tile_px: Option<u32>,
 }
 
 impl Renderer {
@@ -401,6 +404,7 @@ impl Renderer {
             splat_shape,
             edl: None,
             edl_pass: Edl::new(ctx)?,
+            tile_px: None,
         })
     }
 
@@ -468,6 +472,16 @@ impl Renderer {
     /// (docs/ARCHITECTURE.md, "All K² samples in one pass").
     pub fn set_sample_budget(&mut self, bytes: u64) {
         self.sample_budget_bytes = bytes;
+    }
+
+    /// Renders frames in tiles of at most `tile_px` × `tile_px` output
+    /// pixels (`--tile-px`; None: the whole frame, or tiles of
+    /// [`AUTO_TILE_PX`] where it would not fit the device's images). The
+    /// tiles of a frame share its splats, depth range and guard band: the
+    /// image is the whole frame's (docs/ARCHITECTURE.md, "Posters in
+    /// tiles").
+    pub fn set_tile_px(&mut self, tile_px: Option<u32>) {
+        self.tile_px = tile_px;
     }
 
     /// The context the renderer draws with.
@@ -569,10 +583,14 @@ impl Renderer {
         let seen = splats.view;
         let max_coc_px = method.guard_coc_px(camera, seen.depths);
         let (near, far) = clip_range(seen.depths);
+        // Eye-dome lighting reads depths its radius away: the band holds
+        // them, so that a tile's border shades as the whole frame's does.
+        let edl_px = self.edl.map_or(0, |e| e.radius_px.ceil() as u32);
         let view = RasterView {
             frame: FrameView {
                 camera: *camera,
-                guard: camera.guard_band_px(max_coc_px, seen.max_splat_px),
+                window: Window::whole(camera),
+                guard: camera.guard_band_px(max_coc_px, seen.max_splat_px) + edl_px,
                 max_coc_px,
                 depths: seen.depths,
             },
@@ -590,7 +608,7 @@ impl Renderer {
 
     /// Renders one frame of `scene`.
     pub fn render(&self, scene: &Scene, options: &RenderOptions) -> Result<Rendered> {
-        let (r, _) = self.render_frame(scene, options, OutputFormat::LinearF32, false)?;
+        let (r, _) = self.render_frame(scene, options, OutputFormat::LinearF32, false, None)?;
         Ok(r.map(|pixels| pixels.linear().expect("asked for")))
     }
 
@@ -601,7 +619,7 @@ impl Renderer {
         scene: &Scene,
         options: &RenderOptions,
     ) -> Result<Rendered<Srgb8Image>> {
-        let (r, _) = self.render_frame(scene, options, OutputFormat::Srgb8, false)?;
+        let (r, _) = self.render_frame(scene, options, OutputFormat::Srgb8, false, None)?;
         Ok(r.map(|pixels| pixels.srgb8().expect("asked for")))
     }
 
@@ -632,9 +650,18 @@ impl Renderer {
             background: Vec3::ZERO,
             lod,
         };
-        let (_, gbuffer) = self.render_with_gbuffer(scene, &options)?;
+        // The G-buffer of that one pixel (and its guard band).
+        let pixel = Window {
+            x,
+            y,
+            width: 1,
+            height: 1,
+        };
+        let (_, gbuffer) =
+            self.render_frame(scene, &options, OutputFormat::LinearF32, true, Some(pixel))?;
+        let gbuffer = gbuffer.expect("asked for");
         let g = gbuffer.guard;
-        let z = gbuffer.eye[((y + g) * gbuffer.width + x + g) as usize][2];
+        let z = gbuffer.eye[(g * gbuffer.width + g) as usize][2];
         if !z.is_finite() {
             return Err(Error::InvalidArgument(format!(
                 "--focus-pixel {x},{y} sees no point (background)"
@@ -650,21 +677,25 @@ impl Renderer {
         options: &RenderOptions,
     ) -> Result<(Rendered, HostGBuffer)> {
         let (rendered, gbuffer) =
-            self.render_frame(scene, options, OutputFormat::LinearF32, true)?;
+            self.render_frame(scene, options, OutputFormat::LinearF32, true, None)?;
         let rendered = rendered.map(|pixels| pixels.linear().expect("asked for"));
         Ok((rendered, gbuffer.expect("asked for")))
     }
 
-    /// The frame: view → G-buffer → method → readback. Everything is
-    /// allocated before recording starts; the frame's wall time runs from
-    /// the view (the CPU's look at the points) to the output pixels copied to the
-    /// host.
+    /// The frame: view → G-buffer → method → readback, for the whole
+    /// frame or, where its G-buffer would not fit the device (or
+    /// `--tile-px` asks), tile by tile ([`Renderer::windows`]), with the
+    /// splats, depth range and guard band of the whole frame; `only`
+    /// renders one window of it. Everything is allocated before recording
+    /// starts; the frame's wall time runs from the view (the CPU's look at
+    /// the points) to the output pixels copied to the host.
     fn render_frame(
         &self,
         scene: &Scene,
         options: &RenderOptions,
         format: OutputFormat,
         keep_gbuffer: bool,
+        only: Option<Window>,
     ) -> Result<(Rendered<Pixels>, Option<HostGBuffer>)> {
         check_ssaa(options.ssaa)?;
         if let Some(s) = options.samples_per_pass {
@@ -692,31 +723,156 @@ impl Renderer {
             self.raster_view(scene, &options.camera, options.lod, method.as_ref())?;
         let view_ms = started.elapsed().as_secs_f64() * 1e3;
 
-        let pixels = view.frame.full_width() as u64 * view.frame.full_height() as u64;
-        let layers = method.gbuffer_layers();
+        let windows = match only {
+            Some(window) => vec![window],
+            None => self.windows(&view.frame)?,
+        };
+        // One sample plan for every tile: the largest's (the tiles of a
+        // row or column differ by at most a pixel).
+        let largest = Window {
+            x: 0,
+            y: 0,
+            width: windows.iter().map(|w| w.width).max().unwrap_or(0),
+            height: windows.iter().map(|w| w.height).max().unwrap_or(0),
+        };
         let raster = self.frame_raster(options)?;
+        let plan_view = RasterView {
+            frame: FrameView {
+                window: largest,
+                ..view.frame
+            },
+            ..view
+        };
         let plan = self.gbuffer.plan(
             raster,
             options.ssaa,
             options.samples_per_pass,
-            &view,
+            &plan_view,
             self.sample_budget_bytes,
             self.ctx.info.max_image_dimension_2d,
         )?;
+        let pixels = plan_view.frame.full_width() as u64 * plan_view.frame.full_height() as u64;
         let peel_samples = self.gbuffer.peel_samples(
             options.ssaa,
             options.samples_per_pass,
             pixels,
             self.sample_budget_bytes,
         );
+        let tile = |window: Window| {
+            let view = RasterView {
+                frame: FrameView {
+                    window,
+                    ..view.frame
+                },
+                ..view
+            };
+            let tile = TileRender {
+                splats: &splats,
+                view,
+                method: method.as_ref(),
+                plan: &plan,
+                raster,
+                peel_samples,
+            };
+            self.render_window(&tile, options, format, keep_gbuffer)
+        };
+        let mut rendered = Rendered {
+            image: Pixels::empty(format, &options.camera, windows.len()),
+            timings: FrameTimings {
+                passes: Vec::new(),
+                wall_ms: view_ms,
+            },
+            guard: view.frame.guard,
+            samples_per_pass: plan.samples_per_pixel_per_pass(),
+            counts: Vec::new(),
+            lod: lod_report,
+        };
+        if let [window] = windows[..] {
+            let mut part = tile(window)?;
+            part.timings.wall_ms += view_ms;
+            rendered.image = part.image;
+            rendered.timings = part.timings;
+            rendered.counts = part.counts;
+            return Ok((rendered, part.gbuffer));
+        }
+        let (width, height) = (options.camera.width, options.camera.height);
+        let mut assembled = keep_gbuffer.then(|| HostGBuffer {
+            width,
+            height,
+            guard: 0,
+            color: vec![[0.0; 4]; width as usize * height as usize],
+            eye: vec![[0.0; 4]; width as usize * height as usize],
+        });
+        for (i, &window) in windows.iter().enumerate() {
+            if i > 0 {
+                // The last tile's images go back to the pool for this one.
+                self.ctx.next_frame();
+            }
+            let part = tile(window)?;
+            rendered.image.paste(&part.image, window);
+            rendered.timings.merge(&part.timings);
+            for (name, n) in part.counts {
+                match rendered.counts.iter_mut().find(|(m, _)| *m == name) {
+                    Some((_, total)) => *total += n,
+                    None => rendered.counts.push((name, n)),
+                }
+            }
+            if let (Some(whole), Some(gbuffer)) = (&mut assembled, &part.gbuffer) {
+                whole.paste_interior(gbuffer, window);
+            }
+        }
+        Ok((rendered, assembled))
+    }
+
+    /// The windows a frame renders in (`view` of the whole frame): the
+    /// whole frame when its G-buffer fits the device's images and no
+    /// `--tile-px` is set; else tiles of at most `--tile-px` (default
+    /// [`AUTO_TILE_PX`]) pixels a side, made smaller where the guard band
+    /// would not leave them room within the device's images.
+    fn windows(&self, view: &FrameView) -> Result<Vec<Window>> {
+        let max = self.ctx.info.max_image_dimension_2d;
+        let camera = &view.camera;
+        let band = 2 * view.guard;
+        let tile_px = match self.tile_px {
+            None if camera.width.max(camera.height) + band <= max => {
+                return Ok(vec![Window::whole(camera)]);
+            }
+            Some(t) => t,
+            None => AUTO_TILE_PX,
+        };
+        let room = max.saturating_sub(band);
+        if room == 0 {
+            return Err(Error::InvalidArgument(format!(
+                "a {} px guard band leaves no room for a tile within the device's {max} px images",
+                view.guard
+            )));
+        }
+        Ok(Window::tiles(
+            camera.width,
+            camera.height,
+            tile_px.min(room),
+        ))
+    }
+
+    /// One window of a frame: G-buffer → method → output → readback. Its
+    /// image, timings, the method's counts and, when asked for, its
+    /// G-buffer (guard band included).
+    fn render_window(
+        &self,
+        tile: &TileRender,
+        options: &RenderOptions,
+        format: OutputFormat,
+        keep_gbuffer: bool,
+    ) -> Result<WindowResult> {
+        let (splats, view, method) = (tile.splats, &tile.view, tile.method);
         let gbuffer = GBuffer::new(
             &self.ctx,
-            &view,
-            &plan,
-            raster,
+            view,
+            tile.plan,
+            tile.raster,
             splats.count,
-            layers,
-            peel_samples,
+            method.gbuffer_layers(),
+            tile.peel_samples,
             self.peel_cull.then_some(splats.count),
             options.background,
         )?;
@@ -751,16 +907,55 @@ impl Renderer {
 
         let copying = Instant::now();
         let (image, host_gbuffer) = readback.read()?;
-        timings.wall_ms += view_ms + copying.elapsed().as_secs_f64() * 1e3;
-        let rendered = Rendered {
+        timings.wall_ms += copying.elapsed().as_secs_f64() * 1e3;
+        Ok(WindowResult {
             image,
             timings,
-            guard: view.frame.guard,
-            samples_per_pass: plan.samples_per_pixel_per_pass(),
             counts: dof.counts(),
-            lod: lod_report,
-        };
-        Ok((rendered, host_gbuffer))
+            gbuffer: host_gbuffer,
+        })
+    }
+}
+
+/// Output pixels a side of the tiles of a frame whose G-buffer would not
+/// fit the device's images, when `--tile-px` is not given: 2048² pixels
+/// and their guard band keep a tile's images within lavapipe's 2 GiB
+/// (docs/ARCHITECTURE.md, "Posters in tiles").
+pub const AUTO_TILE_PX: u32 = 2048;
+
+/// What one window of a frame gave: its output pixels, timings, the
+/// method's counts and, when asked for, its G-buffer (guard band
+/// included).
+struct WindowResult {
+    image: Pixels,
+    timings: FrameTimings,
+    counts: Vec<(String, u64)>,
+    gbuffer: Option<HostGBuffer>,
+}
+
+/// What every window of one frame shares: the frame's splats and view
+/// (the window set), its method, sample plan and raster.
+struct TileRender<'a> {
+    splats: &'a FrameSplats,
+    view: RasterView,
+    method: &'a dyn DofMethod,
+    plan: &'a SamplePlan,
+    raster: Raster,
+    peel_samples: u32,
+}
+
+impl HostGBuffer {
+    /// Copies the interior (guard band left out) of `part`, the G-buffer
+    /// of `window`, into this guard-less G-buffer of the whole frame.
+    fn paste_interior(&mut self, part: &HostGBuffer, window: Window) {
+        let g = part.guard as usize;
+        let w = window.width as usize;
+        for row in 0..window.height as usize {
+            let from = (row + g) * part.width as usize + g;
+            let to = (window.y as usize + row) * self.width as usize + window.x as usize;
+            self.color[to..to + w].copy_from_slice(&part.color[from..from + w]);
+            self.eye[to..to + w].copy_from_slice(&part.eye[from..from + w]);
+        }
     }
 }
 
@@ -798,6 +993,54 @@ impl Pixels {
     }
 }
 
+impl Pixels {
+    /// The pixels of a frame of `camera` to paste `tiles` windows into
+    /// (none allocated for a frame of one window: it is the window's).
+    fn empty(format: OutputFormat, camera: &Camera, tiles: usize) -> Pixels {
+        let (width, height) = match tiles {
+            1 => (0, 0),
+            _ => (camera.width, camera.height),
+        };
+        let pixels = width as usize * height as usize;
+        match format {
+            OutputFormat::LinearF32 => Pixels::Linear(LinearImage {
+                width,
+                height,
+                pixels: vec![[0.0; 4]; pixels],
+            }),
+            OutputFormat::Srgb8 => Pixels::Srgb8(Srgb8Image {
+                width,
+                height,
+                rgb: vec![0; 3 * pixels],
+            }),
+        }
+    }
+
+    /// Copies `part`, the pixels of `window`, into place.
+    fn paste(&mut self, part: &Pixels, window: Window) {
+        let (x, y) = (window.x as usize, window.y as usize);
+        let (w, h) = (window.width as usize, window.height as usize);
+        match (self, part) {
+            (Pixels::Linear(whole), Pixels::Linear(part)) => {
+                let stride = whole.width as usize;
+                for row in 0..h {
+                    let to = (y + row) * stride + x;
+                    whole.pixels[to..to + w].copy_from_slice(&part.pixels[row * w..(row + 1) * w]);
+                }
+            }
+            (Pixels::Srgb8(whole), Pixels::Srgb8(part)) => {
+                let stride = 3 * whole.width as usize;
+                for row in 0..h {
+                    let to = (y + row) * stride + 3 * x;
+                    whole.rgb[to..to + 3 * w]
+                        .copy_from_slice(&part.rgb[3 * row * w..3 * (row + 1) * w]);
+                }
+            }
+            _ => unreachable!("every tile of a frame is in the frame's format"),
+        }
+    }
+}
+
 impl<I> Rendered<I> {
     /// The same frame with its pixels mapped by `f`.
     pub fn map<J>(self, f: impl FnOnce(I) -> J) -> Rendered<J> {
@@ -826,7 +1069,7 @@ impl Readback {
             view.full_width() as u64 * view.full_height() as u64 * texel_bytes(format)
         };
         let copied = vk::BufferUsageFlags::TRANSFER_DST;
-        let pixels = view.camera.width as u64 * view.camera.height as u64;
+        let pixels = view.window.pixels();
         Ok(Readback {
             view: *view,
             format,
@@ -868,7 +1111,7 @@ impl Readback {
 
     /// Copies the pixels out once the frame has completed.
     fn read(&self) -> Result<(Pixels, Option<HostGBuffer>)> {
-        let (width, height) = (self.view.camera.width, self.view.camera.height);
+        let (width, height) = (self.view.window.width, self.view.window.height);
         let pixels = width as usize * height as usize;
         let bytes = host_bytes(&self.result)?;
         let image = match self.format {

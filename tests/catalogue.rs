@@ -184,10 +184,17 @@ fn catalogue() -> Vec<Case> {
             "render {bunny} -o {out} R --focus-pixel 100,100",
             "--focus-pixel",
         ),
+        // Beyond the device's images a frame renders in tiles
+        // (tests/tiles.rs); beyond these sizes it is refused.
         case(
             "render {bunny} -o {out} --width 100000 --height 8 --device llvmpipe",
-            "device limit",
+            "65536",
         ),
+        case(
+            "render {bunny} -o {out} --width 40000 --height 40000",
+            "2^30",
+        ),
+        case("render {bunny} -o {out} R --tile-px 0", "--tile-px"),
         case("render {bunny} -o {out} R --fovy-deg 200", "fovy_deg"),
         case("render {bunny} -o {out} R --eye 1,2", "--eye"),
         case("render {bunny} -o {out} R --eye 1,2,inf", "--eye"),

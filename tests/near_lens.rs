@@ -148,19 +148,8 @@ fn points_a_millimetre_in_front_of_the_lens_are_a_veil() {
             ..CameraSpec::default()
         };
         let camera = pointlens::camera::resolve(&spec, lo, hi, &bunny.positions).unwrap();
-        let forward = (camera.target - camera.eye).normalize();
-        let (right, up, _) = camera.basis();
         let mut with_specks = bunny.clone();
-        for i in -1..=1 {
-            for j in -1..=1 {
-                let p = camera.eye + 0.001 * forward + 0.0003 * (i as f32 * right + j as f32 * up);
-                with_specks.positions.push(p);
-                with_specks.colors.push(Vec3::new(1.0, 0.2, 0.2));
-                if let Some(normals) = &mut with_specks.normals {
-                    normals.push(-forward);
-                }
-            }
-        }
+        common::add_specks_at_the_lens(&mut with_specks, &camera);
         let lens = Camera {
             aperture_radius: 0.001,
             ..camera

@@ -17,6 +17,13 @@ pub const DEFAULT_WIDTH: u32 = 640;
 pub const DEFAULT_HEIGHT: u32 = 480;
 /// Default vertical field of view in degrees.
 pub const DEFAULT_FOVY_DEG: f32 = 40.0;
+/// The widest and highest image, pixels: frames beyond the device's images
+/// render in tiles (docs/ARCHITECTURE.md, "Posters in tiles"); a float
+/// pixel position still resolves 1/128 px at this size.
+pub const MAX_SIDE_PX: u32 = 65536;
+/// The most pixels of an image (2^30: 3 GiB of 8-bit RGB, 16 GiB of EXR
+/// RGBA on the host).
+pub const MAX_PIXELS: u64 = 1 << 30;
 
 /// Which coordinates a camera's `eye` and `target` are in: those of the
 /// file the cloud came from (e.g. UTM metres of a LAS tile), or the scene's,
@@ -283,11 +290,28 @@ fn check_vector<T: Copy + Into<f64> + std::fmt::Debug>(
 /// Checks every value present in `spec` on its own (DESIGN §2: impossible
 /// values are errors naming the field).
 pub(super) fn validate(spec: &CameraSpec) -> Result<()> {
-    if spec.width == Some(0) {
-        return Err(camera_error("width", "must be at least 1 pixel"));
+    for (name, side) in [("width", spec.width), ("height", spec.height)] {
+        match side {
+            Some(0) => return Err(camera_error(name, "must be at least 1 pixel")),
+            Some(n) if n > MAX_SIDE_PX => {
+                return Err(camera_error(
+                    name,
+                    format!("{n} pixels is more than the {MAX_SIDE_PX} pointlens renders"),
+                ))
+            }
+            _ => {}
+        }
     }
-    if spec.height == Some(0) {
-        return Err(camera_error("height", "must be at least 1 pixel"));
+    if let (Some(w), Some(h)) = (spec.width, spec.height) {
+        if w as u64 * h as u64 > MAX_PIXELS {
+            return Err(camera_error(
+                "width",
+                format!(
+                    "{w}x{h} is {} pixels, more than the {MAX_PIXELS} (2^30) pointlens renders",
+                    w as u64 * h as u64
+                ),
+            ));
+        }
     }
     check_vector("eye", spec.eye)?;
     check_vector("target", spec.target)?;

@@ -32,6 +32,13 @@ pub struct Camera {
     pub focus_distance: f32,
 }
 
+/// The widest guard band of any frame, pixels: a quarter of 16384 px,
+/// the largest image of lavapipe and of desktop GPUs (NVIDIA's is 32768;
+/// Vulkan's minimum, 4096, holds no band this wide), so that a tile of up
+/// to 8192 px with the band fits such a device ([`Camera::max_guard_px`]).
+/// Frames up to 8192 px wide and high are not bounded by it.
+pub const MAX_GUARD_PX: u32 = 4096;
+
 impl Camera {
     /// The orthonormal eye basis `(right, up', forward)`:
     /// forward = normalize(target − eye); right = normalize(forward × up);
@@ -162,13 +169,15 @@ impl Camera {
     }
 
     /// The widest guard band a frame gets: ⌈max(W, H) / 2⌉ pixels, so the
-    /// G-buffer is at most twice the frame on each axis (DESIGN §3: the
-    /// band stops at a size tied to the frame; docs/ARCHITECTURE.md, "Every
-    /// camera renders"). Light from beyond it reaches the frame only
-    /// through CoCs wider than the frame, spread at most 1/(π·bound²) per
+    /// G-buffer is at most twice the frame on each axis, and never more
+    /// than [`MAX_GUARD_PX`], so that a tile of a poster with its band fits
+    /// the device's images (DESIGN §3: the band stops at a size tied to the
+    /// frame; docs/ARCHITECTURE.md, "Every camera renders" and "Posters in
+    /// tiles"). Light from beyond it reaches the frame only through CoCs
+    /// wider than the bound's double, spread at most 1/(π·bound²) per
     /// pixel each.
     pub fn max_guard_px(&self) -> u32 {
-        self.width.max(self.height).div_ceil(2)
+        self.width.max(self.height).div_ceil(2).min(MAX_GUARD_PX)
     }
 
     /// The CoC (pixels) above which a point in front of the focus plane

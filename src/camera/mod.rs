@@ -33,7 +33,10 @@ mod framing;
 mod lens;
 mod tables;
 
-pub use file::{CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH};
+pub use file::{
+    CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_PIXELS,
+    MAX_SIDE_PX,
+};
 pub use framing::{resolve, resolve_for, FRAMING_MARGIN, Z_UP_VIEW_DOWN_DEG};
-pub use lens::{Camera, EyeFromWorld};
+pub use lens::{Camera, EyeFromWorld, MAX_GUARD_PX};
 pub use tables::{concentric_disk, concentric_square, lens_samples, rdb_bin, rdb_lens_table};

@@ -232,7 +232,7 @@ impl DofFrame for FastFrame<'_> {
                 ),
                 (&images.result, Access::NONE, Access::COMPUTE_WRITE),
             ]);
-            let (ow, oh) = (camera.width, camera.height);
+            let (ow, oh) = (view.window.width, view.window.height);
             rec.dispatch(
                 &p.gather,
                 &[

@@ -32,11 +32,72 @@ pub mod splat_compute;
 pub mod splat_raster;
 pub mod spread_disk;
 
+/// A rectangle of a frame's output pixels: columns `x .. x + width`, rows
+/// `y .. y + height` (origin top-left). A frame beyond the device's image
+/// size renders as tiles, each a window of the whole frame
+/// (docs/ARCHITECTURE.md, "Posters in tiles").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Window {
+    /// The whole frame of `camera`.
+    pub fn whole(camera: &Camera) -> Window {
+        Window {
+            x: 0,
+            y: 0,
+            width: camera.width,
+            height: camera.height,
+        }
+    }
+
+    /// Number of pixels.
+    pub fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// The windows of at most `tile_px` × `tile_px` pixels that cover a
+    /// `width` × `height` frame, row by row; the tiles of a row or column
+    /// differ in size by at most a pixel.
+    pub fn tiles(width: u32, height: u32, tile_px: u32) -> Vec<Window> {
+        assert!(tile_px >= 1, "a tile has at least one pixel");
+        let split = |n: u32| {
+            let count = n.div_ceil(tile_px);
+            (0..count)
+                .map(move |i| {
+                    let start = (n as u64 * i as u64 / count as u64) as u32;
+                    let end = (n as u64 * (i as u64 + 1) / count as u64) as u32;
+                    (start, end - start)
+                })
+                .collect::<Vec<_>>()
+        };
+        let columns = split(width);
+        split(height)
+            .into_iter()
+            .flat_map(|(y, height)| {
+                columns.iter().map(move |&(x, width)| Window {
+                    x,
+                    y,
+                    width,
+                    height,
+                })
+            })
+            .collect()
+    }
+}
+
 /// What every pass of one frame may know about its view.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FrameView {
+    /// The camera of the whole frame.
     pub camera: Camera,
-    /// Pixels added on every side of the frame (DESIGN §3).
+    /// The output pixels this view renders: the whole frame, or a tile.
+    pub window: Window,
+    /// Pixels added on every side of the window (DESIGN §3).
     pub guard: u32,
     /// The largest CoC (pixels) the method meets in this view, which the
     /// guard band was sized for.
@@ -47,14 +108,14 @@ pub struct FrameView {
 }
 
 impl FrameView {
-    /// Width of the G-buffer: the output plus the guard band.
+    /// Width of the G-buffer: the window plus the guard band.
     pub fn full_width(&self) -> u32 {
-        self.camera.width + 2 * self.guard
+        self.window.width + 2 * self.guard
     }
 
-    /// Height of the G-buffer: the output plus the guard band.
+    /// Height of the G-buffer: the window plus the guard band.
     pub fn full_height(&self) -> u32 {
-        self.camera.height + 2 * self.guard
+        self.window.height + 2 * self.guard
     }
 }
 

@@ -19,6 +19,7 @@ push_constants! {
     struct Push {
         origin: [i32; 2],
         size: [i32; 2],
+        window: [i32; 2],
         format: u32,
         count: u32,
         veil_count: u32,
@@ -103,7 +104,7 @@ impl OutputConvert {
         format: OutputFormat,
         out: &'r Buffer,
     ) {
-        let (w, h) = (view.camera.width, view.camera.height);
+        let (w, h) = (view.window.width, view.window.height);
         let pixels = w as u64 * h as u64;
         assert!(
             out.size() >= format.buffer_bytes(pixels),
@@ -128,6 +129,7 @@ impl OutputConvert {
                 &Push {
                     origin: [g, g],
                     size: [w as i32, h as i32],
+                    window: [view.window.x as i32, view.window.y as i32],
                     format: match format {
                         OutputFormat::LinearF32 => 0,
                         OutputFormat::Srgb8 => 1,

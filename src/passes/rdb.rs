@@ -210,7 +210,7 @@ impl<'m> RdbImages<'m> {
                 ctx.info.max_image_array_layers
             )));
         }
-        let (w, h) = (view.camera.width, view.camera.height);
+        let (w, h) = (view.window.width, view.window.height);
         let max_allocation = ctx.info.max_memory_allocation_bytes;
         // TilePlan bounds each 32-bit word array; the 64-bit buffer is one
         // array of twice the bytes, within one storage-buffer binding.

@@ -248,3 +248,19 @@ pub fn rasters(r: &pointlens::render::Rendered) -> u32 {
         .map(|p| p.count)
         .sum()
 }
+
+/// Adds 9 red specks 1 mm in front of `camera`'s lens, 0.3 mm apart across
+/// the view (points at the lens: a veil, `crate::veil`).
+pub fn add_specks_at_the_lens(cloud: &mut PointCloud, camera: &Camera) {
+    let (right, up, forward) = camera.basis();
+    for i in -1..=1 {
+        for j in -1..=1 {
+            let p = camera.eye + 0.001 * forward + 0.0003 * (i as f32 * right + j as f32 * up);
+            cloud.positions.push(p);
+            cloud.colors.push(Vec3::new(1.0, 0.2, 0.2));
+            if let Some(normals) = &mut cloud.normals {
+                normals.push(-forward);
+            }
+        }
+    }
+}

@@ -208,6 +208,15 @@ fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
             )));
         }
     }
+    let t = header.transforms();
+    for (name, tr) in [("x", t.x), ("y", t.y), ("z", t.z)] {
+        if !(tr.scale.is_finite() && tr.scale != 0.0 && tr.offset.is_finite()) {
+            return Err(fail(format!(
+                "the {name} scale ({}) must be finite and non-zero and the offset ({}) finite",
+                tr.scale, tr.offset
+            )));
+        }
+    }
     Ok(Preflight { header, record_len })
 }
 
@@ -395,6 +404,26 @@ pub fn load_las(
     origin: Option<DVec3>,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<PointCloud> {
+    load_las_with(path, origin, progress, true)
+}
+
+/// [`load_las`] reading a COPC file as the LAZ stream it also is (its
+/// chunks in file order, its hierarchy ignored): what the by-node read is
+/// tested against.
+pub fn load_las_stream(
+    path: &Path,
+    origin: Option<DVec3>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<PointCloud> {
+    load_las_with(path, origin, progress, false)
+}
+
+fn load_las_with(
+    path: &Path,
+    origin: Option<DVec3>,
+    progress: &mut dyn FnMut(u64, u64),
+    copc_by_node: bool,
+) -> Result<PointCloud> {
     let (fail, io) = (las_fail(path), io_fail(path));
     let mut file = File::open(path).map_err(io)?;
     let file_len = file.metadata().map_err(io)?.len();
@@ -407,43 +436,21 @@ pub fn load_las(
         )));
     }
     let facts = preflight(path, &mut file, file_len)?;
+    if copc_by_node && facts.header.vlrs().iter().any(|v| v.is_copc_info()) {
+        return load_copc(path, facts, origin, progress);
+    }
     file.rewind().map_err(io)?;
     let mut reader =
         Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| las_error(path, e))?;
     let header = facts.header.clone();
     let format = *header.point_format();
     let total = header.number_of_points();
-    let t = header.transforms();
-    for (name, tr) in [("x", t.x), ("y", t.y), ("z", t.z)] {
-        if !(tr.scale.is_finite() && tr.scale != 0.0 && tr.offset.is_finite()) {
-            return Err(fail(format!(
-                "the {name} scale ({}) must be finite and non-zero and the offset ({}) finite",
-                tr.scale, tr.offset
-            )));
-        }
-    }
     if total == 0 {
         return Err(fail("the cloud is empty (0 points)".to_string()));
     }
     let n = usize::try_from(total).map_err(|_| fail(format!("{total} points is too many")))?;
-    let mut cloud = PointCloud::default();
-    reserve(&mut cloud.positions, n, path)?;
-    reserve(&mut cloud.colors, n, path)?;
-    let mut classes = Vec::new();
-    reserve(&mut classes, n, path)?;
-    // Intensities and returns are kept for `--color` (crate::color).
-    let mut intensities = Vec::new();
-    reserve(&mut intensities, n, path)?;
-    let mut returns = Vec::new();
-    reserve(&mut returns, n, path)?;
-
-    // The positions hold each point's integer codes (through bytemuck, in
-    // place) until the whole file is read: then the codes' exact range
-    // gives the origin, and one pass turns them into f32.
+    let mut gather = Gather::with_capacity(n, path)?;
     let mut data: PointData = PointDataBuilder::new().for_header(&header).build();
-    let mut code_lo = [i32::MAX; 3];
-    let mut code_hi = [i32::MIN; 3];
-    let (mut rgb_max, mut int_lo, mut int_hi) = (0u16, u16::MAX, 0u16);
     let mut done = 0u64;
     while done < total {
         let got = reader
@@ -464,99 +471,260 @@ pub fn load_las(
                 "truncated: the header declares {total} points, the data ends after {done}"
             )));
         }
-        let at = cloud.positions.len();
-        cloud.positions.resize(at + data.len(), Vec3::ZERO);
-        let codes: &mut [[i32; 3]] = bytemuck::cast_slice_mut(&mut cloud.positions[at..]);
-        fill_axis(codes, 0, data.x_raw(), &mut code_lo[0], &mut code_hi[0]);
-        fill_axis(codes, 1, data.y_raw(), &mut code_lo[1], &mut code_hi[1]);
-        fill_axis(codes, 2, data.z_raw(), &mut code_lo[2], &mut code_hi[2]);
-        classes.extend(data.classification());
-        returns.extend(
+        gather.add(&data);
+        done += got;
+        progress(done, total);
+    }
+    gather.finish(path, &facts, origin)
+}
+
+/// Loads a COPC file (`facts`: its checked header) node by node
+/// ([`super::copc`]): every node of its hierarchy, decompressed on every
+/// core, added in file order: the cloud [`load_las_stream`] reads.
+fn load_copc(
+    path: &Path,
+    facts: Preflight,
+    origin: Option<DVec3>,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<PointCloud> {
+    let fail = las_fail(path);
+    let copc = super::copc::CopcFile::open(path, facts.header.clone())?;
+    let nodes = copc.all_nodes()?;
+    let total: u64 = nodes.iter().map(|n| n.point_count).sum();
+    if total != facts.header.number_of_points() {
+        return Err(fail(format!(
+            "the COPC hierarchy's nodes hold {total} points, the header declares {}: \
+             counts that lie",
+            facts.header.number_of_points()
+        )));
+    }
+    if total == 0 {
+        return Err(fail("the cloud is empty (0 points)".to_string()));
+    }
+    let n = usize::try_from(total).map_err(|_| fail(format!("{total} points is too many")))?;
+    let mut gather = Gather::with_capacity(n, path)?;
+    let threads = crate::available_threads().max(1);
+    let mut done = 0u64;
+    // Batches of about CHUNK_POINTS points, their nodes decompressed by
+    // every thread (each takes the next node), added in file order.
+    let mut rest = &nodes[..];
+    while !rest.is_empty() {
+        let mut points = 0;
+        let len = rest
+            .iter()
+            .take_while(|n| {
+                let take = points < CHUNK_POINTS;
+                points += n.point_count;
+                take
+            })
+            .count();
+        let (batch, after) = rest.split_at(len);
+        rest = after;
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let slots: Vec<std::sync::Mutex<Option<Result<PointData>>>> =
+            batch.iter().map(|_| std::sync::Mutex::new(None)).collect();
+        std::thread::scope(|scope| {
+            for _ in 0..threads.min(batch.len()) {
+                scope.spawn(|| loop {
+                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(node) = batch.get(i) else {
+                        break;
+                    };
+                    let data = copc.read_node(node);
+                    *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(data);
+                });
+            }
+        });
+        for slot in slots {
+            let data = slot
+                .into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every node of the batch decompressed")?;
+            done += data.len() as u64;
+            gather.add(&data);
+        }
+        progress(done, total);
+    }
+    gather.finish(path, &facts, origin)
+}
+
+/// The points of a LAS file as they are read, chunk by chunk: integer
+/// codes and their ranges, colors, intensities, classes and returns;
+/// [`Gather::finish`] makes the cloud once the ranges are known.
+struct Gather {
+    positions: Vec<Vec3>,
+    colors: Vec<Vec3>,
+    classes: Vec<u8>,
+    intensities: Vec<u16>,
+    returns: Vec<u8>,
+    code_lo: [i32; 3],
+    code_hi: [i32; 3],
+    rgb_max: u16,
+    int_lo: u16,
+    int_hi: u16,
+}
+
+impl Gather {
+    fn with_capacity(n: usize, path: &Path) -> Result<Gather> {
+        let mut g = Gather {
+            positions: Vec::new(),
+            colors: Vec::new(),
+            classes: Vec::new(),
+            intensities: Vec::new(),
+            returns: Vec::new(),
+            code_lo: [i32::MAX; 3],
+            code_hi: [i32::MIN; 3],
+            rgb_max: 0,
+            int_lo: u16::MAX,
+            int_hi: 0,
+        };
+        reserve(&mut g.positions, n, path)?;
+        reserve(&mut g.colors, n, path)?;
+        reserve(&mut g.classes, n, path)?;
+        reserve(&mut g.intensities, n, path)?;
+        reserve(&mut g.returns, n, path)?;
+        Ok(g)
+    }
+
+    /// Adds one chunk of points. The positions hold each point's integer
+    /// codes (through bytemuck, in place) until the whole file is read:
+    /// then the codes' exact range gives the origin, and one pass turns
+    /// them into f32.
+    fn add(&mut self, data: &PointData) {
+        let at = self.positions.len();
+        self.positions.resize(at + data.len(), Vec3::ZERO);
+        let codes: &mut [[i32; 3]] = bytemuck::cast_slice_mut(&mut self.positions[at..]);
+        fill_axis(
+            codes,
+            0,
+            data.x_raw(),
+            &mut self.code_lo[0],
+            &mut self.code_hi[0],
+        );
+        fill_axis(
+            codes,
+            1,
+            data.y_raw(),
+            &mut self.code_lo[1],
+            &mut self.code_hi[1],
+        );
+        fill_axis(
+            codes,
+            2,
+            data.z_raw(),
+            &mut self.code_lo[2],
+            &mut self.code_hi[2],
+        );
+        self.classes.extend(data.classification());
+        self.returns.extend(
             data.return_number()
                 .zip(data.number_of_returns())
                 .map(|(r, n)| crate::color::pack_return(r, n)),
         );
         for i in data.intensity() {
-            (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
-            intensities.push(i);
+            (self.int_lo, self.int_hi) = (self.int_lo.min(i), self.int_hi.max(i));
+            self.intensities.push(i);
         }
         match data.rgb() {
             Some(rgb) => {
                 for (r, g, b) in rgb {
-                    rgb_max = rgb_max.max(r).max(g).max(b);
-                    cloud
-                        .colors
+                    self.rgb_max = self.rgb_max.max(r).max(g).max(b);
+                    self.colors
                         .push(Vec3::new(f32::from(r), f32::from(g), f32::from(b)));
                 }
             }
-            None => cloud
+            None => self
                 .colors
-                .resize(cloud.colors.len() + got as usize, Vec3::ZERO),
+                .resize(self.colors.len() + data.len(), Vec3::ZERO),
         }
-        done += got;
-        progress(done, total);
     }
 
-    // Colors, now that the file's ranges are known: a table per code.
-    let table = |f: &dyn Fn(u16) -> f32| -> Vec<f32> { (0..=u16::MAX).map(f).collect() };
-    let grey = |lo: u16, hi: u16| {
-        move |i: u16| linear_from_code(f64::from(i.saturating_sub(lo)), f64::from(hi - lo))
-    };
-    let color_source;
-    if format.has_color && rgb_max > 0 {
-        let max_code = if rgb_max <= 255 { 255.0 } else { 65535.0 };
-        color_source = if rgb_max <= 255 {
-            "rgb (8-bit values in 16-bit fields)"
-        } else {
-            "rgb (16-bit)"
+    /// The cloud of every chunk added, re-centred on `origin` (default:
+    /// the centre of the codes' range).
+    fn finish(self, path: &Path, facts: &Preflight, origin: Option<DVec3>) -> Result<PointCloud> {
+        let fail = las_fail(path);
+        let header = &facts.header;
+        let format = *header.point_format();
+        let total = self.positions.len() as u64;
+        let t = header.transforms();
+        let Gather {
+            positions,
+            colors,
+            classes,
+            intensities,
+            returns,
+            code_lo,
+            code_hi,
+            rgb_max,
+            int_lo,
+            int_hi,
+        } = self;
+        let mut cloud = PointCloud {
+            positions,
+            colors,
+            ..PointCloud::default()
         };
-        let lut = table(&|v| linear_from_code(f64::from(v), max_code));
-        map_colors(&mut cloud.colors, &|c| {
-            Vec3::new(lut[c.x as usize], lut[c.y as usize], lut[c.z as usize])
-        });
-        cloud.has_colors = true;
-    } else if int_lo < int_hi && total > 0 {
-        color_source = if format.has_color {
-            "intensity as grey (the rgb is all zero)"
-        } else {
-            "intensity as grey"
+        // Colors, now that the file's ranges are known: a table per code.
+        let table = |f: &dyn Fn(u16) -> f32| -> Vec<f32> { (0..=u16::MAX).map(f).collect() };
+        let grey = |lo: u16, hi: u16| {
+            move |i: u16| linear_from_code(f64::from(i.saturating_sub(lo)), f64::from(hi - lo))
         };
-        let lut = table(&grey(int_lo, int_hi));
-        for (c, &i) in cloud.colors.iter_mut().zip(&intensities) {
-            *c = Vec3::splat(lut[usize::from(i)]);
+        let color_source;
+        if format.has_color && rgb_max > 0 {
+            let max_code = if rgb_max <= 255 { 255.0 } else { 65535.0 };
+            color_source = if rgb_max <= 255 {
+                "rgb (8-bit values in 16-bit fields)"
+            } else {
+                "rgb (16-bit)"
+            };
+            let lut = table(&|v| linear_from_code(f64::from(v), max_code));
+            map_colors(&mut cloud.colors, &|c| {
+                Vec3::new(lut[c.x as usize], lut[c.y as usize], lut[c.z as usize])
+            });
+            cloud.has_colors = true;
+        } else if int_lo < int_hi && total > 0 {
+            color_source = if format.has_color {
+                "intensity as grey (the rgb is all zero)"
+            } else {
+                "intensity as grey"
+            };
+            let lut = table(&grey(int_lo, int_hi));
+            for (c, &i) in cloud.colors.iter_mut().zip(&intensities) {
+                *c = Vec3::splat(lut[usize::from(i)]);
+            }
+            cloud.has_colors = true;
+        } else {
+            color_source = "none (no rgb, constant intensity)";
+            cloud.colors.fill(DEFAULT_COLOR);
         }
-        cloud.has_colors = true;
-    } else {
-        color_source = "none (no rgb, constant intensity)";
-        cloud.colors.fill(DEFAULT_COLOR);
-    }
-    cloud.has_rgb = format.has_color && rgb_max > 0;
-    cloud.intensities = Some(intensities);
-    cloud.returns = Some(returns);
+        cloud.has_rgb = format.has_color && rgb_max > 0;
+        cloud.intensities = Some(intensities);
+        cloud.returns = Some(returns);
 
-    let tr = [t.x, t.y, t.z];
-    let mut axes = [Axis::new(1.0, 0.0, 0.0, 0.0); 3];
-    for k in 0..3 {
-        let range = if total > 0 {
-            (f64::from(code_lo[k]), f64::from(code_hi[k]))
-        } else {
-            (0.0, 0.0)
-        };
-        axes[k] = axis(tr[k].scale, tr[k].offset, origin.map(|o| o[k]), range).map_err(fail)?;
+        let tr = [t.x, t.y, t.z];
+        let mut axes = [Axis::new(1.0, 0.0, 0.0, 0.0); 3];
+        for k in 0..3 {
+            let range = if total > 0 {
+                (f64::from(code_lo[k]), f64::from(code_hi[k]))
+            } else {
+                (0.0, 0.0)
+            };
+            axes[k] = axis(tr[k].scale, tr[k].offset, origin.map(|o| o[k]), range).map_err(fail)?;
+        }
+        to_scene(&mut cloud.positions, &axes).map_err(fail)?;
+        cloud.origin = DVec3::new(axes[0].origin, axes[1].origin, axes[2].origin);
+        cloud.classifications = Some(classes);
+        cloud.z_up = true;
+        cloud.attributes = attributes(&format);
+        cloud.file_info = file_info(
+            header,
+            facts,
+            &axes,
+            (total > 0).then_some((code_lo, code_hi)),
+            color_source,
+        );
+        Ok(cloud)
     }
-    to_scene(&mut cloud.positions, &axes).map_err(fail)?;
-    cloud.origin = DVec3::new(axes[0].origin, axes[1].origin, axes[2].origin);
-    cloud.classifications = Some(classes);
-    cloud.z_up = true;
-    cloud.attributes = attributes(&format);
-    cloud.file_info = file_info(
-        &header,
-        &facts,
-        &axes,
-        (total > 0).then_some((code_lo, code_hi)),
-        color_source,
-    );
-    Ok(cloud)
 }
 
 /// Reserves room for exactly `n` more elements, or a clear error (a lying

@@ -4,6 +4,7 @@
 //! gives positions, linear colors, normals and the file's facts, nothing
 //! more. docs/ARCHITECTURE.md, "Adding an input format".
 
+pub mod copc;
 pub mod las;
 pub mod ply;
 

@@ -45,10 +45,44 @@ pub fn pack_return(number: u8, count: u8) -> u8 {
     (number.min(15)) | (count.min(15) << 4)
 }
 
+/// The ranges a color mode stretches over: the intensities' (min, max)
+/// and the heights' 0.5–99.5 % range. Made from the whole cloud, or, for
+/// a cloud read in parts (COPC by node), once from a sample, so that every
+/// frame colors a point alike.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColorRanges {
+    pub intensity: (u16, u16),
+    pub elevation: (f32, f32),
+}
+
+impl ColorRanges {
+    /// The ranges of `cloud`'s values.
+    pub fn of(cloud: &PointCloud) -> ColorRanges {
+        let intensity = cloud.intensities.as_ref().map_or((0, 0), |values| {
+            values
+                .iter()
+                .fold((u16::MAX, 0), |(lo, hi), &v| (lo.min(v), hi.max(v)))
+        });
+        let axis = if cloud.z_up { 2 } else { 1 };
+        let heights: Vec<f32> = cloud.positions.iter().map(|p| p[axis]).collect();
+        ColorRanges {
+            intensity,
+            elevation: percentile_range(heights, 0.005),
+        }
+    }
+}
+
+/// Recolors `cloud` by `mode`, stretched over its own ranges
+/// ([`apply_over`]).
+pub fn apply(cloud: &mut PointCloud, mode: ColorMode) -> Result<()> {
+    let ranges = ColorRanges::of(cloud);
+    apply_over(cloud, mode, &ranges)
+}
+
 /// Recolors `cloud` by `mode`. Fails, naming what is missing, where the
 /// file has no such attribute (`rgb` without RGB, `intensity`,
 /// `classification` or `return` outside LAS/LAZ).
-pub fn apply(cloud: &mut PointCloud, mode: ColorMode) -> Result<()> {
+pub fn apply_over(cloud: &mut PointCloud, mode: ColorMode, ranges: &ColorRanges) -> Result<()> {
     let missing = |what: &str| {
         Err(Error::InvalidArgument(format!(
             "--color {}: the cloud has no {what}",
@@ -65,19 +99,18 @@ pub fn apply(cloud: &mut PointCloud, mode: ColorMode) -> Result<()> {
             let Some(values) = &cloud.intensities else {
                 return missing("intensities (LAS/LAZ)");
             };
-            let (lo, hi) = values
-                .iter()
-                .fold((u16::MAX, 0), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let (lo, hi) = ranges.intensity;
             // The loader's grey ramp (`input::linear_from_code`).
             let span = f64::from(hi.saturating_sub(lo).max(1));
             for (c, &v) in cloud.colors.iter_mut().zip(values) {
+                let v = v.clamp(lo, hi.max(lo));
                 *c = Vec3::splat(linear_from_code(f64::from(v - lo), span));
             }
         }
         ColorMode::Elevation => {
             let axis = if cloud.z_up { 2 } else { 1 };
             let heights: Vec<f32> = cloud.positions.iter().map(|p| p[axis]).collect();
-            let (lo, hi) = percentile_range(heights.clone(), 0.005);
+            let (lo, hi) = ranges.elevation;
             let span = (hi - lo).max(f32::MIN_POSITIVE);
             for (c, h) in cloud.colors.iter_mut().zip(heights) {
                 *c = viridis(((h - lo) / span).clamp(0.0, 1.0));

@@ -27,15 +27,18 @@ use glam::{DVec3, Vec3};
 
 use crate::camera::{self, Camera, CameraSpec, Coordinates};
 use crate::cloud::PointCloud;
+use crate::color::{ColorMode, ColorRanges};
 use crate::error::{Error, Result};
 use crate::image_io::{
     check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_png_rgba,
     write_text_atomically, ExrChannel, LinearImage,
 };
+use crate::input::copc::{CopcClouds, NodeEntry};
 use crate::options::{check_lod, Lod, Method};
-use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene};
+use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene, SplatSize};
 use crate::report::FrameReport;
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
+use crate::tree::Widening;
 
 /// What is rendered: one image, or a sequence of numbered ones.
 #[derive(Debug, Clone)]
@@ -376,7 +379,7 @@ impl RenderJob {
     pub fn render(
         &self,
         renderer: &Renderer,
-        scene: &Scene,
+        scenes: Scenes<'_>,
         plan: &Plan,
         stop: &AtomicBool,
         load_ms: f64,
@@ -392,7 +395,15 @@ impl RenderJob {
                 });
             }
             let started = Instant::now();
-            let options = self.frame_options(renderer, scene, job.camera)?;
+            // A COPC file's scene is the nodes of the frame's camera: chosen
+            // again once `--focus-pixel` has moved the focus.
+            let scene = scenes.for_camera(renderer, &job.camera, self.spec.lod)?;
+            let options = self.frame_options(renderer, &scene, job.camera)?;
+            let scene = match options.camera == job.camera {
+                true => scene,
+                false => scenes.for_camera(renderer, &options.camera, self.spec.lod)?,
+            };
+            let scene = &*scene;
             let spec = options.camera.to_spec_in(plan.coordinates, plan.origin);
             events(JobEvent::Camera {
                 number: job.number,
@@ -534,6 +545,122 @@ impl FrameMeasure {
                 scene.upload,
             )
         }
+    }
+}
+
+/// Where each frame's scene comes from.
+#[derive(Clone, Copy)]
+pub enum Scenes<'a> {
+    /// One scene for every frame (a cloud read whole).
+    One(&'a Scene),
+    /// A COPC file rendered by node: each frame's scene holds the nodes
+    /// its camera needs.
+    ByNode(&'a CopcScenes),
+}
+
+/// A frame's scene: the one scene, or the scene of a frame's nodes.
+pub enum SceneRef<'a> {
+    Borrowed(&'a Scene),
+    Shared(Arc<Scene>),
+}
+
+impl std::ops::Deref for SceneRef<'_> {
+    type Target = Scene;
+
+    fn deref(&self) -> &Scene {
+        match self {
+            SceneRef::Borrowed(s) => s,
+            SceneRef::Shared(s) => s,
+        }
+    }
+}
+
+impl<'a> Scenes<'a> {
+    /// The scene of a frame through `camera` at level of detail `lod`.
+    pub fn for_camera(
+        self,
+        renderer: &Renderer,
+        camera: &Camera,
+        lod: Lod,
+    ) -> Result<SceneRef<'a>> {
+        match self {
+            Scenes::One(scene) => Ok(SceneRef::Borrowed(scene)),
+            Scenes::ByNode(copc) => Ok(SceneRef::Shared(copc.scene_for(renderer, camera, lod)?)),
+        }
+    }
+}
+
+/// The scenes of a COPC file rendered by node
+/// ([`crate::input::copc::CopcClouds`]): a frame's nodes become a cloud,
+/// colored as the whole file is, and a splat hierarchy, kept while the
+/// next frame needs the same nodes.
+pub struct CopcScenes {
+    pub clouds: CopcClouds,
+    pub splat: SplatSize,
+    /// `--color` and the ranges it stretches over (the root node's).
+    pub color: Option<(ColorMode, ColorRanges)>,
+    last: std::sync::Mutex<Option<(Vec<NodeEntry>, Arc<Scene>)>>,
+}
+
+impl CopcScenes {
+    pub fn new(
+        clouds: CopcClouds,
+        splat: SplatSize,
+        color: Option<(ColorMode, ColorRanges)>,
+    ) -> CopcScenes {
+        CopcScenes {
+            clouds,
+            splat,
+            color,
+            last: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// The scene of the nodes a frame through `camera` needs. The frustum
+    /// is widened by the background's CoC (what the blurring methods'
+    /// guard bands hold) and `--splat-px`.
+    pub fn scene_for(&self, renderer: &Renderer, camera: &Camera, lod: Lod) -> Result<Arc<Scene>> {
+        let widening = Widening {
+            background_coc_px: camera.coc_px(f32::INFINITY),
+            splat_px: match self.splat {
+                SplatSize::Pixels(p) => p,
+                _ => 0.0,
+            },
+        };
+        let decide = |centre, r, spacing| {
+            crate::tree::sphere_decision(camera, lod, widening, centre, r, spacing)
+        };
+        let selection = self.clouds.select(camera, lod, &decide)?;
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        let same = last.as_ref().filter(|(nodes, _)| *nodes == selection.nodes);
+        log::info!(
+            "COPC: {} nodes, {} of {} points{}{}",
+            selection.nodes.len(),
+            selection.points,
+            self.clouds.total_points(),
+            if selection.capped {
+                " (stopped by --point-budget)"
+            } else {
+                ""
+            },
+            if same.is_some() {
+                " (the last frame's)"
+            } else {
+                ""
+            }
+        );
+        if let Some((_, scene)) = same {
+            return Ok(scene.clone());
+        }
+        // The last frame's scene goes before this one is built.
+        *last = None;
+        let mut cloud = self.clouds.cloud(&selection.nodes)?;
+        if let Some((mode, ranges)) = &self.color {
+            crate::color::apply_over(&mut cloud, *mode, ranges)?;
+        }
+        let scene = Arc::new(renderer.upload(&cloud, self.splat)?);
+        *last = Some((selection.nodes, scene.clone()));
+        Ok(scene)
     }
 }
 

@@ -19,8 +19,11 @@ use pointlens::image_io::{
     check_output_path, check_parent_dir, check_png_path, read_image, srgb_to_linear, write_image,
     write_text_atomically,
 };
+use pointlens::input::copc::CopcClouds;
 use pointlens::input::load_cloud;
-use pointlens::job::{self, JobEvent, JobSpec, Outcome, Passes, Plan, RenderJob, Shot, Written};
+use pointlens::job::{
+    self, CopcScenes, JobEvent, JobSpec, Outcome, Passes, Plan, RenderJob, Scenes, Shot, Written,
+};
 use pointlens::metrics;
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
@@ -28,7 +31,7 @@ use pointlens::options::{
     GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
     SplatShape,
 };
-use pointlens::render::{Renderer, Scene, SplatSize};
+use pointlens::render::{Renderer, SplatSize};
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
@@ -362,6 +365,16 @@ struct RenderArgs {
     /// --method accum.
     #[arg(long, value_name = "STRENGTH[,RADIUS_PX]", value_parser = EdlOptions::parse)]
     edl: Option<EdlOptions>,
+    /// A COPC file is rendered by node: the most points one frame takes
+    /// (the nodes whose spacing is widest on screen first).
+    #[arg(long, value_name = "N", default_value_t = pointlens::input::copc::DEFAULT_POINT_BUDGET,
+          value_parser = clap::value_parser!(u64).range(1..))]
+    point_budget: u64,
+    /// A COPC file's decompressed nodes kept across the frames of a
+    /// sequence, at most this many MiB.
+    #[arg(long, value_name = "MB", default_value_t = pointlens::input::copc::DEFAULT_MEMORY_MB,
+          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    memory_mb: u64,
     /// Render each frame in tiles of at most N×N pixels, each with the
     /// whole frame's guard band (default: the whole frame at once where
     /// its G-buffer fits the device's images, else tiles of 2048).
@@ -913,11 +926,7 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     job::watch_signals(job.is_sequence(), stop.clone())?;
 
     let t_load = Instant::now();
-    let mut cloud = load(&args.input, args.origin, quiet)?;
-    if let Some(mode) = args.color {
-        pointlens::color::apply(&mut cloud, mode)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
-    }
+    let (copc, cloud, ranges) = open_input(&args, quiet)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
     let plan = job.plan(&cloud)?;
     if plan.frames.is_empty() {
@@ -937,22 +946,68 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     renderer.set_edl(args.edl);
     renderer.set_tile_px(args.tile_px);
     renderer.set_splat_shape(args.splat_shape)?;
-    let scene = renderer.upload(&cloud, splat)?;
-    drop(cloud); // The hierarchy holds the points from here on.
-
     let frames = FramesArgs {
         print_camera: args.print_camera,
         timings: args.timings,
         quiet,
     };
-    let outcome = render_frames(&job, &renderer, &scene, &plan, load_ms, &stop, frames)?;
+    // The GPU's scenes, dropped before the validation check below.
+    let (mut scene, mut by_node) = (None, None);
+    let scenes = match copc {
+        Some(clouds) => {
+            drop(cloud);
+            let color = args.color.map(|mode| (mode, ranges));
+            Scenes::ByNode(by_node.insert(CopcScenes::new(clouds, splat, color)))
+        }
+        None => {
+            let one = scene.insert(renderer.upload(&cloud, splat)?);
+            drop(cloud); // The hierarchy holds the points from here on.
+            Scenes::One(one)
+        }
+    };
+    let outcome = render_frames(&job, &renderer, scenes, &plan, load_ms, &stop, frames)?;
     if args.print_camera && job.is_sequence() {
         out!("{}\n", job::camera_path(&outcome).to_json())?;
     }
     job.write_timings(&outcome.reports)?;
     drop(scene);
+    drop(by_node);
     drop(renderer);
     Ok(ctx.check_validation()?)
+}
+
+/// `render`'s input: a COPC file opened to be read by node, each frame
+/// the nodes it needs (with its root node's points as the cloud the
+/// cameras are framed on), or any other file read whole; colored by
+/// `--color` over the ranges returned (the whole cloud's, or the COPC root
+/// node's, for every frame).
+fn open_input(
+    args: &RenderArgs,
+    quiet: bool,
+) -> Result<(
+    Option<CopcClouds>,
+    PointCloud,
+    pointlens::color::ColorRanges,
+)> {
+    let copc = match pointlens::input::copc::is_copc(&args.input) {
+        true => Some(CopcClouds::open(
+            &args.input,
+            args.origin.map(DVec3::from_array),
+            args.point_budget,
+            args.memory_mb,
+        )?),
+        false => None,
+    };
+    let mut cloud = match &copc {
+        Some(copc) => copc.preview()?,
+        None => load(&args.input, args.origin, quiet)?,
+    };
+    let ranges = pointlens::color::ColorRanges::of(&cloud);
+    if let Some(mode) = args.color {
+        pointlens::color::apply_over(&mut cloud, mode, &ranges)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
+    }
+    Ok((copc, cloud, ranges))
 }
 
 /// What `render` prints as the frames go.
@@ -968,7 +1023,7 @@ struct FramesArgs {
 fn render_frames(
     job: &RenderJob,
     renderer: &Renderer,
-    scene: &Scene,
+    scenes: Scenes<'_>,
     plan: &Plan,
     load_ms: f64,
     stop: &AtomicBool,
@@ -983,7 +1038,7 @@ fn render_frames(
         ),
         false => ProgressBar::hidden(),
     };
-    let outcome = job.render(renderer, scene, plan, stop, load_ms, &mut |event| {
+    let outcome = job.render(renderer, scenes, plan, stop, load_ms, &mut |event| {
         match event {
             JobEvent::Camera { spec, .. } if how.print_camera && !sequence => {
                 emit(&format!("{}\n", spec.to_json()))?;

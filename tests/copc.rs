@@ -9,7 +9,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::{assert_fails, root, scratch};
-use pointlens::input::copc::{CopcFile, NodeKey};
+use pointlens::input::copc::{CopcClouds, CopcFile, NodeKey};
 use pointlens::input::las::{load_las, load_las_stream};
 use pointlens::PointCloud;
 
@@ -187,7 +187,8 @@ fn a_root_page_written_last_is_followed_lazily() {
     assert_eq!(copc.read_node(&entry).unwrap().len(), 18);
 }
 
-/// A bad hierarchy is one line naming the fault, for `info` and `render`.
+/// A bad hierarchy is one line naming the fault, for `info` and `render`
+/// (of every node: a frame reads only the pages and nodes it needs).
 #[test]
 fn a_bad_copc_hierarchy_is_one_line() {
     let dir = scratch("copc-bad");
@@ -196,7 +197,9 @@ fn a_bad_copc_hierarchy_is_one_line() {
         let path = layout.write(dir.path(), name);
         let p = path.to_str().unwrap();
         assert_fails(&["info", p], phrase, &out);
-        assert_fails(&["render", p, "-o", out.to_str().unwrap()], phrase, &out);
+        // Every node: a lie about the total shows only there.
+        let o = out.to_str().unwrap();
+        assert_fails(&["render", p, "-o", o, "--lod-px", "0"], phrase, &out);
     };
     let original = Layout::read(&pdal_file());
     let (root_offset, root_size) = original.root_page();
@@ -260,5 +263,178 @@ fn a_bad_copc_hierarchy_is_one_line() {
         let mut lie = original.clone();
         lie.bytes[count_at..count_at + 4].copy_from_slice(&(count + delta).to_le_bytes());
         check(&lie, name, "counts that lie");
+    }
+}
+
+/// The camera of the frame tests: PDAL's Autzen file from the south-west,
+/// above, with a lens.
+fn frame_camera(cloud: &PointCloud) -> pointlens::camera::Camera {
+    let (lo, hi) = cloud.bounds();
+    let centre = (lo + hi) / 2.0;
+    pointlens::camera::Camera {
+        width: 96,
+        height: 72,
+        eye: centre + glam::Vec3::new(-1500.0, -4000.0, 2500.0),
+        target: centre,
+        up: glam::Vec3::Z,
+        fovy_deg: 50.0,
+        aperture_radius: 20.0,
+        focus_distance: 4000.0,
+    }
+}
+
+/// At `--lod-px 0` a COPC frame takes every node, and its frame is the
+/// frame of the same points read whole, bit for bit.
+#[test]
+fn a_copc_frame_at_lod_px_0_is_the_whole_files_frame() {
+    common::with_gpu(|ctx| {
+        use pointlens::options::{Lod, Method};
+        use pointlens::render::{Renderer, SplatSize};
+        use pointlens::tree::Widening;
+        let renderer = Renderer::new(ctx).unwrap();
+        let whole = load_las_stream(&pdal_file(), None, &mut |_, _| {}).unwrap();
+        let clouds = CopcClouds::open(&pdal_file(), None, 1_000_000, 64).unwrap();
+        let camera = frame_camera(&whole);
+        let widening = Widening {
+            background_coc_px: camera.coc_px(f32::INFINITY),
+            splat_px: 0.0,
+        };
+        let decide =
+            |c, r, s| pointlens::tree::sphere_decision(&camera, Lod::ALL, widening, c, r, s);
+        let selection = clouds.select(&camera, Lod::ALL, &decide).unwrap();
+        assert_eq!((selection.nodes.len(), selection.points), (65, 1065));
+        let by_node = clouds.cloud(&selection.nodes).unwrap();
+        assert_same_cloud(&by_node, &whole);
+        for method in [Method::Pinhole, Method::layered(2)] {
+            let options = pointlens::render::RenderOptions {
+                lod: Lod::ALL,
+                ..common::options(camera, method)
+            };
+            let render = |cloud: &PointCloud| {
+                let scene = renderer.upload(cloud, SplatSize::Spacing).unwrap();
+                renderer.render(&scene, &options).unwrap().image
+            };
+            let (a, b) = (render(&by_node), render(&whole));
+            assert_eq!(common::differing(&a, &b), 0, "{method:?}");
+        }
+    });
+}
+
+/// A frame takes the nodes its camera needs: fewer at a coarser level of
+/// detail, none outside the view, no more points than the budget (and
+/// `--lod-px 0` beyond the budget is refused); the node cache keeps at
+/// most its bytes beyond the frame being made.
+#[test]
+fn a_frame_takes_the_nodes_its_camera_needs() {
+    use pointlens::options::Lod;
+    use pointlens::tree::Widening;
+    let whole = load_las_stream(&pdal_file(), None, &mut |_, _| {}).unwrap();
+    let camera = frame_camera(&whole);
+    let widening = Widening {
+        background_coc_px: 0.0,
+        splat_px: 0.0,
+    };
+    let mut clouds = CopcClouds::open(&pdal_file(), None, 1_000_000, 64).unwrap();
+    let select = |clouds: &CopcClouds, camera: &pointlens::camera::Camera, lod: Lod| {
+        let decide = |c, r, s| pointlens::tree::sphere_decision(camera, lod, widening, c, r, s);
+        clouds.select(camera, lod, &decide)
+    };
+    let fine = select(
+        &clouds,
+        &camera,
+        Lod {
+            px: 1.0,
+            blur: None,
+        },
+    )
+    .unwrap();
+    let coarse = select(
+        &clouds,
+        &camera,
+        Lod {
+            px: 64.0,
+            blur: None,
+        },
+    )
+    .unwrap();
+    eprintln!(
+        "lod-px 1: {} nodes, {} points; lod-px 64: {} nodes, {} points",
+        fine.nodes.len(),
+        fine.points,
+        coarse.nodes.len(),
+        coarse.points
+    );
+    assert!(coarse.points < fine.points && coarse.points > 0);
+    assert!(coarse.nodes.iter().all(|n| fine.nodes.contains(n)));
+    // From three times as far, looking away: the root's sphere no longer
+    // holds the eye.
+    let far_eye = camera.target + 3.0 * (camera.eye - camera.target);
+    let away = pointlens::camera::Camera {
+        eye: far_eye,
+        target: far_eye + (camera.eye - camera.target),
+        ..camera
+    };
+    assert!(select(&clouds, &away, Lod::default())
+        .unwrap()
+        .nodes
+        .is_empty());
+
+    let small = CopcClouds::open(&pdal_file(), None, 100, 64).unwrap();
+    let capped = select(&small, &camera, Lod::default()).unwrap();
+    assert!(capped.capped && capped.points <= 100 && capped.points > 0);
+    let e = select(&small, &camera, Lod::ALL).unwrap_err();
+    assert!(e.to_string().contains("--point-budget"), "{e}");
+
+    clouds.set_memory_bytes(0);
+    clouds.cloud(&fine.nodes).unwrap();
+    let record = 36;
+    assert_eq!(
+        clouds.cached_bytes(),
+        fine.points * record,
+        "this frame's nodes"
+    );
+    clouds.cloud(&coarse.nodes).unwrap();
+    assert_eq!(
+        clouds.cached_bytes(),
+        coarse.points * record,
+        "the last frame's went"
+    );
+}
+
+/// `render` takes a COPC file by node, for one image and for a sequence,
+/// under validation.
+#[test]
+fn render_takes_a_copc_file_by_node() {
+    let dir = scratch("copc-render");
+    let p = pdal_file();
+    let out = dir.path().join("f_%04d.png");
+    let o = common::pointlens(&[
+        "-v",
+        "render",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "80",
+        "--height",
+        "60",
+        "--frames",
+        "3",
+        "--orbit",
+        "90",
+        "--method",
+        "rdb",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        err.matches("COPC: ").count(),
+        3,
+        "a selection per frame: {err}"
+    );
+    for i in 1..=3 {
+        let image =
+            pointlens::image_io::read_image(&dir.path().join(format!("f_{i:04}.png"))).unwrap();
+        assert_eq!((image.width, image.height), (80, 60));
     }
 }

@@ -12,7 +12,7 @@ use common::{file_names, root, scratch, with_gpu};
 use glam::Vec3;
 use pointlens::camera::{self, CameraSpec};
 use pointlens::input::load_cloud;
-use pointlens::job::{JobEvent, JobSpec, Passes, RenderJob, Shot, Written};
+use pointlens::job::{JobEvent, JobSpec, Passes, RenderJob, Scenes, Shot, Written};
 use pointlens::options::{Lod, Method};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
@@ -277,7 +277,14 @@ fn a_sequence_through_the_job_equals_its_frames_rendered_alone() {
         // Stopped before the first frame: nothing is written.
         let stop = AtomicBool::new(true);
         let err = job
-            .render(&renderer, &scene, &plan, &stop, 0.0, &mut |_| Ok(()))
+            .render(
+                &renderer,
+                Scenes::One(&scene),
+                &plan,
+                &stop,
+                0.0,
+                &mut |_| Ok(()),
+            )
             .unwrap_err();
         assert!(
             matches!(
@@ -296,7 +303,7 @@ fn a_sequence_through_the_job_equals_its_frames_rendered_alone() {
         let outcome = job
             .render(
                 &renderer,
-                &scene,
+                Scenes::One(&scene),
                 &plan,
                 &AtomicBool::new(false),
                 12.5,
@@ -345,7 +352,7 @@ fn a_sequence_through_the_job_equals_its_frames_rendered_alone() {
         // An observer's error ends the job after the frame it was told of.
         let refused = job.render(
             &renderer,
-            &scene,
+            Scenes::One(&scene),
             &plan,
             &AtomicBool::new(false),
             0.0,

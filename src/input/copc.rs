@@ -17,13 +17,40 @@ use std::fs::File;
 use std::io::Cursor;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use las::{PointData, PointDataBuilder};
 use laz::record::{LayeredPointRecordDecompressor, RecordDecompressor};
 
+use super::las::{preflight, Gather, Norms, Preflight};
+use crate::camera::Camera;
+use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
+use crate::options::Lod;
+
+/// `--point-budget`: the most points of a COPC file one frame takes.
+pub const DEFAULT_POINT_BUDGET: u64 = 10_000_000;
+
+/// `--memory-mb`: the most MiB of decompressed COPC nodes kept.
+pub const DEFAULT_MEMORY_MB: u64 = 1024;
+
+/// Whether `path` is a COPC file: a LAS file whose first VLR (at byte
+/// 375) is the COPC info VLR (user "copc", record 1), as the COPC
+/// specification requires.
+pub fn is_copc(path: &Path) -> bool {
+    let mut head = [0u8; 375 + 54];
+    let Ok(file) = File::open(path) else {
+        return false;
+    };
+    if file.read_exact_at(&mut head, 0).is_err() || &head[..4] != b"LASF" {
+        return false;
+    }
+    let vlr = &head[375..];
+    let user = &vlr[2..18];
+    let record = u16::from_le_bytes([vlr[18], vlr[19]]);
+    user.starts_with(b"copc") && user[4..].iter().all(|&b| b == 0) && record == 1
+}
 
 /// Bytes of one hierarchy entry: key (4 × i32), offset (u64), byte size
 /// (i32), point count (i32).
@@ -459,4 +486,293 @@ impl CopcFile {
 /// A key as COPC tools print it: level-x-y-z.
 fn key_name(k: NodeKey) -> String {
     format!("{}-{}-{}-{}", k.level, k.x, k.y, k.z)
+}
+
+/// A COPC file rendered by node (issue 30): each frame's cloud is the
+/// points of the nodes that frame needs ([`CopcClouds::select`]), read
+/// from a cache of decompressed nodes bounded by `--memory-mb`; every
+/// frame's points share one origin and one color scale (the header's
+/// bounds, the root node's colors), so a point is the same in every frame.
+pub struct CopcClouds {
+    path: PathBuf,
+    copc: CopcFile,
+    facts: Preflight,
+    origin: DVec3,
+    norms: Norms,
+    /// The most points one frame takes (`--point-budget`).
+    point_budget: u64,
+    /// The most bytes of decompressed nodes kept (`--memory-mb`).
+    memory_bytes: u64,
+    cache: Mutex<NodeCache>,
+}
+
+/// Decompressed nodes, the least recently used dropped first.
+#[derive(Default)]
+struct NodeCache {
+    nodes: HashMap<NodeKey, (Arc<PointData>, u64)>,
+    bytes: u64,
+    tick: u64,
+}
+
+/// The nodes a frame draws.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Selection {
+    /// In file order.
+    pub nodes: Vec<NodeEntry>,
+    pub points: u64,
+    /// Whether the point budget stopped the choice before the level of
+    /// detail did.
+    pub capped: bool,
+}
+
+impl CopcClouds {
+    /// Opens `path` (a COPC file) for rendering by node, re-centred on
+    /// `origin` (default: the centre of the header's bounds on the file's
+    /// grid, as the whole read's).
+    pub fn open(
+        path: &Path,
+        origin: Option<DVec3>,
+        point_budget: u64,
+        memory_mb: u64,
+    ) -> Result<CopcClouds> {
+        let fail = |msg: String| Error::Las {
+            path: path.to_path_buf(),
+            msg,
+        };
+        let mut file = File::open(path).map_err(|e| fail(e.to_string()))?;
+        let file_len = file.metadata().map_err(|e| fail(e.to_string()))?.len();
+        let facts = preflight(path, &mut file, file_len)?;
+        let copc = CopcFile::open(path, facts.header.clone())?;
+        let root = copc
+            .entry(NodeKey::ROOT)?
+            .filter(|e| e.point_count > 0)
+            .ok_or_else(|| fail("the COPC root node holds no points".to_string()))?;
+        let data = copc.read_node(&root)?;
+        let mut sample = Gather::with_capacity(data.len(), path)?;
+        sample.add(&data);
+        // Positions on the header's bounds (the whole read's range when the
+        // header is right), colors scaled as the root's.
+        let t = facts.header.transforms();
+        let b = facts.header.bounds();
+        let code = |v: f64, tr: las::Transform| ((v - tr.offset) / tr.scale).round();
+        let lo = [code(b.min.x, t.x), code(b.min.y, t.y), code(b.min.z, t.z)];
+        let hi = [code(b.max.x, t.x), code(b.max.y, t.y), code(b.max.z, t.z)];
+        if !(0..3).all(|k| lo[k] <= hi[k] && lo[k] >= i32::MIN as f64 && hi[k] <= i32::MAX as f64) {
+            return Err(fail(format!(
+                "the header's bounds ({:?} to {:?}) are not a box on the file's grid",
+                [b.min.x, b.min.y, b.min.z],
+                [b.max.x, b.max.y, b.max.z]
+            )));
+        }
+        let norms = Norms {
+            code_lo: lo.map(|v| v as i32),
+            code_hi: hi.map(|v| v as i32),
+            ..sample.norms()
+        };
+        let origin = sample.finish_with(path, &facts, origin, norms)?.origin;
+        Ok(CopcClouds {
+            path: path.to_path_buf(),
+            copc,
+            facts,
+            origin,
+            norms,
+            point_budget,
+            memory_bytes: memory_mb.saturating_mul(1 << 20),
+            cache: Mutex::new(NodeCache::default()),
+        })
+    }
+
+    /// Points in the file.
+    pub fn total_points(&self) -> u64 {
+        self.facts.header.number_of_points()
+    }
+
+    /// The root node's points as a cloud: a sample of the whole, spread
+    /// over it, for the first camera's framing.
+    pub fn preview(&self) -> Result<PointCloud> {
+        let root = self.copc.entry(NodeKey::ROOT)?.expect("checked by open");
+        self.cloud(&[root])
+    }
+
+    /// The nodes a frame through `camera` draws: from the root, each node
+    /// for which `decide(centre, radius, spacing)` (its cube's sphere in
+    /// scene coordinates and its points' spacing, the root's halved per
+    /// level) says it reaches the frame (`Some`), and its children while
+    /// it is not fine enough (`Some(false)`): the splat hierarchy's own
+    /// rule, `tree::sphere_decision`; the nodes whose spacing is widest on
+    /// screen first, until `--point-budget`. `--lod-px 0` (`lod`) takes
+    /// every node, and fails beyond the budget.
+    pub fn select(
+        &self,
+        camera: &Camera,
+        lod: Lod,
+        decide: &dyn Fn(Vec3, f32, f32) -> Option<bool>,
+    ) -> Result<Selection> {
+        if lod.draws_all() {
+            let nodes = self.copc.all_nodes()?;
+            let points = nodes.iter().map(|n| n.point_count).sum();
+            if points != self.total_points() {
+                return Err(Error::Las {
+                    path: self.path.clone(),
+                    msg: format!(
+                        "the COPC hierarchy's nodes hold {points} points, the header declares \
+                         {}: counts that lie",
+                        self.total_points()
+                    ),
+                });
+            }
+            if points > self.point_budget {
+                return Err(Error::InvalidArgument(format!(
+                    "{}: --lod-px 0 draws all {points} points, more than --point-budget {}; \
+                     raise it",
+                    self.path.display(),
+                    self.point_budget
+                )));
+            }
+            return Ok(Selection {
+                nodes,
+                points,
+                capped: false,
+            });
+        }
+        let info = self.copc.info;
+        let sphere = |key: NodeKey| {
+            let (min, width) = info.cube(key);
+            let centre = min + DVec3::splat(width / 2.0) - self.origin;
+            // A cube's circumscribed sphere, a little wider for the
+            // points on its faces.
+            (centre.as_vec3(), (width * 0.87) as f32)
+        };
+        // Widest spacing on screen first: (size, key), a max-heap.
+        let mut queue = std::collections::BinaryHeap::new();
+        let f_px = camera.f_px() as f64;
+        let eye_from_world = camera.eye_from_world_transform();
+        let priority = |key: NodeKey| {
+            let (c, r) = sphere(key);
+            let z = (eye_from_world.apply(c).z - r).max(1e-6) as f64;
+            (f_px * info.spacing_at(key.level) / z * 1e6) as u64
+        };
+        queue.push((priority(NodeKey::ROOT), NodeKey::ROOT));
+        let (mut nodes, mut points, mut capped) = (Vec::new(), 0u64, false);
+        while let Some((_, key)) = queue.pop() {
+            let Some(entry) = self.copc.entry(key)? else {
+                continue;
+            };
+            let (c, r) = sphere(key);
+            let spacing = info.spacing_at(key.level) as f32;
+            let Some(fine_enough) = decide(c, r, spacing) else {
+                continue;
+            };
+            if points + entry.point_count > self.point_budget {
+                capped = true;
+                break;
+            }
+            if entry.point_count > 0 {
+                points += entry.point_count;
+                nodes.push(entry);
+            }
+            if !fine_enough && key.level < MAX_LEVEL {
+                for child in key.children() {
+                    queue.push((priority(child), child));
+                }
+            }
+        }
+        nodes.sort_by_key(|n| n.offset);
+        Ok(Selection {
+            nodes,
+            points,
+            capped,
+        })
+    }
+
+    /// The cloud of `nodes` (in the order given), their points
+    /// decompressed on every core where the cache does not hold them.
+    pub fn cloud(&self, nodes: &[NodeEntry]) -> Result<PointCloud> {
+        let datas = self.nodes(nodes)?;
+        let n: usize = datas.iter().map(|d| d.len()).sum();
+        let mut gather = Gather::with_capacity(n, &self.path)?;
+        for data in &datas {
+            gather.add(data);
+        }
+        gather.finish_with(&self.path, &self.facts, Some(self.origin), self.norms)
+    }
+
+    /// The points of `nodes`: from the cache, the rest decompressed by
+    /// every thread, then the cache trimmed to `--memory-mb` (the nodes
+    /// of this frame stay while the frame needs them: they are returned).
+    fn nodes(&self, nodes: &[NodeEntry]) -> Result<Vec<Arc<PointData>>> {
+        let mut out: Vec<Option<Arc<PointData>>> = vec![None; nodes.len()];
+        {
+            let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+            cache.tick += 1;
+            let tick = cache.tick;
+            for (slot, node) in out.iter_mut().zip(nodes) {
+                if let Some((data, used)) = cache.nodes.get_mut(&node.key) {
+                    *used = tick;
+                    *slot = Some(data.clone());
+                }
+            }
+        }
+        let missing: Vec<usize> = (0..nodes.len()).filter(|&i| out[i].is_none()).collect();
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let decoded: Vec<Mutex<Option<Result<PointData>>>> =
+            missing.iter().map(|_| Mutex::new(None)).collect();
+        std::thread::scope(|scope| {
+            for _ in 0..crate::available_threads().max(1).min(missing.len()) {
+                scope.spawn(|| loop {
+                    let j = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(&i) = missing.get(j) else {
+                        break;
+                    };
+                    let data = self.copc.read_node(&nodes[i]);
+                    *decoded[j].lock().unwrap_or_else(|e| e.into_inner()) = Some(data);
+                });
+            }
+        });
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        let tick = cache.tick;
+        for (j, cell) in decoded.into_iter().enumerate() {
+            let data = cell
+                .into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every missing node decompressed")?;
+            let data = Arc::new(data);
+            let i = missing[j];
+            cache.bytes += node_bytes(&data);
+            cache.nodes.insert(nodes[i].key, (data.clone(), tick));
+            out[i] = Some(data);
+        }
+        // The least recently used first, never this frame's.
+        while cache.bytes > self.memory_bytes {
+            let oldest = cache
+                .nodes
+                .iter()
+                .filter(|(_, (_, used))| *used < tick)
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(k, _)| *k);
+            let Some(key) = oldest else {
+                break;
+            };
+            if let Some((data, _)) = cache.nodes.remove(&key) {
+                cache.bytes -= node_bytes(&data);
+            }
+        }
+        Ok(out.into_iter().map(|d| d.expect("filled")).collect())
+    }
+
+    /// Keeps at most `bytes` of decompressed nodes (`--memory-mb` in
+    /// bytes; the nodes of the frame being made stay).
+    pub fn set_memory_bytes(&mut self, bytes: u64) {
+        self.memory_bytes = bytes;
+    }
+
+    /// Bytes of decompressed nodes in the cache.
+    pub fn cached_bytes(&self) -> u64 {
+        self.cache.lock().unwrap_or_else(|e| e.into_inner()).bytes
+    }
+}
+
+/// The bytes a decompressed node holds.
+fn node_bytes(data: &PointData) -> u64 {
+    data.len() as u64 * data.format().len() as u64
 }

@@ -115,12 +115,12 @@ fn axis(scale: f64, offset: f64, user: Option<f64>, range: (f64, f64)) -> Result
 /// is read: the checks the `las` and `laz` crates leave to the read, where
 /// a lying field would otherwise abort the process on a huge allocation
 /// or read garbage.
-struct Preflight {
-    header: las::Header,
+pub(super) struct Preflight {
+    pub(super) header: las::Header,
     record_len: u64,
 }
 
-fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
+pub(super) fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
     let (fail, io) = (las_fail(path), io_fail(path));
     file.rewind().map_err(io)?;
     let raw =
@@ -551,7 +551,7 @@ fn load_copc(
 /// The points of a LAS file as they are read, chunk by chunk: integer
 /// codes and their ranges, colors, intensities, classes and returns;
 /// [`Gather::finish`] makes the cloud once the ranges are known.
-struct Gather {
+pub(super) struct Gather {
     positions: Vec<Vec3>,
     colors: Vec<Vec3>,
     classes: Vec<u8>,
@@ -565,7 +565,7 @@ struct Gather {
 }
 
 impl Gather {
-    fn with_capacity(n: usize, path: &Path) -> Result<Gather> {
+    pub(super) fn with_capacity(n: usize, path: &Path) -> Result<Gather> {
         let mut g = Gather {
             positions: Vec::new(),
             colors: Vec::new(),
@@ -590,7 +590,7 @@ impl Gather {
     /// codes (through bytemuck, in place) until the whole file is read:
     /// then the codes' exact range gives the origin, and one pass turns
     /// them into f32.
-    fn add(&mut self, data: &PointData) {
+    pub(super) fn add(&mut self, data: &PointData) {
         let at = self.positions.len();
         self.positions.resize(at + data.len(), Vec3::ZERO);
         let codes: &mut [[i32; 3]] = bytemuck::cast_slice_mut(&mut self.positions[at..]);
@@ -641,6 +641,33 @@ impl Gather {
 
     /// The cloud of every chunk added, re-centred on `origin` (default:
     /// the centre of the codes' range).
+    /// The ranges of what was added: what [`Gather::finish`] scales by.
+    pub(super) fn norms(&self) -> Norms {
+        Norms {
+            code_lo: self.code_lo,
+            code_hi: self.code_hi,
+            rgb_max: self.rgb_max,
+            int_lo: self.int_lo,
+            int_hi: self.int_hi,
+        }
+    }
+
+    /// The cloud of every chunk added, re-centred on `origin` (default:
+    /// the centre of the codes' range), its colors scaled by the ranges of
+    /// what was added, or by `norms` where given (a cloud read in parts
+    /// that must agree with the others).
+    pub(super) fn finish_with(
+        mut self,
+        path: &Path,
+        facts: &Preflight,
+        origin: Option<DVec3>,
+        norms: Norms,
+    ) -> Result<PointCloud> {
+        (self.code_lo, self.code_hi) = (norms.code_lo, norms.code_hi);
+        (self.rgb_max, self.int_lo, self.int_hi) = (norms.rgb_max, norms.int_lo, norms.int_hi);
+        self.finish(path, facts, origin)
+    }
+
     fn finish(self, path: &Path, facts: &Preflight, origin: Option<DVec3>) -> Result<PointCloud> {
         let fail = las_fail(path);
         let header = &facts.header;
@@ -725,6 +752,18 @@ impl Gather {
         );
         Ok(cloud)
     }
+}
+
+/// The ranges a cloud's positions and colors are scaled by: the codes'
+/// range per axis (whose centre is the default origin), the largest RGB
+/// code (8- or 16-bit colors) and the intensities' range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Norms {
+    pub(super) code_lo: [i32; 3],
+    pub(super) code_hi: [i32; 3],
+    pub(super) rgb_max: u16,
+    pub(super) int_lo: u16,
+    pub(super) int_hi: u16,
 }
 
 /// Reserves room for exactly `n` more elements, or a clear error (a lying

@@ -41,7 +41,7 @@ pub use spacing::{
     tree_spacing_limited, ISOLATED_BLOCK, ISOLATED_LIMIT, SPACING_BIAS, SPACING_NEIGHBOURS,
     SPACING_WINDOW,
 };
-pub use traverse::{max_coc_px, min_coc_px, Traversal, Widening};
+pub use traverse::{max_coc_px, min_coc_px, sphere_decision, Traversal, Widening};
 
 /// The points a tree is built of, in any order: positions, linear-light
 /// colors in [0, 1] (one per point) and, when known, unit normals.

@@ -250,6 +250,48 @@ impl SplatTree {
     }
 }
 
+/// What the traversal decides for a world-space sphere (centre, radius r)
+/// whose points are `spacing` apart: the decision the traversal makes of an inner node, for callers that
+/// choose among their own groups of points (COPC's octree nodes,
+/// `crate::input::copc_frame`): None when the sphere cannot reach the
+/// frame (frustum widened as the traversal widens it), else whether a
+/// group this coarse is fine enough (`true`: stop; `false`: its finer
+/// points are wanted).
+pub fn sphere_decision(
+    camera: &Camera,
+    lod: Lod,
+    widening: Widening,
+    centre: Vec3,
+    r: f32,
+    spacing: f32,
+) -> Option<bool> {
+    let view = View {
+        camera: *camera,
+        eye_from_world: camera.eye_from_world_transform(),
+        f_px: camera.f_px(),
+        centre: Vec2::new(camera.width as f32 / 2.0, camera.height as f32 / 2.0),
+        widening,
+        lod,
+    };
+    let e = view.eye_from_world.apply(centre);
+    if e.z + r <= 0.0 {
+        return None;
+    }
+    let in_front = e.z - r > 0.0;
+    if in_front && outside_frustum(&view, e, r, max_coc_px(camera, e.z - r, e.z + r)) {
+        return None;
+    }
+    if !in_front || lod.draws_all() {
+        return Some(false);
+    }
+    // Its spacing as drawn at its nearest depth.
+    let size_px = view.f_px * spacing / (e.z - r);
+    let blurred = lod
+        .blur
+        .is_some_and(|f| size_px <= f * min_coc_px(camera, e.z - r, e.z + r));
+    Some(size_px <= lod.px || blurred)
+}
+
 /// Breadth-first expansion stops at this many subtrees.
 const FRONTIER: usize = 4096;
 

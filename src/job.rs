@@ -401,7 +401,11 @@ impl RenderJob {
             let options = self.frame_options(renderer, &scene, job.camera)?;
             let scene = match options.camera == job.camera {
                 true => scene,
-                false => scenes.for_camera(renderer, &options.camera, self.spec.lod)?,
+                false => {
+                    // One scene on the device at a time.
+                    drop(scene);
+                    scenes.for_camera(renderer, &options.camera, self.spec.lod)?
+                }
             };
             let scene = &*scene;
             let spec = options.camera.to_spec_in(plan.coordinates, plan.origin);

@@ -18,6 +18,7 @@ pub mod camera;
 pub mod chart;
 pub mod cloud;
 pub mod color;
+pub mod convert;
 pub mod error;
 pub mod gbuffer;
 pub mod image_io;

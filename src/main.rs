@@ -116,6 +116,14 @@ enum Command {
         #[arg(long, value_name = "X,Y,Z", value_parser = parse_dvec3, allow_hyphen_values = true)]
         origin: Option<[f64; 3]>,
     },
+    /// Write a cloud (PLY, LAS, LAZ or COPC) as a COPC file: an octree of
+    /// LAZ chunks that `render` reads node by node.
+    Convert {
+        input: PathBuf,
+        /// Output file, .copc.laz (replaced atomically).
+        #[arg(short, long, value_name = "FILE")]
+        output: PathBuf,
+    },
     /// Write the bench's synthetic scene (a wavy wall and five spheres) as
     /// a binary little-endian PLY, or LAS / LAZ (by the extension),
     /// streamed: any size in bounded memory.
@@ -609,6 +617,7 @@ fn main() -> ExitCode {
         Some(Command::Info { input, origin }) => info(&input, origin, quiet),
         Some(Command::Bench(args)) => bench(*args, quiet),
         Some(Command::Synth { points, output }) => synth(points, &output, quiet),
+        Some(Command::Convert { input, output }) => convert(&input, &output, quiet),
         None => Err(anyhow::anyhow!("no command given (see 'pointlens --help')")),
     };
     match result {
@@ -853,6 +862,46 @@ fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
     out!(
         "isolated_points: {limited} (splats limited to {} times their neighbours' median spacing)\n",
         pointlens::tree::ISOLATED_LIMIT
+    )?;
+    Ok(())
+}
+
+fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
+    let name = output.to_string_lossy().to_lowercase();
+    if !name.ends_with(".copc.laz") {
+        bail!(
+            "{}: convert writes COPC: name the output .copc.laz",
+            output.display()
+        );
+    }
+    check_parent_dir(output, "-o")?;
+    if input.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
+        bail!("{}: the output would replace the input", output.display());
+    }
+    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
+    let t = Instant::now();
+    let records = match pointlens::input::is_las(input) {
+        true => {
+            // Checked as `render` checks it first (one line on a bad file).
+            pointlens::input::las::check_las(input)?;
+            pointlens::convert::Records::of_las(input)?
+        }
+        false => pointlens::convert::Records::of_cloud(&load(input, None, quiet)?, input)?,
+    };
+    log::info!(
+        "convert: {} points read in {:.2} s",
+        records.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let done = pointlens::convert::write_copc(&records, output, pointlens::available_threads())?;
+    out!(
+        "{}: {} points in {} nodes on {} levels, {:.1} MB, {:.2} s\n",
+        output.display(),
+        done.points,
+        done.nodes,
+        done.levels,
+        done.bytes as f64 / 1e6,
+        t.elapsed().as_secs_f64()
     )?;
     Ok(())
 }

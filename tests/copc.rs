@@ -384,6 +384,10 @@ fn a_frame_takes_the_nodes_its_camera_needs() {
     assert!(capped.capped && capped.points <= 100 && capped.points > 0);
     let e = select(&small, &camera, Lod::ALL).unwrap_err();
     assert!(e.to_string().contains("--point-budget"), "{e}");
+    // The root (24 points) is always drawn: a budget below it is an error.
+    let tiny = CopcClouds::open(&pdal_file(), None, 10, 64).unwrap();
+    let e = select(&tiny, &camera, Lod::default()).unwrap_err();
+    assert!(e.to_string().contains("root node holds 24 points"), "{e}");
 
     clouds.set_memory_bytes(0);
     clouds.cloud(&fine.nodes).unwrap();

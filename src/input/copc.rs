@@ -56,6 +56,10 @@ pub fn is_copc(path: &Path) -> bool {
 /// (i32), point count (i32).
 const ENTRY_BYTES: u64 = 32;
 
+/// The largest hierarchy page read: 2^21 entries (a page of a 10^10-point
+/// file holds about 10^5).
+const MAX_PAGE_BYTES: u64 = ENTRY_BYTES << 21;
+
 /// The deepest octree level read: a node there is 2^-30 of the root's
 /// width, far below any scale a LAS grid holds.
 pub const MAX_LEVEL: i32 = 30;
@@ -292,6 +296,13 @@ impl CopcFile {
                 "the COPC hierarchy page at byte {offset} is referenced twice (a cycle)"
             )));
         }
+        if size > MAX_PAGE_BYTES {
+            return Err(self.fail(format!(
+                "the COPC hierarchy page of node {} at byte {offset} declares {size} bytes, \
+                 more than the {MAX_PAGE_BYTES} pointlens reads in one page",
+                key_name(key)
+            )));
+        }
         let mut bytes = vec![0u8; size as usize];
         self.file
             .read_exact_at(&mut bytes, offset)
@@ -460,12 +471,27 @@ impl CopcFile {
     /// Decompresses the points of `node` (an independent LAZ chunk):
     /// callable from many threads at once.
     pub fn read_node(&self, node: &NodeEntry) -> Result<PointData> {
-        let mut bytes = vec![0u8; node.byte_size as usize];
+        let n = usize::try_from(node.point_count).expect("checked against the header");
+        let out_len = n.checked_mul(self.record_len);
+        let too_big = || {
+            self.fail(format!(
+                "node {} declares {n} points ({} bytes compressed), more than memory holds",
+                key_name(node.key),
+                node.byte_size
+            ))
+        };
+        let mut bytes = Vec::new();
+        bytes
+            .try_reserve_exact(node.byte_size as usize)
+            .map_err(|_| too_big())?;
+        bytes.resize(node.byte_size as usize, 0);
         self.file
             .read_exact_at(&mut bytes, node.offset)
             .map_err(|e| self.fail(format!("reading node {}: {e}", key_name(node.key))))?;
-        let n = usize::try_from(node.point_count).expect("checked against the header");
-        let mut out = vec![0u8; n * self.record_len];
+        let mut out = Vec::new();
+        out.try_reserve_exact(out_len.ok_or_else(too_big)?)
+            .map_err(|_| too_big())?;
+        out.resize(out_len.expect("checked"), 0);
         let mut decompressor = LayeredPointRecordDecompressor::new(Cursor::new(&bytes[..]));
         decompressor
             .set_fields_from(&self.items)
@@ -646,11 +672,14 @@ impl CopcClouds {
         // Widest spacing on screen first: (size, key), a max-heap.
         let mut queue = std::collections::BinaryHeap::new();
         let f_px = camera.f_px() as f64;
-        let eye_from_world = camera.eye_from_world_transform();
+        // The spacing drawn at the sphere's nearest distance from the eye
+        // (at least the spacing away: a node around the eye ranks as one
+        // a spacing away, not above every other).
         let priority = |key: NodeKey| {
             let (c, r) = sphere(key);
-            let z = (eye_from_world.apply(c).z - r).max(1e-6) as f64;
-            (f_px * info.spacing_at(key.level) / z * 1e6) as u64
+            let spacing = info.spacing_at(key.level);
+            let d = (f64::from((c - camera.eye).length() - r)).max(spacing);
+            (f_px * spacing / d * 1e6) as u64
         };
         queue.push((priority(NodeKey::ROOT), NodeKey::ROOT));
         let (mut nodes, mut points, mut capped) = (Vec::new(), 0u64, false);
@@ -664,6 +693,15 @@ impl CopcClouds {
                 continue;
             };
             if points + entry.point_count > self.point_budget {
+                if key == NodeKey::ROOT {
+                    return Err(Error::InvalidArgument(format!(
+                        "{}: the COPC root node holds {} points, more than --point-budget \
+                         {}; raise it",
+                        self.path.display(),
+                        entry.point_count,
+                        self.point_budget
+                    )));
+                }
                 capped = true;
                 break;
             }

@@ -407,6 +407,23 @@ pub fn load_las(
     load_las_with(path, origin, progress, true)
 }
 
+/// Checks a LAS/LAZ/COPC file's header, VLRs and chunk table against the
+/// file without reading its points (what [`load_las`] checks first).
+pub fn check_las(path: &Path) -> Result<()> {
+    let io = io_fail(path);
+    let mut file = File::open(path).map_err(io)?;
+    let file_len = file.metadata().map_err(io)?.len();
+    let mut magic = Vec::with_capacity(4);
+    (&mut file).take(4).read_to_end(&mut magic).map_err(io)?;
+    if !has_magic(&magic) {
+        return Err(las_fail(path)(format!(
+            "not a LAS or LAZ file: it starts with {:?}, not \"LASF\"",
+            String::from_utf8_lossy(&magic)
+        )));
+    }
+    preflight(path, &mut file, file_len).map(|_| ())
+}
+
 /// [`load_las`] reading a COPC file as the LAZ stream it also is (its
 /// chunks in file order, its hierarchy ignored): what the by-node read is
 /// tested against.

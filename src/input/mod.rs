@@ -76,7 +76,7 @@ pub const MAX_COORDINATE: f32 = 1e18;
 
 /// Whether `path` holds a LAS or LAZ file: by its first four bytes where it
 /// is a regular file, else by its extension.
-fn is_las(path: &Path) -> bool {
+pub fn is_las(path: &Path) -> bool {
     use std::io::Read;
     match std::fs::File::open(path) {
         Ok(file) if file.metadata().is_ok_and(|m| m.is_file()) => {

@@ -44,6 +44,19 @@ struct View {
     lod: Lod,
 }
 
+impl View {
+    fn new(camera: &Camera, lod: Lod, widening: Widening) -> View {
+        View {
+            camera: *camera,
+            eye_from_world: camera.eye_from_world_transform(),
+            f_px: camera.f_px(),
+            centre: Vec2::new(camera.width as f32 / 2.0, camera.height as f32 / 2.0),
+            widening,
+            lod,
+        }
+    }
+}
+
 enum Test {
     Cull,
     Emit,
@@ -74,14 +87,7 @@ impl SplatTree {
                 ms: ms_since(started),
             };
         }
-        let view = View {
-            camera: *camera,
-            eye_from_world: camera.eye_from_world_transform(),
-            f_px: camera.f_px(),
-            centre: Vec2::new(camera.width as f32 / 2.0, camera.height as f32 / 2.0),
-            widening,
-            lod,
-        };
+        let view = View::new(camera, lod, widening);
         // Breadth first from the root until there is work for every
         // thread: a list in Morton order of emitted splats and subtrees
         // still to walk (a fixed target, so the same list whatever
@@ -265,14 +271,7 @@ pub fn sphere_decision(
     r: f32,
     spacing: f32,
 ) -> Option<bool> {
-    let view = View {
-        camera: *camera,
-        eye_from_world: camera.eye_from_world_transform(),
-        f_px: camera.f_px(),
-        centre: Vec2::new(camera.width as f32 / 2.0, camera.height as f32 / 2.0),
-        widening,
-        lod,
-    };
+    let view = View::new(camera, lod, widening);
     let e = view.eye_from_world.apply(centre);
     if e.z + r <= 0.0 {
         return None;

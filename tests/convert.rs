@@ -1,0 +1,225 @@
+//! `pointlens convert` (issue 30, item 2; docs/ARCHITECTURE.md,
+//! "Converting to COPC"): the COPC it writes holds the input's points
+//! unchanged, in an octree whose nodes hold their cubes' points, read back
+//! by pointlens node by node (an independent reader: scripts/check-copc).
+
+mod common;
+
+use std::path::Path;
+
+use common::{assert_fails, pointlens, root, scratch};
+use pointlens::convert::{GRID_CELLS, MAX_NODE_POINTS};
+use pointlens::input::copc::CopcFile;
+use pointlens::input::las::load_las;
+use pointlens::PointCloud;
+
+fn convert(input: &Path, output: &Path) {
+    let o = pointlens(&[
+        "convert",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// Everything a point holds: position and color bits, intensity, class,
+/// return.
+type PointTuple = ([u32; 3], [u32; 3], u16, u8, u8);
+
+/// A cloud's points as sorted tuples of everything it holds.
+fn multiset(c: &PointCloud) -> Vec<PointTuple> {
+    let mut v: Vec<_> = (0..c.len())
+        .map(|i| {
+            (
+                c.positions[i].to_array().map(f32::to_bits),
+                c.colors[i].to_array().map(f32::to_bits),
+                c.intensities.as_ref().unwrap()[i],
+                c.classifications.as_ref().unwrap()[i],
+                c.returns.as_ref().unwrap()[i],
+            )
+        })
+        .collect();
+    v.sort_unstable();
+    v
+}
+
+/// The LiDAR tile converted: the same points (positions bit for bit,
+/// colors, intensities, classes, returns), in nodes that hold their cubes'
+/// points, each above the leaves sampled on a 128³ grid.
+#[test]
+fn a_las_file_converts_to_the_same_points_in_an_octree() {
+    let dir = scratch("convert-las");
+    let input = root().join("data/autzen_trim.las");
+    let output = dir.path().join("autzen.copc.laz");
+    convert(&input, &output);
+    let original = load_las(&input, None, &mut |_, _| {}).unwrap();
+    let converted = load_las(&output, None, &mut |_, _| {}).unwrap();
+    assert_eq!(original.origin, converted.origin);
+    assert!(
+        multiset(&original) == multiset(&converted),
+        "the points differ"
+    );
+
+    let header = las::Reader::from_path(&output).unwrap().header().clone();
+    let transforms = *header.transforms();
+    let copc = CopcFile::open(&output, header).unwrap();
+    let nodes = copc.all_nodes().unwrap();
+    assert!(nodes.len() > 1, "an octree: {} nodes", nodes.len());
+    assert_eq!(nodes.iter().map(|n| n.point_count).sum::<u64>(), 110_000);
+    for node in &nodes {
+        let (min, width) = copc.info.cube(node.key);
+        let data = copc.read_node(node).unwrap();
+        assert_eq!(data.len() as u64, node.point_count);
+        let slack = transforms.x.scale;
+        for ((x, y), z) in data.x().zip(data.y()).zip(data.z()) {
+            let p = glam::DVec3::new(x, y, z);
+            assert!(
+                (p - min).min_element() >= -slack && (p - min - width).max_element() <= slack,
+                "node {:?} holds {p:?}, outside its cube",
+                node.key
+            );
+        }
+        let inner = nodes.iter().any(|c| {
+            c.key.level == node.key.level + 1 && {
+                let d = c.key.level - node.key.level;
+                (c.key.x >> d, c.key.y >> d, c.key.z >> d) == (node.key.x, node.key.y, node.key.z)
+            }
+        });
+        if inner {
+            // One point per occupied cell of its 128³ grid.
+            let cell = width / f64::from(GRID_CELLS);
+            let mut cells: Vec<[i64; 3]> = data
+                .x()
+                .zip(data.y())
+                .zip(data.z())
+                .map(|((x, y), z)| {
+                    let c = (glam::DVec3::new(x, y, z) - min) / cell;
+                    [c.x.floor() as i64, c.y.floor() as i64, c.z.floor() as i64]
+                })
+                .collect();
+            cells.sort_unstable();
+            let n = cells.len();
+            cells.dedup();
+            assert_eq!(
+                cells.len(),
+                n,
+                "node {:?}: two points in one cell",
+                node.key
+            );
+        } else {
+            assert!(node.point_count as usize <= MAX_NODE_POINTS);
+        }
+    }
+    assert!((copc.info.spacing - 2.0 * copc.info.halfsize / f64::from(GRID_CELLS)).abs() < 1e-9);
+}
+
+/// A PLY cloud converts on a grid fine enough for its f32 positions, with
+/// its colors as 16-bit sRGB; `render` takes the result by node.
+#[test]
+fn a_ply_cloud_converts_and_renders() {
+    let dir = scratch("convert-ply");
+    let input = root().join("data/bunny_colored.ply");
+    let output = dir.path().join("bunny.copc.laz");
+    convert(&input, &output);
+    let original = pointlens::input::ply::load_ply(&input).unwrap();
+    let converted = load_las(&output, None, &mut |_, _| {}).unwrap();
+    assert_eq!(converted.len(), original.len());
+    let (lo, hi) = original.bounds();
+    let extent = f64::from((hi - lo).max_element());
+    // Every converted point within a millionth of the extent of an
+    // original point (the grid is 10⁻⁷ of it; f32 rounds at 6·10⁻⁸),
+    // with that point's color within the 16-bit sRGB codes' rounding.
+    let cell = 1e-6 * extent;
+    let key = |p: glam::DVec3| (p / cell).floor().as_i64vec3().to_array();
+    let mut grid = std::collections::HashMap::new();
+    for (p, c) in original.positions.iter().zip(&original.colors) {
+        grid.entry(key(p.as_dvec3() + original.origin))
+            .or_insert_with(Vec::new)
+            .push((p.as_dvec3() + original.origin, *c));
+    }
+    let mut worst = (0.0f64, 0.0f32);
+    for (p, c) in converted.positions.iter().zip(&converted.colors) {
+        let p = p.as_dvec3() + converted.origin;
+        let k = key(p);
+        let mut best: Option<(f64, f32)> = None;
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    for (q, qc) in grid
+                        .get(&[k[0] + dx, k[1] + dy, k[2] + dz])
+                        .into_iter()
+                        .flatten()
+                    {
+                        let d = (p - *q).length();
+                        let e = (*c - *qc).abs().max_element();
+                        if best.is_none_or(|b| d < b.0) {
+                            best = Some((d, e));
+                        }
+                    }
+                }
+            }
+        }
+        let (d, e) = best.unwrap_or_else(|| panic!("no original point near {p:?}"));
+        worst = (worst.0.max(d), worst.1.max(e));
+    }
+    assert!(worst.0 <= cell, "a point moved by {}", worst.0);
+    assert!(worst.1 < 1e-3, "a color moved by {}", worst.1);
+
+    let image = dir.path().join("bunny.png");
+    let o = pointlens(&[
+        "render",
+        output.to_str().unwrap(),
+        "-o",
+        image.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// What `convert` refuses, in one line and without a file.
+#[test]
+fn convert_refuses_in_one_line() {
+    let dir = scratch("convert-bad");
+    let input = root().join("data/autzen_trim.las");
+    let i = input.to_str().unwrap();
+    let laz = dir.path().join("out.laz");
+    assert_fails(
+        &["convert", i, "-o", laz.to_str().unwrap()],
+        ".copc.laz",
+        &laz,
+    );
+    let missing = dir.path().join("none.las");
+    let out = dir.path().join("out.copc.laz");
+    assert_fails(
+        &[
+            "convert",
+            missing.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "none.las",
+        &out,
+    );
+    let bad = dir.path().join("bad.las");
+    std::fs::write(&bad, b"LASF but not much else").unwrap();
+    assert_fails(
+        &[
+            "convert",
+            bad.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "bad.las",
+        &out,
+    );
+    let nowhere = dir.path().join("no/such/dir/out.copc.laz");
+    assert_fails(
+        &["convert", i, "-o", nowhere.to_str().unwrap()],
+        "-o",
+        &nowhere,
+    );
+}

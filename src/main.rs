@@ -880,20 +880,23 @@ fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
     }
     job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
     let t = Instant::now();
-    let records = match pointlens::input::is_las(input) {
+    let threads = pointlens::available_threads();
+    let done = match pointlens::input::is_las(input) {
         true => {
             // Checked as `render` checks it first (one line on a bad file).
             pointlens::input::las::check_las(input)?;
-            pointlens::convert::Records::of_las(input)?
+            // Tests make parts small to split the tile into many.
+            let part_points = std::env::var("POINTLENS_CONVERT_PART_POINTS")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(pointlens::convert::PART_POINTS);
+            pointlens::convert::convert_las(input, output, threads, part_points)?
         }
-        false => pointlens::convert::Records::of_cloud(&load(input, None, quiet)?, input)?,
+        false => {
+            let records = pointlens::convert::Records::of_cloud(&load(input, None, quiet)?, input)?;
+            pointlens::convert::write_copc(&records, output, threads)?
+        }
     };
-    log::info!(
-        "convert: {} points read in {:.2} s",
-        records.len(),
-        t.elapsed().as_secs_f64()
-    );
-    let done = pointlens::convert::write_copc(&records, output, pointlens::available_threads())?;
     out!(
         "{}: {} points in {} nodes on {} levels, {:.1} MB, {:.2} s\n",
         output.display(),

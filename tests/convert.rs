@@ -23,6 +23,21 @@ fn convert(input: &Path, output: &Path) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
+/// `convert` with parts of at most `part_points` points.
+fn convert_in_parts(input: &Path, output: &Path, part_points: u64) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+        .args([
+            "convert",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+        ])
+        .env("POINTLENS_CONVERT_PART_POINTS", part_points.to_string())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// Everything a point holds: position and color bits, intensity, class,
 /// return.
 type PointTuple = ([u32; 3], [u32; 3], u16, u8, u8);
@@ -44,16 +59,37 @@ fn multiset(c: &PointCloud) -> Vec<PointTuple> {
     v
 }
 
-/// The LiDAR tile converted: the same points (positions bit for bit,
-/// colors, intensities, classes, returns), in nodes that hold their cubes'
-/// points, each above the leaves sampled on a 128³ grid.
+/// The LiDAR tile converted in one part and in parts of 5,000 points (the
+/// out-of-core path: parts split until small enough, built apart, the
+/// levels above them sampled from their nodes' points).
 #[test]
 fn a_las_file_converts_to_the_same_points_in_an_octree() {
     let dir = scratch("convert-las");
     let input = root().join("data/autzen_trim.las");
-    let output = dir.path().join("autzen.copc.laz");
-    convert(&input, &output);
-    let original = load_las(&input, None, &mut |_, _| {}).unwrap();
+    let whole = dir.path().join("autzen.copc.laz");
+    convert(&input, &whole);
+    check_octree(&input, &whole);
+    let parts = dir.path().join("autzen-parts.copc.laz");
+    convert_in_parts(&input, &parts, 5_000);
+    let levels = check_octree(&input, &parts);
+    assert!(
+        levels >= 4,
+        "parts of 5,000 points make a deeper tree: {levels} levels"
+    );
+    assert_eq!(
+        common::file_names(dir.path()),
+        ["autzen-parts.copc.laz", "autzen.copc.laz"],
+        "no part left behind"
+    );
+}
+
+/// The converted file holds the input's points (positions bit for bit,
+/// colors, intensities, classes, returns), in nodes that hold their cubes'
+/// points, each above the leaves sampled on a 128³ grid; returns its
+/// levels.
+fn check_octree(input: &Path, output: &Path) -> i32 {
+    let output = output.to_path_buf();
+    let original = load_las(input, None, &mut |_, _| {}).unwrap();
     let converted = load_las(&output, None, &mut |_, _| {}).unwrap();
     assert_eq!(original.origin, converted.origin);
     assert!(
@@ -112,6 +148,7 @@ fn a_las_file_converts_to_the_same_points_in_an_octree() {
         }
     }
     assert!((copc.info.spacing - 2.0 * copc.info.halfsize / f64::from(GRID_CELLS)).abs() < 1e-9);
+    nodes.iter().map(|n| n.key.level).max().unwrap() + 1
 }
 
 /// A PLY cloud converts on a grid fine enough for its f32 positions, with

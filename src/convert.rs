@@ -86,18 +86,9 @@ impl Records {
         DVec3::new(t.x.direct(c(0)), t.y.direct(c(1)), t.z.direct(c(2)))
     }
 
-    /// Point `i`'s integer codes (the first 12 bytes of every format).
-    fn codes(&self, i: usize) -> [i32; 3] {
-        let r = &self.bytes[i * self.record_len()..];
-        let c = |k: usize| i32::from_le_bytes(r[4 * k..4 * k + 4].try_into().expect("4 bytes"));
-        [c(0), c(1), c(2)]
-    }
-
     /// Point `i` in file coordinates.
     fn position(&self, i: usize) -> DVec3 {
-        let [x, y, z] = self.codes(i);
-        let t = &self.transforms;
-        DVec3::new(t.x.direct(x), t.y.direct(y), t.z.direct(z))
+        self.position_of(&self.bytes[i * self.record_len()..])
     }
 
     /// The output's format (6, or 7 where the input has colors), grid,
@@ -235,16 +226,10 @@ struct Node {
     points: Vec<u32>,
 }
 
-/// The root cube around `records`: (min corner, width), in file
-/// coordinates.
-fn root_cube(records: &Records) -> (DVec3, f64) {
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for i in 0..records.len() {
-        let p = records.position(i);
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    // A little wider, so that the largest coordinate lies inside.
+/// The root cube around points within `lo`..`hi` (file coordinates):
+/// (min corner, width), a little wider, so that the largest coordinate
+/// lies inside.
+fn root_cube(lo: DVec3, hi: DVec3) -> (DVec3, f64) {
     let width = (hi - lo).max_element().max(f64::MIN_POSITIVE) * (1.0 + 1e-9) + 1e-9;
     let centre = (lo + hi) / 2.0;
     (centre - DVec3::splat(width / 2.0), width)
@@ -386,7 +371,13 @@ pub fn write_copc(records: &Records, output: &Path, threads: usize) -> Result<Co
         return Err(fail("nothing to write: the cloud has no points".into()));
     }
     let started = std::time::Instant::now();
-    let cube = root_cube(records);
+    // What the header says of the points, and the cube around them.
+    let mut stats = Stats::new();
+    let len = records.record_len();
+    for r in records.bytes.chunks_exact(len) {
+        stats.add(records.position_of(r), r);
+    }
+    let cube = root_cube(stats.lo, stats.hi);
     let mut nodes = build_octree(records, cube, threads);
     // Parents before children, then by cell: the file order.
     nodes.sort_by_key(|n| n.key);
@@ -411,7 +402,15 @@ pub fn write_copc(records: &Records, output: &Path, threads: usize) -> Result<Co
     );
     let mut bytes = 0;
     crate::image_io::write_atomically(output, |file| {
-        bytes = write_file(records, &nodes, &chunks, &laz_vlr, cube, file, output)?;
+        bytes = write_file(
+            records,
+            &nodes,
+            &chunks,
+            &laz_vlr,
+            (&stats, cube),
+            file,
+            output,
+        )?;
         Ok(())
     })?;
     Ok(Converted {
@@ -429,42 +428,17 @@ fn compress_nodes(
     vlr: &LazVlr,
     threads: usize,
 ) -> std::io::Result<Vec<Vec<u8>>> {
-    let len = records.record_len();
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let slots: Vec<std::sync::Mutex<Option<std::io::Result<Vec<u8>>>>> =
-        nodes.iter().map(|_| std::sync::Mutex::new(None)).collect();
-    std::thread::scope(|scope| {
-        for _ in 0..threads.max(1).min(nodes.len()) {
-            scope.spawn(|| loop {
-                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(node) = nodes.get(i) else {
-                    break;
-                };
-                let mut raw = Vec::with_capacity(node.points.len() * len);
-                for &p in &node.points {
-                    let at = p as usize * len;
-                    raw.extend_from_slice(&records.bytes[at..at + len]);
-                }
-                let compressed = (|| {
-                    let mut c = LayeredPointRecordCompressor::new(Vec::new());
-                    c.set_fields_from(vlr.items())
-                        .map_err(std::io::Error::other)?;
-                    c.compress_many(&raw)?;
-                    c.done()?;
-                    Ok(c.into_inner())
-                })();
-                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(compressed);
-            });
-        }
-    });
-    slots
-        .into_iter()
-        .map(|s| {
-            s.into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .expect("compressed")
-        })
-        .collect()
+    crate::parallel_map(nodes, threads, |node| {
+        let raw = gather_records(records, &node.points);
+        let mut c = LayeredPointRecordCompressor::new(Vec::new());
+        c.set_fields_from(vlr.items())
+            .map_err(std::io::Error::other)?;
+        c.compress_many(&raw)?;
+        c.done()?;
+        Ok(c.into_inner())
+    })
+    .into_iter()
+    .collect()
 }
 
 /// Bytes of the COPC info VLR's payload.
@@ -730,22 +704,18 @@ impl<'a> CopcOut<'a> {
     }
 }
 
-/// Writes `records`' nodes into `file` (the temporary of `path`, which
-/// errors name) and syncs it; returns its length.
+/// Writes `records`' nodes (points of `stats`, in `cube`) into `file`
+/// (the temporary of `path`, which errors name) and syncs it; returns its
+/// length.
 fn write_file(
     records: &Records,
     nodes: &[Node],
     chunks: &[Vec<u8>],
     laz_vlr: &LazVlr,
-    cube: (DVec3, f64),
+    (stats, cube): (&Stats, (DVec3, f64)),
     file: File,
     path: &Path,
 ) -> Result<u64> {
-    let mut stats = Stats::new();
-    let len = records.record_len();
-    for i in 0..records.len() {
-        stats.add(records.position(i), &records.bytes[i * len..(i + 1) * len]);
-    }
     let layout = Layout {
         format: records.format,
         transforms: &records.transforms,
@@ -757,7 +727,7 @@ fn write_file(
     for (node, chunk) in nodes.iter().zip(chunks) {
         out.node(node.key, node.points.len() as u64, chunk)?;
     }
-    out.finish(&stats, cube)
+    out.finish(stats, cube)
 }
 
 /// The most points of one part of an out-of-core conversion, built in
@@ -807,8 +777,7 @@ pub fn convert_las(
             "the header's bounds ({lo} to {hi}) are not a box: convert needs them"
         )));
     }
-    let width = (hi - lo).max_element().max(1e-9) * (1.0 + 1e-9) + 1e-9;
-    let cube = ((lo + hi) / 2.0 - DVec3::splat(width / 2.0), width);
+    let cube = root_cube(lo, hi);
     let total = header.number_of_points();
     let mut level = 0;
     while level < 6 && 4u64.pow(level as u32) * part_points < total {
@@ -897,66 +866,55 @@ pub fn convert_las(
             laz_vlr: &laz_vlr,
         };
         let out = std::sync::Mutex::new(CopcOut::begin(file, output, layout)?);
-        let candidates = std::sync::Mutex::new(Vec::<(NodeKey, Vec<u8>)>::new());
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let failed = std::sync::Mutex::new(None::<Error>);
-        std::thread::scope(|scope| {
-            for _ in 0..threads.max(1).min(ready.len()) {
-                scope.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(&key) = ready.get(i) else {
-                        break;
-                    };
-                    let result = (|| -> Result<()> {
-                        let part = Records {
-                            bytes: parts.take(key)?,
-                            ..meta.clone_meta()
-                        };
-                        let mut nodes = Vec::new();
-                        let all: Vec<u32> = (0..part.len() as u32).collect();
-                        build_node(&part, key, node_cube(cube, key), all, 1, &mut nodes);
-                        let own = nodes
-                            .iter()
-                            .position(|n| n.key == key)
-                            .expect("the part's node");
-                        let own = nodes.swap_remove(own);
-                        candidates
-                            .lock()
-                            .unwrap_or_else(|e| e.into_inner())
-                            .push((key, gather_records(&part, &own.points)));
-                        let chunks = compress_nodes(&part, &nodes, &laz_vlr, 1)
-                            .map_err(|e| fail(e.to_string()))?;
-                        let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
-                        for (node, chunk) in nodes.iter().zip(&chunks) {
-                            out.node(node.key, node.points.len() as u64, chunk)?;
-                        }
-                        Ok(())
-                    })();
-                    if let Err(e) = result {
-                        failed
-                            .lock()
-                            .unwrap_or_else(|e| e.into_inner())
-                            .get_or_insert(e);
-                        break;
-                    }
-                });
+        // A failed part stops the others from starting.
+        let failed = std::sync::atomic::AtomicBool::new(false);
+        let built = crate::parallel_map(&ready, threads, |&key| {
+            if failed.load(std::sync::atomic::Ordering::Relaxed) {
+                return Ok(None);
             }
+            let result = (|| -> Result<(NodeKey, Vec<u8>)> {
+                let part = Records {
+                    bytes: parts.take(key)?,
+                    ..meta.clone_meta()
+                };
+                let mut nodes = Vec::new();
+                let all: Vec<u32> = (0..part.len() as u32).collect();
+                build_node(&part, key, node_cube(cube, key), all, 1, &mut nodes);
+                let own = nodes
+                    .iter()
+                    .position(|n| n.key == key)
+                    .expect("the part's node");
+                let own = nodes.swap_remove(own);
+                let chunks =
+                    compress_nodes(&part, &nodes, &laz_vlr, 1).map_err(|e| fail(e.to_string()))?;
+                let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+                for (node, chunk) in nodes.iter().zip(&chunks) {
+                    out.node(node.key, node.points.len() as u64, chunk)?;
+                }
+                // The part's own node's points: candidates for the levels
+                // above.
+                Ok((key, gather_records(&part, &own.points)))
+            })();
+            if result.is_err() {
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+            result.map(Some)
         });
-        if let Some(e) = failed.into_inner().unwrap_or_else(|e| e.into_inner()) {
-            return Err(e);
-        }
+        let candidates: Vec<(NodeKey, Vec<u8>)> = built
+            .into_iter()
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .flatten()
+            .collect();
 
-        // 3. The levels above the parts, from their nodes' points.
-        let mut candidates = candidates.into_inner().unwrap_or_else(|e| e.into_inner());
-        candidates.sort_by_key(|c| c.0);
+        // 3. The levels above the parts, from their nodes' points (the
+        // parts in key order).
         let mut top = Records {
             bytes: Vec::new(),
             ..meta.clone_meta()
         };
-        let mut owner = Vec::new();
-        for (key, bytes) in &candidates {
+        for (_, bytes) in &candidates {
             top.bytes.extend_from_slice(bytes);
-            owner.resize(top.len(), *key);
         }
         drop(candidates);
         let part_keys: std::collections::HashSet<NodeKey> = ready.iter().copied().collect();

@@ -752,30 +752,13 @@ impl CopcClouds {
             }
         }
         let missing: Vec<usize> = (0..nodes.len()).filter(|&i| out[i].is_none()).collect();
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let decoded: Vec<Mutex<Option<Result<PointData>>>> =
-            missing.iter().map(|_| Mutex::new(None)).collect();
-        std::thread::scope(|scope| {
-            for _ in 0..crate::available_threads().max(1).min(missing.len()) {
-                scope.spawn(|| loop {
-                    let j = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(&i) = missing.get(j) else {
-                        break;
-                    };
-                    let data = self.copc.read_node(&nodes[i]);
-                    *decoded[j].lock().unwrap_or_else(|e| e.into_inner()) = Some(data);
-                });
-            }
+        let decoded = crate::parallel_map(&missing, crate::available_threads(), |&i| {
+            self.copc.read_node(&nodes[i])
         });
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         let tick = cache.tick;
-        for (j, cell) in decoded.into_iter().enumerate() {
-            let data = cell
-                .into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .expect("every missing node decompressed")?;
-            let data = Arc::new(data);
-            let i = missing[j];
+        for (&i, data) in missing.iter().zip(decoded) {
+            let data = Arc::new(data?);
             cache.bytes += node_bytes(&data);
             cache.nodes.insert(nodes[i].key, (data.clone(), tick));
             out[i] = Some(data);

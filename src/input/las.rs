@@ -537,26 +537,8 @@ fn load_copc(
             .count();
         let (batch, after) = rest.split_at(len);
         rest = after;
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let slots: Vec<std::sync::Mutex<Option<Result<PointData>>>> =
-            batch.iter().map(|_| std::sync::Mutex::new(None)).collect();
-        std::thread::scope(|scope| {
-            for _ in 0..threads.min(batch.len()) {
-                scope.spawn(|| loop {
-                    let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                    let Some(node) = batch.get(i) else {
-                        break;
-                    };
-                    let data = copc.read_node(node);
-                    *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(data);
-                });
-            }
-        });
-        for slot in slots {
-            let data = slot
-                .into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .expect("every node of the batch decompressed")?;
+        for data in crate::parallel_map(batch, threads, |node| copc.read_node(node)) {
+            let data = data?;
             done += data.len() as u64;
             gather.add(&data);
         }

@@ -25,7 +25,20 @@ fn convert(input: &Path, output: &Path) {
 
 /// `convert` with parts of at most `part_points` points.
 fn convert_in_parts(input: &Path, output: &Path, part_points: u64) {
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+    convert_in_parts_on(input, output, part_points, false)
+}
+
+/// As [`convert_in_parts`], on one core (`taskset`) where `one_core` says.
+fn convert_in_parts_on(input: &Path, output: &Path, part_points: u64, one_core: bool) {
+    let mut command = match one_core {
+        true => {
+            let mut c = std::process::Command::new("taskset");
+            c.args(["-c", "0", env!("CARGO_BIN_EXE_pointlens")]);
+            c
+        }
+        false => std::process::Command::new(env!("CARGO_BIN_EXE_pointlens")),
+    };
+    let o = command
         .args([
             "convert",
             input.to_str().unwrap(),
@@ -76,6 +89,15 @@ fn a_las_file_converts_to_the_same_points_in_an_octree() {
         levels >= 4,
         "parts of 5,000 points make a deeper tree: {levels} levels"
     );
+    // Parts finish in any order on several cores; the file is the same.
+    let one_core = dir.path().join("autzen-one-core.copc.laz");
+    convert_in_parts_on(&input, &one_core, 5_000, true);
+    assert!(
+        std::fs::read(&parts).unwrap() == std::fs::read(&one_core).unwrap(),
+        "the file written on one core differs from the one written on {}",
+        pointlens::available_threads()
+    );
+    std::fs::remove_file(&one_core).unwrap();
     assert_eq!(
         common::file_names(dir.path()),
         ["autzen-parts.copc.laz", "autzen.copc.laz"],

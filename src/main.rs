@@ -378,9 +378,12 @@ struct RenderArgs {
     #[arg(long, value_name = "N", default_value_t = pointlens::input::copc::DEFAULT_POINT_BUDGET,
           value_parser = clap::value_parser!(u64).range(1..))]
     point_budget: u64,
-    /// A COPC file's decompressed nodes kept across the frames of a
-    /// sequence, at most this many MiB.
-    #[arg(long, value_name = "MB", default_value_t = pointlens::input::copc::DEFAULT_MEMORY_MB,
+    /// Memory for the points, MiB (default: half this machine's): a
+    /// PLY/LAS/LAZ file read whole that would need more is refused, with
+    /// the `pointlens convert` command that makes it COPC; a COPC file's
+    /// decompressed nodes kept across the frames of a sequence stay within
+    /// it.
+    #[arg(long, value_name = "MB", default_value_t = pointlens::input::default_memory_mb(),
           value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     memory_mb: u64,
     /// Render each frame in tiles of at most N×N pixels, each with the
@@ -1012,8 +1015,8 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
             Scenes::ByNode(by_node.insert(CopcScenes::new(clouds, splat, color)))
         }
         None => {
-            let one = scene.insert(renderer.upload(&cloud, splat)?);
-            drop(cloud); // The hierarchy holds the points from here on.
+            // The hierarchy holds the points from its leaves on.
+            let one = scene.insert(renderer.upload_owned(cloud, splat)?);
             Scenes::One(one)
         }
     };
@@ -1052,7 +1055,10 @@ fn open_input(
     };
     let mut cloud = match &copc {
         Some(copc) => copc.preview()?,
-        None => load(&args.input, args.origin, quiet)?,
+        None => {
+            pointlens::input::check_whole_read_fits(&args.input, args.memory_mb)?;
+            load(&args.input, args.origin, quiet)?
+        }
     };
     let ranges = pointlens::color::ColorRanges::of(&cloud);
     if let Some(mode) = args.color {

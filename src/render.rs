@@ -514,7 +514,7 @@ impl Renderer {
     /// hierarchy ([`SplatTree::build_in_input_order`]): to measure what
     /// Morton order gains the raster.
     pub fn upload_in_input_order(&self, cloud: &PointCloud) -> Result<Scene> {
-        self.upload_tree(cloud, SplatSize::Spacing, |threads| {
+        self.upload_tree(cloud.len(), SplatSize::Spacing, |threads| {
             SplatTree::build_in_input_order(
                 points_of(cloud),
                 SplatSize::Spacing.leaf_size(),
@@ -524,19 +524,28 @@ impl Renderer {
     }
 
     fn upload_with(&self, cloud: &PointCloud, splat: SplatSize, size: LeafSize) -> Result<Scene> {
-        self.upload_tree(cloud, splat, |threads| {
+        self.upload_tree(cloud.len(), splat, |threads| {
             SplatTree::build(points_of(cloud), size, threads)
+        })
+    }
+
+    /// [`Renderer::upload`] of a cloud it takes: the same scene, the
+    /// cloud dropped as soon as the hierarchy holds its points (the peak
+    /// memory of a cloud read whole).
+    pub fn upload_owned(&self, cloud: PointCloud, splat: SplatSize) -> Result<Scene> {
+        self.upload_tree(cloud.len(), splat, |threads| {
+            SplatTree::build_owned(cloud, points_of, splat.leaf_size(), threads)
         })
     }
 
     fn upload_tree(
         &self,
-        cloud: &PointCloud,
+        points: usize,
         splat: SplatSize,
         build: impl FnOnce(usize) -> SplatTree,
     ) -> Result<Scene> {
-        u32::try_from(cloud.len())
-            .map_err(|_| Error::InvalidArgument(format!("{} points exceed 2^32", cloud.len())))?;
+        u32::try_from(points)
+            .map_err(|_| Error::InvalidArgument(format!("{points} points exceed 2^32")))?;
         let threads = crate::available_threads();
         let tree = build(threads);
         let upload = Upload {

@@ -282,3 +282,86 @@ fn convert_refuses_in_one_line() {
         &nowhere,
     );
 }
+
+/// A PLY or LAS file whose points read whole would exceed `--memory-mb`
+/// is refused in one line with the `convert` command that makes it COPC
+/// (issue 30, item 3); that command works, and its COPC renders within
+/// the same `--memory-mb`.
+#[test]
+fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
+    let dir = scratch("convert-memory");
+    let out = dir.path().join("frame.png");
+    let o = out.to_str().unwrap();
+    // The bunny (35,947 points) needs about 2 MiB read whole.
+    let bunny = root().join("data/bun_zipper.ply");
+    let b = bunny.to_str().unwrap();
+    assert_fails(
+        &["render", b, "-o", o, "--memory-mb", "1"],
+        "more than --memory-mb 1; convert it to COPC",
+        &out,
+    );
+    // The tile (110,000 points, about 6 MiB): the command the line gives,
+    // run as given.
+    let tile = dir.path().join("autzen.las");
+    std::fs::copy(root().join("data/autzen_trim.las"), &tile).unwrap();
+    let t = tile.to_str().unwrap();
+    let refused = pointlens(&["render", t, "-o", o, "--memory-mb", "5", "--width", "64"]);
+    assert!(!refused.status.success());
+    let line = String::from_utf8_lossy(&refused.stderr)
+        .trim_end()
+        .to_string();
+    assert_eq!(line.lines().count(), 1, "{line}");
+    let command = line
+        .split("pointlens convert ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no command in: {line}"));
+    let args: Vec<&str> = std::iter::once("convert")
+        .chain(command.split(' '))
+        .collect();
+    assert_eq!(args.len(), 4, "convert IN -o OUT: {args:?}");
+    let converted = pointlens(&args);
+    assert!(
+        converted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&converted.stderr)
+    );
+    let copc = dir.path().join("autzen.copc.laz");
+    assert_eq!(args[3], copc.to_str().unwrap());
+    let rendered = pointlens(&[
+        "render",
+        copc.to_str().unwrap(),
+        "-o",
+        o,
+        "--memory-mb",
+        "5",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(
+        rendered.status.success(),
+        "{}",
+        String::from_utf8_lossy(&rendered.stderr)
+    );
+    assert!(out.exists());
+    // Within the limit, the file itself renders.
+    std::fs::remove_file(&out).unwrap();
+    let whole = pointlens(&[
+        "render",
+        t,
+        "-o",
+        o,
+        "--memory-mb",
+        "7",
+        "--width",
+        "64",
+        "--height",
+        "48",
+    ]);
+    assert!(
+        whole.status.success(),
+        "{}",
+        String::from_utf8_lossy(&whole.stderr)
+    );
+}

@@ -32,9 +32,6 @@ use crate::options::Lod;
 /// `--point-budget`: the most points of a COPC file one frame takes.
 pub const DEFAULT_POINT_BUDGET: u64 = 10_000_000;
 
-/// `--memory-mb`: the most MiB of decompressed COPC nodes kept.
-pub const DEFAULT_MEMORY_MB: u64 = 1024;
-
 /// Whether `path` is a COPC file: a LAS file whose first VLR (at byte
 /// 375) is the COPC info VLR (user "copc", record 1), as the COPC
 /// specification requires.

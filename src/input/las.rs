@@ -408,8 +408,9 @@ pub fn load_las(
 }
 
 /// Checks a LAS/LAZ/COPC file's header, VLRs and chunk table against the
-/// file without reading its points (what [`load_las`] checks first).
-pub fn check_las(path: &Path) -> Result<()> {
+/// file without reading its points (what [`load_las`] checks first);
+/// returns the points its header declares.
+pub fn check_las(path: &Path) -> Result<u64> {
     let io = io_fail(path);
     let mut file = File::open(path).map_err(io)?;
     let file_len = file.metadata().map_err(io)?.len();
@@ -421,7 +422,7 @@ pub fn check_las(path: &Path) -> Result<()> {
             String::from_utf8_lossy(&magic)
         )));
     }
-    preflight(path, &mut file, file_len).map(|_| ())
+    preflight(path, &mut file, file_len).map(|p| p.header.number_of_points())
 }
 
 /// [`load_las`] reading a COPC file as the LAZ stream it also is (its

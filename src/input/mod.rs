@@ -68,6 +68,76 @@ pub fn load_cloud(
     Ok(cloud)
 }
 
+/// Host bytes a point of a cloud read whole takes at the peak of a
+/// `render` (the cloud as read, then the splat hierarchy's build, which
+/// drops it once its leaves hold the points): 53 measured for PLY and 56
+/// for LAZ input (docs/BENCHMARKS.md, "COPC by node and `convert`"), with
+/// room for the frame's own.
+pub const WHOLE_READ_BYTES_PER_POINT: u64 = 60;
+
+/// `--memory-mb` by default: half this machine's memory (MemTotal of
+/// /proc/meminfo), or 4096 MiB where that cannot be read.
+pub fn default_memory_mb() -> u64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|m| {
+            m.lines()
+                .find_map(|l| l.strip_prefix("MemTotal:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+        .map_or(4096, |kib| (kib / 2048).max(1))
+}
+
+/// The points a PLY, LAS or LAZ file declares in its header, where that
+/// can be told without reading the file (not from a pipe); the header
+/// checked as its reader checks it.
+pub fn declared_points(path: &Path) -> Result<Option<u64>> {
+    match is_las(path) {
+        true => las::check_las(path).map(Some),
+        false => ply::declared_points(path),
+    }
+}
+
+/// Refuses, in one line naming `pointlens convert`, a cloud to be read
+/// whole whose points would take more than `memory_mb` MiB
+/// ([`WHOLE_READ_BYTES_PER_POINT`]); COPC is read by node at any size.
+pub fn check_whole_read_fits(path: &Path, memory_mb: u64) -> Result<()> {
+    let Some(points) = declared_points(path)? else {
+        return Ok(());
+    };
+    let needed = points.saturating_mul(WHOLE_READ_BYTES_PER_POINT);
+    if needed <= memory_mb.saturating_mul(1 << 20) {
+        return Ok(());
+    }
+    let name = path
+        .file_name()
+        .map_or("cloud".into(), |n| n.to_string_lossy());
+    let stem = name
+        .split('.')
+        .next()
+        .filter(|s| !s.is_empty())
+        .unwrap_or("cloud");
+    let output = path.with_file_name(format!("{stem}.copc.laz"));
+    Err(Error::InvalidArgument(format!(
+        "{}: {points} points read whole need about {} MiB, more than --memory-mb {memory_mb}; \
+         convert it to COPC, which renders by node at any size: pointlens convert {} -o {}",
+        path.display(),
+        needed.div_ceil(1 << 20),
+        shell_word(&path.to_string_lossy()),
+        shell_word(&output.to_string_lossy())
+    )))
+}
+
+/// `s` as one word of a POSIX shell command: as it is where it holds
+/// only characters no shell treats specially, else in single quotes.
+fn shell_word(s: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "/._-+,=:@%".contains(c);
+    match !s.is_empty() && s.chars().all(plain) {
+        true => s.to_string(),
+        false => format!("'{}'", s.replace('\'', "'\\''")),
+    }
+}
+
 /// The largest coordinate magnitude a rendered point may have (after
 /// re-centring): squared distances of such points still fit f32
 /// (1e18² = 1e36 < 3.4e38), so depths, CoCs and the splat hierarchy's
@@ -88,5 +158,19 @@ pub fn is_las(path: &Path) -> bool {
             }
         }
         _ => las::has_las_extension(path),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shell_word;
+
+    #[test]
+    fn a_path_is_one_shell_word() {
+        assert_eq!(shell_word("/data/a-1_b.laz"), "/data/a-1_b.laz");
+        assert_eq!(shell_word("my scan.laz"), "'my scan.laz'");
+        assert_eq!(shell_word("it's.ply"), r"'it'\''s.ply'");
+        assert_eq!(shell_word("$HOME"), "'$HOME'");
+        assert_eq!(shell_word(""), "''");
     }
 }

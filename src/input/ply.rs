@@ -71,6 +71,26 @@ pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Opt
     })
 }
 
+/// The vertex count a PLY file's header declares, read without its
+/// payload; None for what is not a regular file (a pipe is read once).
+pub fn declared_points(path: &Path) -> Result<Option<u64>> {
+    let io = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    if !file.metadata().map_err(io)?.is_file() {
+        return Ok(None);
+    }
+    let mut magic = Vec::with_capacity(5);
+    (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
+    check_magic(&magic, path)?;
+    file.rewind().map_err(io)?;
+    let header = parse_header(&mut BufReader::with_capacity(64 << 10, file), path)?;
+    let (vertex, _) = vertex_element(&header, path)?;
+    Ok(Some(vertex.count as u64))
+}
+
 /// What the direct reader made of a file.
 enum Direct {
     Read(PointCloud),

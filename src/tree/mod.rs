@@ -36,6 +36,7 @@ use bytemuck::Zeroable;
 use glam::{Vec2, Vec3};
 
 pub use morton::morton_order;
+use spacing::tree_spacing_limited_owned;
 pub use spacing::{
     exact_spacing, limit_isolated, median, median_spacing, spacing_summary, tree_spacing,
     tree_spacing_limited, ISOLATED_BLOCK, ISOLATED_LIMIT, SPACING_BIAS, SPACING_NEIGHBOURS,
@@ -148,10 +149,46 @@ impl SplatTree {
     pub fn build(points: Points, size: LeafSize, threads: usize) -> SplatTree {
         let started = Instant::now();
         let threads = threads.max(1);
-        let n = points.positions.len();
-        if n == 0 {
+        if points.positions.is_empty() {
             return SplatTree::default();
         }
+        let (leaves, leaf_cone_rad) = Self::leaves_of(points, size, threads);
+        Self::from_leaves(
+            leaves,
+            leaf_cone_rad,
+            size,
+            points.normals.is_some(),
+            threads,
+            started,
+        )
+    }
+
+    /// [`SplatTree::build`] of the points of `owner` (`points_of` gives
+    /// them), which it takes and drops as soon as the leaves hold its
+    /// points: the same tree, with the owner's bytes (a cloud's 24 or more
+    /// a point) no longer beside the build's.
+    pub fn build_owned<T>(
+        owner: T,
+        points_of: impl for<'a> Fn(&'a T) -> Points<'a>,
+        size: LeafSize,
+        threads: usize,
+    ) -> SplatTree {
+        let started = Instant::now();
+        let threads = threads.max(1);
+        let points = points_of(&owner);
+        if points.positions.is_empty() {
+            return SplatTree::default();
+        }
+        let has_normals = points.normals.is_some();
+        let (leaves, leaf_cone_rad) = Self::leaves_of(points, size, threads);
+        drop(owner);
+        Self::from_leaves(leaves, leaf_cone_rad, size, has_normals, threads, started)
+    }
+
+    /// The leaves: `points` in Morton order as splats (sizes per point
+    /// where `size` gives them), and their normals' cone.
+    fn leaves_of(points: Points, size: LeafSize, threads: usize) -> (Vec<Splat>, f32) {
+        let n = points.positions.len();
         let order = morton_order(points.positions, threads);
         let per_point = match size {
             LeafSize::PerPoint(d) => Some(d),
@@ -182,8 +219,20 @@ impl SplatTree {
         });
         drop(order);
         let leaf_cone_rad = leaf_cone.iter().fold(0.0f32, |m, &w| m.max(w));
-        let sorted_ms = ms_since(started);
+        (leaves, leaf_cone_rad)
+    }
 
+    /// The tree over `leaves` (from [`SplatTree::leaves_of`]; the build
+    /// began at `started`): splat sizes, then the levels.
+    fn from_leaves(
+        mut leaves: Vec<Splat>,
+        leaf_cone_rad: f32,
+        size: LeafSize,
+        has_normals: bool,
+        threads: usize,
+        started: Instant,
+    ) -> SplatTree {
+        let sorted_ms = ms_since(started);
         let spacing_started = Instant::now();
         let mut isolated_limited = 0;
         match size {
@@ -191,9 +240,9 @@ impl SplatTree {
             LeafSize::Zero | LeafSize::PerPoint(_) => {}
             LeafSize::SpacingTimes(k) => {
                 let in_order: Vec<Vec3> = leaves.iter().map(Splat::centre).collect();
-                let (spacing, limited) = tree_spacing_limited(&in_order, threads);
+                let at = |i: usize| leaves[i].centre();
+                let (spacing, limited) = tree_spacing_limited_owned(in_order, &at, threads);
                 isolated_limited = limited;
-                drop(in_order);
                 let fallback = median(spacing.clone());
                 for (v, s) in leaves.iter_mut().zip(spacing) {
                     v.position_size[3] = k * if s > 0.0 { s } else { fallback };
@@ -203,7 +252,6 @@ impl SplatTree {
         let spacing_ms = ms_since(spacing_started);
 
         let levels_started = Instant::now();
-        let has_normals = normals.is_some();
         let mut levels: Vec<Vec<Node>> = Vec::new();
         // Points beneath each node of the level below (the mean color's
         // weights).
@@ -556,6 +604,15 @@ mod tests {
                 "threads {t}"
             );
         }
+    }
+
+    /// The build that drops its cloud early is the same tree.
+    #[test]
+    fn the_build_of_an_owned_cloud_is_the_same_bytes() {
+        let c = cloud(200_000, 11, true);
+        let expected = SplatTree::build(c.points(), LeafSize::SpacingTimes(1.0), 2).to_bytes();
+        let owned = SplatTree::build_owned(c, Cloud::points, LeafSize::SpacingTimes(1.0), 2);
+        assert!(expected == owned.to_bytes());
     }
 
     #[test]

@@ -14,7 +14,12 @@ pub fn morton_order(positions: &[Vec3], threads: usize) -> Vec<u32> {
 /// [`morton_order`] over a cube twice the size, moved by `shift` (in
 /// units of the bounding cube's side, each in [0, 1)): another order whose
 /// cell boundaries fall elsewhere.
-pub(super) fn morton_order_in(positions: &[Vec3], threads: usize, shift: Option<Vec3>) -> Vec<u32> {
+fn morton_order_in(positions: &[Vec3], threads: usize, shift: Option<Vec3>) -> Vec<u32> {
+    radix_sort(morton_keys(positions, threads, shift), threads)
+}
+
+/// The 63-bit codes [`morton_order_in`] sorts.
+pub(super) fn morton_keys(positions: &[Vec3], threads: usize, shift: Option<Vec3>) -> Vec<u64> {
     let (lo, hi) = positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -36,7 +41,7 @@ pub(super) fn morton_order_in(positions: &[Vec3], threads: usize, shift: Option<
             *k = spread3(q.x) | spread3(q.y) << 1 | spread3(q.z) << 2;
         }
     });
-    radix_sort(keys, threads)
+    keys
 }
 
 /// The low 21 bits of `v`, two zero bits after each.
@@ -56,7 +61,7 @@ fn spread3(v: u32) -> u64 {
 /// own offsets, so the result is the same for any split. The arrays are
 /// atomics (relaxed: plain loads and stores on x86) so that the threads
 /// may write to disjoint, scattered indices without `unsafe`.
-fn radix_sort(keys: Vec<u64>, threads: usize) -> Vec<u32> {
+pub(super) fn radix_sort(keys: Vec<u64>, threads: usize) -> Vec<u32> {
     use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
     let n = keys.len();
     let mut keys: Vec<AtomicU64> = keys.into_iter().map(AtomicU64::new).collect();

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use glam::{IVec3, Vec3};
 
-use super::morton::{morton_order, morton_order_in};
+use super::morton::{morton_keys, morton_order, radix_sort};
 use super::{par_chunks, CHUNK};
 
 /// How many points `tree_spacing` looks at on either side of a point in
@@ -26,11 +26,24 @@ pub const SPACING_NEIGHBOURS: usize = 8;
 /// [`exact_spacing`]'s exact k nearest neighbours, at a fixed
 /// cost per point; 0 for a single point.
 pub fn tree_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
-    let mut spacing = window_spacing(p, threads);
+    tree_spacing_of(std::borrow::Cow::Borrowed(p), &|i| p[i], threads)
+}
+
+/// [`tree_spacing`] of `p`, which it drops once the second order's codes
+/// are made (`at(i)` is then point i): at most 36 bytes a point besides
+/// `at`'s, where the hierarchy's build gives its points' copy.
+fn tree_spacing_of(
+    p: std::borrow::Cow<'_, [Vec3]>,
+    at: &(dyn Fn(usize) -> Vec3 + Sync),
+    threads: usize,
+) -> Vec<f32> {
+    let mut spacing = window_spacing(&p, threads);
     // The second order, as indices into the first (both are spatially
     // coherent, so the gather and scatter below stay mostly in cache).
-    let second = morton_order_in(p, threads, Some(SECOND_ORDER_SHIFT));
-    let in_second: Vec<Vec3> = second.iter().map(|&i| p[i as usize]).collect();
+    let keys = morton_keys(&p, threads, Some(SECOND_ORDER_SHIFT));
+    drop(p);
+    let second = radix_sort(keys, threads);
+    let in_second: Vec<Vec3> = second.iter().map(|&i| at(i as usize)).collect();
     let other = window_spacing(&in_second, threads);
     for (&i, s) in second.iter().zip(other) {
         let slot = &mut spacing[i as usize];
@@ -44,6 +57,18 @@ pub fn tree_spacing(p: &[Vec3], threads: usize) -> Vec<f32> {
 /// how many were.
 pub fn tree_spacing_limited(p: &[Vec3], threads: usize) -> (Vec<f32>, u64) {
     let mut spacing = tree_spacing(p, threads);
+    let limited = limit_isolated(&mut spacing, threads);
+    (spacing, limited)
+}
+
+/// [`tree_spacing_limited`] of points it owns, dropped early (`at(i)`
+/// gives point i afterwards; see [`tree_spacing_of`]).
+pub(super) fn tree_spacing_limited_owned(
+    p: Vec<Vec3>,
+    at: &(dyn Fn(usize) -> Vec3 + Sync),
+    threads: usize,
+) -> (Vec<f32>, u64) {
+    let mut spacing = tree_spacing_of(std::borrow::Cow::Owned(p), at, threads);
     let limited = limit_isolated(&mut spacing, threads);
     (spacing, limited)
 }

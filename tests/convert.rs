@@ -7,20 +7,19 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, pointlens, root, scratch};
+use common::{assert_fails, assert_runs, pointlens, root, scratch};
 use pointlens::convert::{GRID_CELLS, MAX_NODE_POINTS};
 use pointlens::input::copc::CopcFile;
 use pointlens::input::las::load_las;
 use pointlens::PointCloud;
 
 fn convert(input: &Path, output: &Path) {
-    let o = pointlens(&[
+    assert_runs(&[
         "convert",
         input.to_str().unwrap(),
         "-o",
         output.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 /// `convert` with parts of at most `part_points` points.
@@ -319,15 +318,10 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         .chain(command.split(' '))
         .collect();
     assert_eq!(args.len(), 4, "convert IN -o OUT: {args:?}");
-    let converted = pointlens(&args);
-    assert!(
-        converted.status.success(),
-        "{}",
-        String::from_utf8_lossy(&converted.stderr)
-    );
+    assert_runs(&args);
     let copc = dir.path().join("autzen.copc.laz");
     assert_eq!(args[3], copc.to_str().unwrap());
-    let rendered = pointlens(&[
+    assert_runs(&[
         "render",
         copc.to_str().unwrap(),
         "-o",
@@ -339,15 +333,10 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         "--height",
         "48",
     ]);
-    assert!(
-        rendered.status.success(),
-        "{}",
-        String::from_utf8_lossy(&rendered.stderr)
-    );
     assert!(out.exists());
     // Within the limit, the file itself renders.
     std::fs::remove_file(&out).unwrap();
-    let whole = pointlens(&[
+    assert_runs(&[
         "render",
         t,
         "-o",
@@ -359,9 +348,4 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         "--height",
         "48",
     ]);
-    assert!(
-        whole.status.success(),
-        "{}",
-        String::from_utf8_lossy(&whole.stderr)
-    );
 }

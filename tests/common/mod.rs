@@ -198,6 +198,17 @@ pub fn pointlens(args: &[&str]) -> Output {
         .expect("run pointlens")
 }
 
+/// A run that must succeed: its output, or a failure showing its stderr.
+pub fn assert_runs(args: &[&str]) -> Output {
+    let o = pointlens(args);
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
 /// A failed run: non-zero exit, exactly one line on stderr containing
 /// `phrase`, no panic, and no file at `output`.
 pub fn assert_fails(args: &[&str], phrase: &str, output: &Path) {

@@ -27,7 +27,7 @@ use std::path::Path;
 
 use glam::{DVec3, IVec3};
 use las::point::Format;
-use las::{Point, Transform};
+use las::Transform;
 use laz::laszip::{ChunkTable, ChunkTableEntry, LazItemRecordBuilder, LazVlr, LazVlrBuilder};
 use laz::record::{LayeredPointRecordCompressor, RecordCompressor};
 
@@ -131,88 +131,84 @@ impl Records {
     }
 
     /// The records of an in-memory cloud (a PLY file's): format 7 with its
-    /// colors as 16-bit sRGB, positions on a grid of 10^k units fine enough
-    /// for f32 (7 digits over the largest extent), centred on its bounds.
+    /// colors as 16-bit sRGB ([`cloud_record`]), on the grid of
+    /// [`Records::for_cloud_within`] its bounds.
     pub fn of_cloud(cloud: &PointCloud, path: &Path) -> Result<Records> {
         let (lo, hi) = cloud.bounds();
         let (lo, hi) = (lo.as_dvec3() + cloud.origin, hi.as_dvec3() + cloud.origin);
+        let mut records = Records::for_cloud_within(lo, hi);
+        records.bytes = Vec::with_capacity(cloud.len() * records.record_len());
+        for (p, c) in cloud.positions.iter().zip(&cloud.colors) {
+            cloud_record(
+                p.as_dvec3() + cloud.origin,
+                *c,
+                &records.transforms,
+                &mut records.bytes,
+            )
+            .map_err(|msg| Error::Las {
+                path: path.to_path_buf(),
+                msg,
+            })?;
+        }
+        Ok(records)
+    }
+
+    /// No records yet, of a cloud within `lo`..`hi` (file coordinates):
+    /// format 7, positions on a grid of 10^k units fine enough for f32 (7
+    /// digits over the largest extent), centred on the bounds.
+    fn for_cloud_within(lo: DVec3, hi: DVec3) -> Records {
         // A single point (or one place) still gets a grid.
         let extent = (hi - lo).max_element().max(1e-6);
         let scale = 10f64.powf((extent * 1e-7).log10().floor());
         let centre = (lo + hi) / 2.0;
         let offset = (centre / scale).round() * scale;
-        let transforms = las::Vector {
-            x: Transform {
-                scale,
-                offset: offset.x,
+        let axis = |offset: f64| Transform { scale, offset };
+        Records {
+            format: Format::new(7).expect("format 7"),
+            transforms: las::Vector {
+                x: axis(offset.x),
+                y: axis(offset.y),
+                z: axis(offset.z),
             },
-            y: Transform {
-                scale,
-                offset: offset.y,
-            },
-            z: Transform {
-                scale,
-                offset: offset.z,
-            },
-        };
-        let format = Format::new(7).expect("format 7");
-        let mut bytes = Vec::with_capacity(cloud.len() * usize::from(format.len()));
-        for (p, c) in cloud.positions.iter().zip(&cloud.colors) {
-            let p = p.as_dvec3() + cloud.origin;
-            let code = |v: f32| {
-                let s = crate::image_io::linear_to_srgb(v.clamp(0.0, 1.0));
-                (s * 65535.0).round() as u16
-            };
-            let point = Point {
-                x: p.x,
-                y: p.y,
-                z: p.z,
-                color: Some(las::Color::new(code(c.x), code(c.y), code(c.z))),
-                return_number: 1,
-                number_of_returns: 1,
-                ..Point::default()
-            };
-            write_record(&mut bytes, point, &format, &transforms, path)?;
-        }
-        Ok(Records {
-            format,
-            transforms,
-            bytes,
+            bytes: Vec::new(),
             wkt: None,
             standard_gps_time: false,
-        })
+        }
     }
 }
 
-/// Appends `point`'s record in `format` under `transforms`.
-fn write_record(
-    bytes: &mut Vec<u8>,
-    mut point: Point,
-    format: &Format,
+/// Appends the format 7 record of a cloud's point at `p` (file
+/// coordinates) of linear color `c`: its codes under `transforms`, the
+/// color as 16-bit sRGB, a first return of one, nothing else.
+fn cloud_record(
+    p: DVec3,
+    c: glam::Vec3,
     transforms: &las::Vector<Transform>,
-    path: &Path,
-) -> Result<()> {
-    if !format.has_color {
-        point.color = None;
-    } else if point.color.is_none() {
-        point.color = Some(las::Color::default());
+    out: &mut Vec<u8>,
+) -> std::result::Result<(), String> {
+    let code = |t: &Transform, v: f64| {
+        t.inverse(v)
+            .map_err(|e| format!("a point does not fit the output's grid: {e}"))
+    };
+    let xyz = [
+        code(&transforms.x, p.x)?,
+        code(&transforms.y, p.y)?,
+        code(&transforms.z, p.z)?,
+    ];
+    let srgb = |v: f32| {
+        let s = crate::image_io::linear_to_srgb(v.clamp(0.0, 1.0));
+        (s * 65535.0).round() as u16
+    };
+    let mut r = [0u8; 36];
+    for (k, v) in xyz.iter().enumerate() {
+        r[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
     }
-    if point.gps_time.is_none() {
-        point.gps_time = Some(0.0);
+    // Return 1 of 1.
+    r[14] = 0x11;
+    for (k, v) in [srgb(c.x), srgb(c.y), srgb(c.z)].iter().enumerate() {
+        r[30 + 2 * k..32 + 2 * k].copy_from_slice(&v.to_le_bytes());
     }
-    point.nir = None;
-    point.waveform = None;
-    point.extra_bytes.clear();
-    point.return_number = point.return_number.max(1);
-    point.number_of_returns = point.number_of_returns.max(point.return_number);
-    let raw = point.into_raw(transforms).map_err(|e| Error::Las {
-        path: path.to_path_buf(),
-        msg: format!("a point does not fit the output's grid: {e}"),
-    })?;
-    raw.write_to(&mut *bytes, format).map_err(|e| Error::Las {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })?;
+    out.extend_from_slice(&r);
     Ok(())
 }
 
@@ -914,8 +910,142 @@ pub fn convert_las(
             "the header's bounds ({lo} to {hi}) are not a box: convert needs them"
         )));
     }
+    let converter = RecordConverter::new(header.point_format(), &meta.format).ok_or_else(|| {
+        fail(format!(
+            "its point format {} has no COPC form",
+            header.point_format()
+        ))
+    })?;
+    let mut data = las::PointDataBuilder::new().for_header(&header).build();
+    let source = Source {
+        meta,
+        bounds: (lo, hi),
+        total: header.number_of_points(),
+        converter,
+        fail: &fail,
+        fill: &mut |records: &mut Vec<u8>| {
+            let got = reader
+                .fill_points(crate::input::las::CHUNK_POINTS, &mut data)
+                .map_err(|e| fail(e.to_string().replace('\n', " ")))?;
+            records.clear();
+            records.extend_from_slice(data.raw_bytes());
+            Ok(got)
+        },
+    };
+    convert_source(source, output, threads, part_points)
+}
+
+/// Converts a binary PLY file to COPC out of core, as [`convert_las`]
+/// does a LAS file: one pass for the bounds (the grid and the cube), one
+/// that turns the vertices into records (format 7, as
+/// [`Records::of_cloud`] makes them) for the distribution. None where
+/// the file does not stream ([`crate::input::ply::VertexChunks::open`]):
+/// the caller reads it whole.
+pub fn convert_ply(
+    input: &Path,
+    output: &Path,
+    threads: usize,
+    part_points: u64,
+) -> Result<Option<Converted>> {
+    use crate::input::ply::VertexChunks;
+    let fail = |msg: String| Error::Ply {
+        path: input.to_path_buf(),
+        msg,
+    };
+    let io = |e: std::io::Error| Error::Io {
+        path: input.to_path_buf(),
+        source: e,
+    };
+    // 1. The bounds; a file the direct reader declines on the way is read
+    // whole, which says what is wrong with it.
+    let Some(mut chunks) = VertexChunks::open(input)? else {
+        return Ok(None);
+    };
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let total = chunks.left() as u64;
+    while chunks.left() > 0 {
+        let Some((positions, _)) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
+            return Ok(None);
+        };
+        for p in positions {
+            lo = lo.min(p.as_dvec3());
+            hi = hi.max(p.as_dvec3());
+        }
+    }
+    if !chunks.rest_is_well_formed().map_err(io)? {
+        return Ok(None);
+    }
+    // 2. The records.
+    let meta = Records {
+        bytes: Vec::new(),
+        ..Records::for_cloud_within(lo, hi)
+    };
+    let transforms = meta.transforms;
+    let Some(mut chunks) = VertexChunks::open(input)? else {
+        return Err(fail("it changed while being converted".into()));
+    };
+    let to = Format::new(7).expect("format 7");
+    let converter = RecordConverter::new(&to, &to).expect("7 to 7");
+    let source = Source {
+        meta,
+        bounds: (lo, hi),
+        total,
+        converter,
+        fail: &fail,
+        fill: &mut |records: &mut Vec<u8>| {
+            records.clear();
+            if chunks.left() == 0 {
+                return Ok(0);
+            }
+            let Some((positions, colors)) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
+                return Err(fail("it changed while being converted".into()));
+            };
+            for (p, c) in positions.iter().zip(&colors) {
+                cloud_record(p.as_dvec3(), *c, &transforms, records).map_err(&fail)?;
+            }
+            Ok(positions.len() as u64)
+        },
+    };
+    convert_source(source, output, threads, part_points).map(Some)
+}
+
+/// Vertices a PLY chunk holds (about 24 MB of positions and colors).
+const PLY_CHUNK_POINTS: usize = 1 << 20;
+
+/// Where an out-of-core conversion's records come from.
+struct Source<'a> {
+    /// The output's format, grid, CRS and time type.
+    meta: Records,
+    /// The points' bounds (file coordinates), as the input declares them.
+    bounds: (DVec3, DVec3),
+    /// The points the input declares.
+    total: u64,
+    /// From the input's records to the output's.
+    converter: RecordConverter,
+    /// An error about the input.
+    fail: &'a (dyn Fn(String) -> Error + Sync),
+    /// Replaces the buffer's records with the next chunk's (the
+    /// converter's input format); their count, 0 at the end.
+    fill: &'a mut dyn FnMut(&mut Vec<u8>) -> Result<u64>,
+}
+
+/// The out-of-core conversion of `source`'s records (see
+/// [`convert_las`]).
+fn convert_source(
+    source: Source<'_>,
+    output: &Path,
+    threads: usize,
+    part_points: u64,
+) -> Result<Converted> {
+    let Source {
+        meta,
+        bounds: (lo, hi),
+        total,
+        converter,
+        fail,
+        fill,
+    } = source;
     let cube = root_cube(lo, hi);
-    let total = header.number_of_points();
     // At most level 6: parts of a 4,096th of the points on a surface.
     let mut level = 0;
     while level < 6 && 4u64.pow(level as u32) * part_points < total {
@@ -926,13 +1056,6 @@ pub fn convert_las(
     // 1. Distribution.
     let started = std::time::Instant::now();
     let mut stats = Stats::new();
-    let mut data = las::PointDataBuilder::new().for_header(&header).build();
-    let converter = RecordConverter::new(header.point_format(), &meta.format).ok_or_else(|| {
-        fail(format!(
-            "its point format {} has no COPC form",
-            header.point_format()
-        ))
-    })?;
     let slack = DVec3::new(
         meta.transforms.x.scale,
         meta.transforms.y.scale,
@@ -959,16 +1082,14 @@ pub fn convert_las(
             Ok(stats)
         });
         let read = (|| -> Result<()> {
+            let mut raw = Vec::new();
             loop {
-                let got = reader
-                    .fill_points(crate::input::las::CHUNK_POINTS, &mut data)
-                    .map_err(|e| fail(e.to_string().replace('\n', " ")))?;
+                let got = fill(&mut raw)?;
                 if got == 0 {
                     return Ok(());
                 }
                 // Slices of the chunk converted and grouped by part on
                 // every core.
-                let raw = data.raw_bytes();
                 let per_slice =
                     (got as usize).div_ceil(threads.max(1) * 4).max(1) * converter.from_len();
                 let slices: Vec<&[u8]> = raw.chunks(per_slice).collect();
@@ -1472,6 +1593,39 @@ impl Drop for Parts {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use las::Point;
+
+    /// Appends `point`'s record in `format` under `transforms`.
+    fn write_record(
+        bytes: &mut Vec<u8>,
+        mut point: Point,
+        format: &Format,
+        transforms: &las::Vector<Transform>,
+        path: &Path,
+    ) -> Result<()> {
+        if !format.has_color {
+            point.color = None;
+        } else if point.color.is_none() {
+            point.color = Some(las::Color::default());
+        }
+        if point.gps_time.is_none() {
+            point.gps_time = Some(0.0);
+        }
+        point.nir = None;
+        point.waveform = None;
+        point.extra_bytes.clear();
+        point.return_number = point.return_number.max(1);
+        point.number_of_returns = point.number_of_returns.max(point.return_number);
+        let raw = point.into_raw(transforms).map_err(|e| Error::Las {
+            path: path.to_path_buf(),
+            msg: format!("a point does not fit the output's grid: {e}"),
+        })?;
+        raw.write_to(&mut *bytes, format).map_err(|e| Error::Las {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })?;
+        Ok(())
+    }
 
     /// The byte-level conversion equals the one through `las::Point`
     /// ([`write_record`]) for every input format, on random records.
@@ -1546,5 +1700,51 @@ mod tests {
             }
         }
         assert!(checked > 40_000, "{checked} records compared");
+    }
+
+    /// A cloud's record is the one `las::Point` makes of its position and
+    /// color.
+    #[test]
+    fn a_cloud_record_is_las_point_record() {
+        let records = Records::for_cloud_within(DVec3::splat(-3.0), DVec3::new(5.0, 2.0, 9.0));
+        let format = Format::new(7).expect("format 7");
+        let mut state = 1u32;
+        let mut next = move || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        for _ in 0..10_000 {
+            let p = DVec3::new(
+                -3.0 + 8.0 * f64::from(next()),
+                -3.0 + 5.0 * f64::from(next()),
+                -3.0 + 12.0 * f64::from(next()),
+            );
+            let c = glam::Vec3::new(next() * 1.2 - 0.1, next(), next());
+            let mut got = Vec::new();
+            cloud_record(p, c, &records.transforms, &mut got).expect("on the grid");
+            let code = |v: f32| {
+                let s = crate::image_io::linear_to_srgb(v.clamp(0.0, 1.0));
+                (s * 65535.0).round() as u16
+            };
+            let point = Point {
+                x: p.x,
+                y: p.y,
+                z: p.z,
+                color: Some(las::Color::new(code(c.x), code(c.y), code(c.z))),
+                return_number: 1,
+                number_of_returns: 1,
+                ..Point::default()
+            };
+            let mut expected = Vec::new();
+            write_record(
+                &mut expected,
+                point,
+                &format,
+                &records.transforms,
+                Path::new("t"),
+            )
+            .expect("a record");
+            assert_eq!(got, expected);
+        }
     }
 }

@@ -884,21 +884,27 @@ fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
     job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
     let t = Instant::now();
     let threads = pointlens::available_threads();
+    // Tests make parts small to split a small file into many.
+    let part_points = std::env::var("POINTLENS_CONVERT_PART_POINTS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(pointlens::convert::PART_POINTS);
     let done = match pointlens::input::is_las(input) {
         true => {
             // Checked as `render` checks it first (one line on a bad file).
             pointlens::input::las::check_las(input)?;
-            // Tests make parts small to split the tile into many.
-            let part_points = std::env::var("POINTLENS_CONVERT_PART_POINTS")
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(pointlens::convert::PART_POINTS);
             pointlens::convert::convert_las(input, output, threads, part_points)?
         }
-        false => {
-            let records = pointlens::convert::Records::of_cloud(&load(input, None, quiet)?, input)?;
-            pointlens::convert::write_copc(&records, output, threads)?
-        }
+        // A binary PLY file streams; an ASCII one, a pipe, or a file the
+        // direct reader declines is read whole.
+        false => match pointlens::convert::convert_ply(input, output, threads, part_points)? {
+            Some(done) => done,
+            None => {
+                let cloud = load(input, None, quiet)?;
+                let records = pointlens::convert::Records::of_cloud(&cloud, input)?;
+                pointlens::convert::write_copc(&records, output, threads)?
+            }
+        },
     };
     out!(
         "{}: {} points in {} nodes on {} levels, {:.1} MB, {:.2} s\n",

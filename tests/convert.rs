@@ -224,6 +224,31 @@ fn a_ply_cloud_converts_and_renders() {
     assert!(worst.0 <= cell, "a point moved by {}", worst.0);
     assert!(worst.1 < 1e-3, "a color moved by {}", worst.1);
 
+    // The file streamed in parts (out of core), and read whole from a
+    // pipe (the in-memory path): the same points.
+    let parts = dir.path().join("bunny-parts.copc.laz");
+    convert_in_parts(&input, &parts, 2_000);
+    let piped = dir.path().join("bunny-piped.copc.laz");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+        .args(["convert", "/dev/stdin", "-o", piped.to_str().unwrap()])
+        .stdin(std::fs::File::open(&input).unwrap())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let read = |p: &Path| load_las(p, None, &mut |_, _| {}).unwrap();
+    let in_parts = read(&parts);
+    assert_eq!(multiset(&in_parts), multiset(&converted));
+    assert_eq!(multiset(&read(&piped)), multiset(&converted));
+    let header = las::Reader::from_path(&parts).unwrap().header().clone();
+    let parts_levels = CopcFile::open(&parts, header)
+        .unwrap()
+        .all_nodes()
+        .unwrap()
+        .iter()
+        .map(|n| n.key.level)
+        .max();
+    assert!(parts_levels >= Some(2), "parts of 2,000: {parts_levels:?}");
+
     let image = dir.path().join("bunny.png");
     let o = pointlens(&[
         "render",

@@ -91,6 +91,137 @@ pub fn declared_points(path: &Path) -> Result<Option<u64>> {
     Ok(Some(vertex.count as u64))
 }
 
+/// A binary PLY file's vertices, read a chunk at a time in bounded memory
+/// (for `convert`): each chunk's positions and linear colors are the ones
+/// the whole read gives (the direct reader's conversion).
+pub struct VertexChunks {
+    input: Counted<BufReader<File>>,
+    header: Header,
+    fields: Fields,
+    converter: Converter,
+    big_endian: bool,
+    left: usize,
+    has_colors: bool,
+}
+
+impl VertexChunks {
+    /// The file's vertices at the start of their block; None where the
+    /// direct reader would not take the file as it streams (ASCII, not a
+    /// regular file, a list property among the vertex's, an element before
+    /// the vertices it would not take, or a vertex block longer than the
+    /// file): [`load_ply`] then reads it, or says what is wrong.
+    pub fn open(path: &Path) -> Result<Option<VertexChunks>> {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut file = File::open(path).map_err(io)?;
+        let metadata = file.metadata().map_err(io)?;
+        if !metadata.is_file() {
+            return Ok(None);
+        }
+        let mut magic = Vec::with_capacity(5);
+        (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
+        check_magic(&magic, path)?;
+        file.rewind().map_err(io)?;
+        let mut reader = BufReader::with_capacity(1 << 20, file);
+        let header = parse_header(&mut reader, path)?;
+        let payload_len = metadata
+            .len()
+            .saturating_sub(reader.stream_position().map_err(io)?);
+        let (vertex, layout) = vertex_element(&header, path)?;
+        if matches!(header.encoding, Encoding::Ascii) {
+            return Ok(None);
+        }
+        let Some(fields) = Fields::of(vertex, &layout, true) else {
+            return Ok(None);
+        };
+        let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
+        let mut input = Counted {
+            inner: reader,
+            taken: 0,
+        };
+        for element in header.elements.values() {
+            if element.name == vertex.name {
+                break;
+            }
+            if element.properties.is_empty() {
+                continue;
+            }
+            for _ in 0..element.count {
+                if !skip_binary_element(&mut input, element, big_endian).map_err(io)? {
+                    return Ok(None);
+                }
+            }
+        }
+        let left = payload_len.saturating_sub(input.taken);
+        match (vertex.count as u64).checked_mul(fields.stride as u64) {
+            Some(bytes) if bytes <= left => {}
+            _ => return Ok(None),
+        }
+        let converter = Converter::new(&fields);
+        Ok(Some(VertexChunks {
+            left: vertex.count,
+            has_colors: layout.colors.is_some(),
+            input,
+            fields,
+            converter,
+            big_endian,
+            header,
+        }))
+    }
+
+    /// Whether the vertices have colors (else the whole read's default).
+    pub fn has_colors(&self) -> bool {
+        self.has_colors
+    }
+
+    /// Vertices not yet read.
+    pub fn left(&self) -> usize {
+        self.left
+    }
+
+    /// The next at most `max` vertices' positions and linear colors (an
+    /// empty chunk at the end); None where the direct reader would decline
+    /// them (a coordinate not finite).
+    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<(Vec<Vec3>, Vec<Vec3>)>> {
+        let n = max.max(1).min(self.left);
+        let mut block = vec![0u8; n * self.fields.stride];
+        if !read_or_end(&mut self.input, &mut block)? {
+            return Ok(None);
+        }
+        let mut part: Part = (Vec::new(), Vec::new(), Vec::new());
+        if !append_binary(
+            &block,
+            &self.fields,
+            &self.converter,
+            self.big_endian,
+            &mut part,
+        ) {
+            return Ok(None);
+        }
+        self.left -= n;
+        Ok(Some((part.0, part.1)))
+    }
+
+    /// After the last chunk: whether the elements after the vertices are
+    /// as the direct reader takes them.
+    pub fn rest_is_well_formed(mut self) -> io::Result<bool> {
+        let mut after = false;
+        for element in self.header.elements.values() {
+            if after && !element.properties.is_empty() {
+                for _ in 0..element.count {
+                    if !skip_binary_element(&mut self.input, element, self.big_endian)? {
+                        return Ok(false);
+                    }
+                }
+            }
+            after |= element.name == "vertex";
+        }
+        Ok(true)
+    }
+}
+
 /// What the direct reader made of a file.
 enum Direct {
     Read(PointCloud),

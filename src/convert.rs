@@ -1486,6 +1486,8 @@ impl Parts {
             path: dir.clone(),
             source: e,
         })?;
+        // A signal removes it with the output's temporary.
+        crate::image_io::list_scratch_dir(&dir);
         Ok(Parts {
             dir,
             record_len,
@@ -1587,6 +1589,7 @@ impl Parts {
 impl Drop for Parts {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.dir);
+        crate::image_io::unlist_scratch_dir(&self.dir);
     }
 }
 

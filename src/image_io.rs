@@ -267,12 +267,37 @@ fn in_flight() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 pub fn abandon_writes() -> usize {
     let in_flight = in_flight();
     for tmp in in_flight.iter() {
-        let _ = fs::remove_file(tmp);
+        match tmp.is_dir() {
+            // A scratch folder, which its owner may still be filling.
+            true => {
+                for _ in 0..3 {
+                    if fs::remove_dir_all(tmp).is_ok() {
+                        break;
+                    }
+                }
+            }
+            false => {
+                let _ = fs::remove_file(tmp);
+            }
+        }
     }
     let removed = in_flight.len();
     // Held until the process ends.
     std::mem::forget(in_flight);
     removed
+}
+
+/// Lists a scratch folder (e.g. `convert`'s parts) for
+/// [`abandon_writes`], which a signal handler calls, until
+/// [`unlist_scratch_dir`]: a signal then removes it with the writes in
+/// progress.
+pub fn list_scratch_dir(dir: &Path) {
+    in_flight().push(dir.to_path_buf());
+}
+
+/// Ends [`list_scratch_dir`] (the folder's owner removes it).
+pub fn unlist_scratch_dir(dir: &Path) {
+    in_flight().retain(|p| p != dir);
 }
 
 /// Checks that `path` names an output format `write_image` supports, so a

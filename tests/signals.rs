@@ -62,14 +62,19 @@ fn wait(child: &mut Child, limit: Duration) -> ExitStatus {
 
 /// Waits until a temporary file (`.NAME.tmp-…`) is in `dir`.
 fn wait_for_temporary(dir: &Path, child: &mut Child) {
+    wait_for_name(dir, ".tmp-", child)
+}
+
+/// Waits until a name holding `part` is in `dir`.
+fn wait_for_name(dir: &Path, part: &str, child: &mut Child) {
     let started = Instant::now();
-    while !file_names(dir).iter().any(|n| n.contains(".tmp-")) {
+    while !file_names(dir).iter().any(|n| n.contains(part)) {
         if let Some(s) = child.try_wait().unwrap() {
             panic!("ended ({s}) before writing: {:?}", file_names(dir));
         }
         assert!(
             started.elapsed() < Duration::from_secs(120),
-            "no write began in two minutes"
+            "no {part} in two minutes"
         );
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -159,6 +164,46 @@ fn a_signal_during_synth_leaves_no_file() {
         let status = wait(&mut child, Duration::from_secs(60));
         assert_eq!(status.signal(), Some(signal), "{status}");
         assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
+    }
+}
+
+/// `convert` removes its parts folder on a signal, while it fills it and
+/// while the output is renamed into place, as well as the output's
+/// temporary.
+#[test]
+fn a_signal_during_convert_leaves_no_parts_and_no_file() {
+    let inputs = scratch("signals-convert-input");
+    let input = inputs.join("in.laz").display().to_string();
+    let o = pointlens()
+        .args(["synth", "--points", "2000000", "-o", &input, "-q"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for signal in [SIGTERM, SIGINT] {
+        for at_rename in [false, true] {
+            let dir = scratch(&format!("signals-convert-{signal}-{at_rename}"));
+            let out = dir.join("out.copc.laz").display().to_string();
+            let mut command = pointlens();
+            command
+                .args(["convert", &input, "-o", &out, "-q"])
+                // Parts of 5,000 points: seconds of work in thousands of
+                // files.
+                .env("POINTLENS_CONVERT_PART_POINTS", "5000")
+                .stdout(Stdio::null())
+                .stderr(Stdio::null());
+            if at_rename {
+                command.env("POINTLENS_INJECT_WRITE_STALL_MS", "60000");
+            }
+            let mut child = command.spawn().unwrap();
+            match at_rename {
+                true => wait_for_temporary(&dir, &mut child),
+                false => wait_for_name(&dir, ".parts-", &mut child),
+            }
+            send(&child, signal);
+            let status = wait(&mut child, Duration::from_secs(60));
+            assert_eq!(status.signal(), Some(signal), "{status}");
+            assert!(file_names(&dir).is_empty(), "left {:?}", file_names(&dir));
+        }
     }
 }
 

@@ -110,11 +110,13 @@ enum Command {
     /// and LAZ also the version, point format, scale, offset, bounds in the
     /// file's coordinates, the re-centring origin and the CRS).
     Info {
-        /// PLY, LAS or LAZ file.
+        /// PLY, LAS, LAZ or COPC file (read whole).
         input: PathBuf,
         /// Re-centre on X,Y,Z (file coordinates) instead of the default.
         #[arg(long, value_name = "X,Y,Z", value_parser = parse_dvec3, allow_hyphen_values = true)]
         origin: Option<[f64; 3]>,
+        #[command(flatten)]
+        memory: MemoryArgs,
     },
     /// Write a cloud (PLY, LAS, LAZ or COPC) as a COPC file: an octree of
     /// LAZ chunks that `render` reads node by node.
@@ -378,14 +380,8 @@ struct RenderArgs {
     #[arg(long, value_name = "N", default_value_t = pointlens::input::copc::DEFAULT_POINT_BUDGET,
           value_parser = clap::value_parser!(u64).range(1..))]
     point_budget: u64,
-    /// Memory for the points, MiB (default: half this machine's): a
-    /// PLY/LAS/LAZ file read whole that would need more is refused, with
-    /// the `pointlens convert` command that makes it COPC; a COPC file's
-    /// decompressed nodes kept across the frames of a sequence stay within
-    /// it.
-    #[arg(long, value_name = "MB", default_value_t = pointlens::input::default_memory_mb(),
-          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
-    memory_mb: u64,
+    #[command(flatten)]
+    memory: MemoryArgs,
     /// Render each frame in tiles of at most N×N pixels, each with the
     /// whole frame's guard band (default: the whole frame at once where
     /// its G-buffer fits the device's images, else tiles of 2048).
@@ -617,7 +613,11 @@ fn main() -> ExitCode {
         _ if cli.list_devices => list_devices(),
         Some(Command::Render(args)) => render(*args, quiet),
         Some(Command::Compare { a, b, diff }) => compare(&a, &b, diff.as_deref()),
-        Some(Command::Info { input, origin }) => info(&input, origin, quiet),
+        Some(Command::Info {
+            input,
+            origin,
+            memory,
+        }) => info(&input, origin, memory, quiet),
         Some(Command::Bench(args)) => bench(*args, quiet),
         Some(Command::Synth { points, output }) => synth(points, &output, quiet),
         Some(Command::Convert { input, output }) => convert(&input, &output, quiet),
@@ -857,7 +857,13 @@ fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointClou
     Ok(cloud)
 }
 
-fn info(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<()> {
+fn info(input: &Path, origin: Option<[f64; 3]>, memory: MemoryArgs, quiet: bool) -> Result<()> {
+    // `info` reads every point, COPC too.
+    let advice = match pointlens::input::copc::is_copc(input) {
+        true => |_: &Path| "render reads a COPC file by node, at any size".to_string(),
+        false => pointlens::input::convert_advice,
+    };
+    pointlens::input::check_whole_read_fits(input, memory.memory_mb, advice)?;
     let cloud = load(input, origin, quiet)?;
     let (spacing, limited) =
         pointlens::tree::spacing_summary(&cloud.positions, pointlens::available_threads());
@@ -1055,14 +1061,18 @@ fn open_input(
             &args.input,
             args.origin.map(DVec3::from_array),
             args.point_budget,
-            args.memory_mb,
+            args.memory.memory_mb,
         )?),
         false => None,
     };
     let mut cloud = match &copc {
         Some(copc) => copc.preview()?,
         None => {
-            pointlens::input::check_whole_read_fits(&args.input, args.memory_mb)?;
+            pointlens::input::check_whole_read_fits(
+                &args.input,
+                args.memory.memory_mb,
+                pointlens::input::convert_advice,
+            )?;
             load(&args.input, args.origin, quiet)?
         }
     };
@@ -1072,6 +1082,20 @@ fn open_input(
             .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
     }
     Ok((copc, cloud, ranges))
+}
+
+/// `--memory-mb`, of `render` and `info`.
+#[derive(clap::Args, Debug, Clone, Copy)]
+struct MemoryArgs {
+    /// Memory for the points, MiB (default: half this machine's): a file
+    /// read whole (by `render` a PLY/LAS/LAZ, by `info` any) that would
+    /// need more is refused in one line saying what to do (for `render`,
+    /// the `pointlens convert` command that makes it COPC); a COPC file's
+    /// decompressed nodes kept across the frames of a sequence stay within
+    /// it.
+    #[arg(long, value_name = "MB", default_value_t = pointlens::input::default_memory_mb(),
+          value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
+    memory_mb: u64,
 }
 
 /// What `render` prints as the frames go.

@@ -359,6 +359,19 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         "48",
     ]);
     assert!(out.exists());
+    // `info` reads every point, of a COPC file too (and writes nothing).
+    let none = dir.path().join("none");
+    assert_fails(
+        &["info", t, "--memory-mb", "5"],
+        "more than --memory-mb 5; convert it to COPC",
+        &none,
+    );
+    assert_fails(
+        &["info", copc.to_str().unwrap(), "--memory-mb", "5"],
+        "more than --memory-mb 5; render reads a COPC file by node",
+        &none,
+    );
+    assert_runs(&["info", copc.to_str().unwrap(), "--memory-mb", "7"]);
     // Within the limit, the file itself renders.
     std::fs::remove_file(&out).unwrap();
     assert_runs(&[

@@ -98,10 +98,14 @@ pub fn declared_points(path: &Path) -> Result<Option<u64>> {
     }
 }
 
-/// Refuses, in one line naming `pointlens convert`, a cloud to be read
+/// Refuses, in one line ending with `advice(path)`, a cloud to be read
 /// whole whose points would take more than `memory_mb` MiB
-/// ([`WHOLE_READ_BYTES_PER_POINT`]); COPC is read by node at any size.
-pub fn check_whole_read_fits(path: &Path, memory_mb: u64) -> Result<()> {
+/// ([`WHOLE_READ_BYTES_PER_POINT`] each, as its header declares them).
+pub fn check_whole_read_fits(
+    path: &Path,
+    memory_mb: u64,
+    advice: fn(&Path) -> String,
+) -> Result<()> {
     let Some(points) = declared_points(path)? else {
         return Ok(());
     };
@@ -109,6 +113,18 @@ pub fn check_whole_read_fits(path: &Path, memory_mb: u64) -> Result<()> {
     if needed <= memory_mb.saturating_mul(1 << 20) {
         return Ok(());
     }
+    Err(Error::InvalidArgument(format!(
+        "{}: {points} points read whole need about {} MiB, more than --memory-mb {memory_mb}; {}",
+        path.display(),
+        needed.div_ceil(1 << 20),
+        advice(path)
+    )))
+}
+
+/// What to do with a PLY/LAS/LAZ file too large to read whole: the
+/// `pointlens convert` command (paths quoted for a shell) that makes it
+/// COPC, which `render` reads by node at any size.
+pub fn convert_advice(path: &Path) -> String {
     let name = path
         .file_name()
         .map_or("cloud".into(), |n| n.to_string_lossy());
@@ -118,14 +134,11 @@ pub fn check_whole_read_fits(path: &Path, memory_mb: u64) -> Result<()> {
         .filter(|s| !s.is_empty())
         .unwrap_or("cloud");
     let output = path.with_file_name(format!("{stem}.copc.laz"));
-    Err(Error::InvalidArgument(format!(
-        "{}: {points} points read whole need about {} MiB, more than --memory-mb {memory_mb}; \
-         convert it to COPC, which renders by node at any size: pointlens convert {} -o {}",
-        path.display(),
-        needed.div_ceil(1 << 20),
+    format!(
+        "convert it to COPC, which renders by node at any size: pointlens convert {} -o {}",
         shell_word(&path.to_string_lossy()),
         shell_word(&output.to_string_lossy())
-    )))
+    )
 }
 
 /// `s` as one word of a POSIX shell command: as it is where it holds

@@ -80,10 +80,10 @@ fn a_las_file_converts_to_the_same_points_in_an_octree() {
     let input = root().join("data/autzen_trim.las");
     let whole = dir.path().join("autzen.copc.laz");
     convert(&input, &whole);
-    check_octree(&input, &whole);
+    check_octree(&input, &whole, true);
     let parts = dir.path().join("autzen-parts.copc.laz");
     convert_in_parts(&input, &parts, 5_000);
-    let levels = check_octree(&input, &parts);
+    let levels = check_octree(&input, &parts, false);
     assert!(
         levels >= 4,
         "parts of 5,000 points make a deeper tree: {levels} levels"
@@ -106,9 +106,10 @@ fn a_las_file_converts_to_the_same_points_in_an_octree() {
 
 /// The converted file holds the input's points (positions bit for bit,
 /// colors, intensities, classes, returns), in nodes that hold their cubes'
-/// points, each above the leaves sampled on a 128³ grid; returns its
-/// levels.
-fn check_octree(input: &Path, output: &Path) -> i32 {
+/// points, each above the leaves sampled on a 128³ grid, a point in every
+/// cell its subtree occupies (with its ancestors' unless `top_down`);
+/// returns its levels.
+fn check_octree(input: &Path, output: &Path, top_down: bool) -> i32 {
     let output = output.to_path_buf();
     let original = load_las(input, None, &mut |_, _| {}).unwrap();
     let converted = load_las(&output, None, &mut |_, _| {}).unwrap();
@@ -124,6 +125,19 @@ fn check_octree(input: &Path, output: &Path) -> i32 {
     let nodes = copc.all_nodes().unwrap();
     assert!(nodes.len() > 1, "an octree: {} nodes", nodes.len());
     assert_eq!(nodes.iter().map(|n| n.point_count).sum::<u64>(), 110_000);
+    // Every point with its node, for the samples' completeness below.
+    let mut all: Vec<(pointlens::input::copc::NodeKey, glam::DVec3)> = Vec::new();
+    for node in &nodes {
+        let data = copc.read_node(node).unwrap();
+        for ((x, y), z) in data.x().zip(data.y()).zip(data.z()) {
+            all.push((node.key, glam::DVec3::new(x, y, z)));
+        }
+    }
+    let cell_of = |p: glam::DVec3, min: glam::DVec3, cell: f64| {
+        let c = ((p - min) / cell).floor();
+        let last = f64::from(GRID_CELLS - 1);
+        [c.x, c.y, c.z].map(|v| v.clamp(0.0, last) as i64)
+    };
     for node in &nodes {
         let (min, width) = copc.info.cube(node.key);
         let data = copc.read_node(node).unwrap();
@@ -163,6 +177,45 @@ fn check_octree(input: &Path, output: &Path) -> i32 {
                 n,
                 "node {:?}: two points in one cell",
                 node.key
+            );
+            // And, with its ancestors, a point in every cell its
+            // subtree's points occupy: top down (a part, or the whole in
+            // memory) the node alone has one; bottom up (above the parts)
+            // a cell's point may have gone to an ancestor.
+            let within = |k: &pointlens::input::copc::NodeKey,
+                          of: &pointlens::input::copc::NodeKey| {
+                let d = k.level - of.level;
+                d >= 0 && (k.x >> d, k.y >> d, k.z >> d) == (of.x, of.y, of.z)
+            };
+            let cells_of = |keep: &dyn Fn(&pointlens::input::copc::NodeKey) -> bool| {
+                let mut c: Vec<[i64; 3]> = all
+                    .iter()
+                    .filter(|(k, p)| {
+                        keep(k)
+                            && (*p - min).min_element() >= -slack
+                            && (*p - min - width).max_element() <= slack
+                    })
+                    .map(|(_, p)| cell_of(*p, min, cell))
+                    .collect();
+                c.sort_unstable();
+                c.dedup();
+                c
+            };
+            let occupied = cells_of(&|k| within(k, &node.key));
+            let covered = match top_down {
+                true => cells_of(&|k| *k == node.key),
+                false => cells_of(&|k| within(&node.key, k)),
+            };
+            let missing = occupied
+                .iter()
+                .filter(|c| covered.binary_search(c).is_err())
+                .count();
+            assert_eq!(
+                missing,
+                0,
+                "node {:?}: {missing} of {} occupied cells without a point in it or above",
+                node.key,
+                occupied.len()
             );
         } else {
             assert!(node.point_count as usize <= MAX_NODE_POINTS);

@@ -1045,10 +1045,23 @@ fn convert_source(
         fail,
         fill,
     } = source;
-    let cube = root_cube(lo, hi);
+    if total == 0 {
+        return Err(fail("nothing to write: the cloud has no points".into()));
+    }
+    // Points may lie a step of the grid beyond the bounds (a LAS header's
+    // are rounded; a PLY cloud's points are put on the grid): the cube
+    // holds them.
+    let slack = DVec3::new(
+        meta.transforms.x.scale,
+        meta.transforms.y.scale,
+        meta.transforms.z.scale,
+    )
+    .max_element();
+    let cube = root_cube(lo - slack, hi + slack);
     // At most level 6: parts of a 4,096th of the points on a surface.
+    let part_points = part_points.max(1);
     let mut level = 0;
-    while level < 6 && 4u64.pow(level as u32) * part_points < total {
+    while level < 6 && 4u64.pow(level as u32).saturating_mul(part_points) < total {
         level += 1;
     }
     let parts = Parts::new(output, meta.record_len())?;
@@ -1056,12 +1069,6 @@ fn convert_source(
     // 1. Distribution.
     let started = std::time::Instant::now();
     let mut stats = Stats::new();
-    let slack = DVec3::new(
-        meta.transforms.x.scale,
-        meta.transforms.y.scale,
-        meta.transforms.z.scale,
-    )
-    .max_element();
     let distribution = Distribution {
         converter,
         meta: &meta,
@@ -1200,7 +1207,9 @@ fn convert_source(
                 // The part's own node's points: candidates for the levels
                 // above, on disk until they are reached.
                 parts.put_own(key, &gather_records(&part, &own.points))?;
-                Ok((key, nodes.len() > 1))
+                // Whether the part's node has children (its own node is
+                // out of `nodes`).
+                Ok((key, !nodes.is_empty()))
             })();
             if result.is_err() {
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
@@ -1482,12 +1491,16 @@ impl Parts {
             .file_name()
             .map_or("out".into(), |n| n.to_string_lossy());
         let dir = output.with_file_name(format!(".{name}.parts-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).map_err(|e| Error::Io {
-            path: dir.clone(),
-            source: e,
-        })?;
-        // A signal removes it with the output's temporary.
+        // Listed before it exists: a signal removes it with the output's
+        // temporary, whenever it comes.
         crate::image_io::list_scratch_dir(&dir);
+        if let Err(e) = std::fs::create_dir_all(&dir) {
+            crate::image_io::unlist_scratch_dir(&dir);
+            return Err(Error::Io {
+                path: dir.clone(),
+                source: e,
+            });
+        }
         Ok(Parts {
             dir,
             record_len,

@@ -268,12 +268,24 @@ pub fn abandon_writes() -> usize {
     let in_flight = in_flight();
     for tmp in in_flight.iter() {
         match tmp.is_dir() {
-            // A scratch folder, which its owner may still be filling.
+            // A scratch folder, which its owner may still be filling:
+            // renamed first, so that no file is made in it afterwards
+            // (its owner's creations through the old name fail).
             true => {
-                for _ in 0..3 {
-                    if fs::remove_dir_all(tmp).is_ok() {
+                let mut gone = tmp.clone().into_os_string();
+                gone.push(".abandoned");
+                let gone = PathBuf::from(gone);
+                let dir = match fs::rename(tmp, &gone) {
+                    Ok(()) => gone,
+                    Err(_) => tmp.clone(),
+                };
+                // A creation already under way when it was renamed may
+                // still add a file: again until it is gone.
+                for _ in 0..100 {
+                    if fs::remove_dir_all(&dir).is_ok() || !dir.exists() {
                         break;
                     }
+                    std::thread::sleep(std::time::Duration::from_millis(2));
                 }
             }
             false => {

@@ -889,8 +889,13 @@ fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
     }
     job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
     let t = Instant::now();
-    let threads = pointlens::available_threads();
-    // Tests make parts small to split a small file into many.
+    // Tests make parts small to split a small file into many, and choose
+    // the threads (the file is the same on any number).
+    let threads = std::env::var("POINTLENS_CONVERT_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .unwrap_or_else(pointlens::available_threads)
+        .max(1);
     let part_points = std::env::var("POINTLENS_CONVERT_PART_POINTS")
         .ok()
         .and_then(|v| v.parse().ok())

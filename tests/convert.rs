@@ -24,19 +24,15 @@ fn convert(input: &Path, output: &Path) {
 
 /// `convert` with parts of at most `part_points` points.
 fn convert_in_parts(input: &Path, output: &Path, part_points: u64) {
-    convert_in_parts_on(input, output, part_points, false)
+    convert_in_parts_on(input, output, part_points, None)
 }
 
-/// As [`convert_in_parts`], on one core (`taskset`) where `one_core` says.
-fn convert_in_parts_on(input: &Path, output: &Path, part_points: u64, one_core: bool) {
-    let mut command = match one_core {
-        true => {
-            let mut c = std::process::Command::new("taskset");
-            c.args(["-c", "0", env!("CARGO_BIN_EXE_pointlens")]);
-            c
-        }
-        false => std::process::Command::new(env!("CARGO_BIN_EXE_pointlens")),
-    };
+/// As [`convert_in_parts`], on `threads` threads where given.
+fn convert_in_parts_on(input: &Path, output: &Path, part_points: u64, threads: Option<usize>) {
+    let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"));
+    if let Some(t) = threads {
+        command.env("POINTLENS_CONVERT_THREADS", t.to_string());
+    }
     let o = command
         .args([
             "convert",
@@ -88,14 +84,16 @@ fn a_las_file_converts_to_the_same_points_in_an_octree() {
         levels >= 4,
         "parts of 5,000 points make a deeper tree: {levels} levels"
     );
-    // Parts finish in any order on several cores; the file is the same.
+    // Parts finish in any order on several threads; the file is the same.
     let one_core = dir.path().join("autzen-one-core.copc.laz");
-    convert_in_parts_on(&input, &one_core, 5_000, true);
+    convert_in_parts_on(&input, &one_core, 5_000, Some(1));
+    let three = dir.path().join("autzen-three.copc.laz");
+    convert_in_parts_on(&input, &three, 5_000, Some(3));
     assert!(
-        std::fs::read(&parts).unwrap() == std::fs::read(&one_core).unwrap(),
-        "the file written on one core differs from the one written on {}",
-        pointlens::available_threads()
+        std::fs::read(&three).unwrap() == std::fs::read(&one_core).unwrap(),
+        "the file written by three threads differs from one thread's"
     );
+    std::fs::remove_file(&three).unwrap();
     std::fs::remove_file(&one_core).unwrap();
     assert_eq!(
         common::file_names(dir.path()),
@@ -282,11 +280,21 @@ fn a_ply_cloud_converts_and_renders() {
     let parts = dir.path().join("bunny-parts.copc.laz");
     convert_in_parts(&input, &parts, 2_000);
     let piped = dir.path().join("bunny-piped.copc.laz");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+    // A pipe (not the file as stdin, which /dev/stdin would reopen).
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
         .args(["convert", "/dev/stdin", "-o", piped.to_str().unwrap()])
-        .stdin(std::fs::File::open(&input).unwrap())
-        .output()
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
         .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let bytes = std::fs::read(&input).unwrap();
+    let feeder = std::thread::spawn(move || {
+        use std::io::Write;
+        stdin.write_all(&bytes).unwrap();
+    });
+    let o = child.wait_with_output().unwrap();
+    feeder.join().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let read = |p: &Path| load_las(p, None, &mut |_, _| {}).unwrap();
     let in_parts = read(&parts);

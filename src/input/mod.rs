@@ -125,19 +125,26 @@ pub fn check_whole_read_fits(
 /// `pointlens convert` command (paths quoted for a shell) that makes it
 /// COPC, which `render` reads by node at any size.
 pub fn convert_advice(path: &Path) -> String {
-    let name = path
-        .file_name()
+    // The name without its last extension, made distinct from the input.
+    let stem = path
+        .file_stem()
         .map_or("cloud".into(), |n| n.to_string_lossy());
-    let stem = name
-        .split('.')
-        .next()
-        .filter(|s| !s.is_empty())
-        .unwrap_or("cloud");
-    let output = path.with_file_name(format!("{stem}.copc.laz"));
+    let mut output = path.with_file_name(format!("{stem}.copc.laz"));
+    if output == path {
+        output = path.with_file_name(format!("{stem}-converted.copc.laz"));
+    }
+    // A relative name that a command line would take for an option.
+    let word = |p: &Path| {
+        let s = p.to_string_lossy();
+        match s.starts_with('-') {
+            true => format!("./{s}"),
+            false => s.into_owned(),
+        }
+    };
     format!(
         "convert it to COPC, which renders by node at any size: pointlens convert {} -o {}",
-        shell_word(&path.to_string_lossy()),
-        shell_word(&output.to_string_lossy())
+        shell_word(&word(path)),
+        shell_word(&word(&output))
     )
 }
 
@@ -145,7 +152,8 @@ pub fn convert_advice(path: &Path) -> String {
 /// only characters no shell treats specially, else in single quotes.
 fn shell_word(s: &str) -> String {
     let plain = |c: char| c.is_ascii_alphanumeric() || "/._-+,=:@%".contains(c);
-    match !s.is_empty() && s.chars().all(plain) {
+    // A leading `=` expands in zsh.
+    match !s.is_empty() && !s.starts_with('=') && s.chars().all(plain) {
         true => s.to_string(),
         false => format!("'{}'", s.replace('\'', "'\\''")),
     }
@@ -185,5 +193,15 @@ mod tests {
         assert_eq!(shell_word("it's.ply"), r"'it'\''s.ply'");
         assert_eq!(shell_word("$HOME"), "'$HOME'");
         assert_eq!(shell_word(""), "''");
+        assert_eq!(shell_word("=x.laz"), "'=x.laz'");
+    }
+
+    #[test]
+    fn the_advice_names_a_distinct_output() {
+        let advice = |p: &str| super::convert_advice(std::path::Path::new(p));
+        assert!(advice("/d/a.v1.laz").ends_with("convert /d/a.v1.laz -o /d/a.v1.copc.laz"));
+        assert!(advice("scan.copc.laz").ends_with("convert scan.copc.laz -o scan.copc.copc.laz"));
+        assert!(advice("x.copc.laz.copc.laz").contains("-o x.copc.laz.copc.copc.laz"));
+        assert!(advice("-x.las").ends_with("convert ./-x.las -o ./-x.copc.laz"));
     }
 }

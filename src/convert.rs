@@ -1139,11 +1139,25 @@ fn convert_source(
             ready.push(key);
             continue;
         }
-        let bytes = parts.take(key)?;
-        for r in bytes.chunks_exact(meta.record_len()) {
-            parts.put(cell_of(meta.position_of(r), cube, key.level + 1), r)?;
-        }
-        drop(bytes);
+        log::debug!("convert: part {key:?} of {count} points splits");
+        // Its records regrouped a block at a time, on every core.
+        let split = Distribution {
+            converter: RecordConverter::new(&meta.format, &meta.format).expect("6 or 7"),
+            level: key.level + 1,
+            ..distribution
+        };
+        parts.take_in_blocks(key, PART_BUFFER_BYTES, |block| {
+            let per_slice = (block.len() / meta.record_len())
+                .div_ceil(threads.max(1) * 4)
+                .max(1)
+                * meta.record_len();
+            let slices: Vec<&[u8]> = block.chunks(per_slice).collect();
+            for batch in crate::parallel_map(&slices, threads, |r| split.batch(r)) {
+                let batch = batch.map_err(|p| fail(format!("a point at {p} moved while split")))?;
+                parts.put_groups(&batch.records, &batch.groups)?;
+            }
+            Ok(())
+        })?;
         queue.extend(parts.flush_all()?);
     }
     ready.sort();
@@ -1392,6 +1406,7 @@ fn gather_records(records: &Records, points: &[u32]) -> Vec<u8> {
 /// The distribution's work on the input's records: each converted to the
 /// output's format, checked against the header's bounds and put in its
 /// part's cell at `level`.
+#[derive(Clone, Copy)]
 struct Distribution<'a> {
     converter: RecordConverter,
     meta: &'a Records,
@@ -1422,9 +1437,14 @@ impl Distribution<'_> {
         let n = raw.len() / from_len;
         let mut stats = Stats::new();
         let mut group_of: Vec<u32> = Vec::with_capacity(n);
-        // A group for each cell of the level (at most 64³).
-        let side = 1usize << self.level;
-        let mut index = vec![u32::MAX; side * side * side];
+        // A group for each cell: a table of the level's cells up to level
+        // 6 (64³), a map below (a part's split).
+        let side = 1usize << self.level.min(6);
+        let mut index = match self.level <= 6 {
+            true => vec![u32::MAX; side * side * side],
+            false => Vec::new(),
+        };
+        let mut sparse: std::collections::HashMap<NodeKey, u32> = Default::default();
         let mut groups: Vec<(NodeKey, usize)> = Vec::new();
         for r in raw.chunks_exact(from_len) {
             let p = self.meta.position_of(r);
@@ -1433,12 +1453,17 @@ impl Distribution<'_> {
             }
             stats.add_position(p);
             let key = cell_of(p, self.cube, self.level);
-            let cell = (key.z as usize * side + key.y as usize) * side + key.x as usize;
-            if index[cell] == u32::MAX {
-                index[cell] = groups.len() as u32;
+            let slot = match index.is_empty() {
+                false => {
+                    &mut index[(key.z as usize * side + key.y as usize) * side + key.x as usize]
+                }
+                true => sparse.entry(key).or_insert(u32::MAX),
+            };
+            if *slot == u32::MAX {
+                *slot = groups.len() as u32;
                 groups.push((key, 0));
             }
-            let g = index[cell];
+            let g = *slot;
             groups[g as usize].1 += 1;
             group_of.push(g);
         }
@@ -1520,18 +1545,6 @@ impl Parts {
         }
     }
 
-    /// Adds a record to part `key`.
-    fn put(&self, key: NodeKey, record: &[u8]) -> Result<()> {
-        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
-        s.buffers.entry(key).or_default().extend_from_slice(record);
-        *s.counts.entry(key).or_default() += 1;
-        s.buffered += record.len();
-        if s.buffered > PART_BUFFER_BYTES {
-            self.write_out(&mut s)?;
-        }
-        Ok(())
-    }
-
     /// Adds the records of each group (a part's cell and where its
     /// records in `records` end).
     fn put_groups(&self, records: &[u8], groups: &[(NodeKey, usize)]) -> Result<()> {
@@ -1587,6 +1600,39 @@ impl Parts {
     fn own_file(&self, key: NodeKey) -> std::path::PathBuf {
         self.dir
             .join(format!("own-{}-{}-{}-{}", key.level, key.x, key.y, key.z))
+    }
+
+    /// Part `key`'s records a block of at most `block_bytes` (whole
+    /// records, at least one) at a time, its file removed.
+    fn take_in_blocks(
+        &self,
+        key: NodeKey,
+        block_bytes: usize,
+        mut f: impl FnMut(&[u8]) -> Result<()>,
+    ) -> Result<()> {
+        use std::io::Read;
+        let path = self.file(key);
+        let mut file = File::open(&path).map_err(|e| self.io(e))?;
+        let mut block = vec![0u8; (block_bytes / self.record_len).max(1) * self.record_len];
+        loop {
+            let mut filled = 0;
+            while filled < block.len() {
+                match file.read(&mut block[filled..]) {
+                    Ok(0) => break,
+                    Ok(n) => filled += n,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                    Err(e) => return Err(self.io(e)),
+                }
+            }
+            if filled > 0 {
+                f(&block[..filled - filled % self.record_len])?;
+            }
+            if filled < block.len() {
+                break;
+            }
+        }
+        drop(file);
+        std::fs::remove_file(&path).map_err(|e| self.io(e))
     }
 
     /// Part `key`'s records, its file removed.
@@ -1716,6 +1762,38 @@ mod tests {
             }
         }
         assert!(checked > 40_000, "{checked} records compared");
+    }
+
+    /// A part read back a block at a time gives its records in order, in
+    /// whole records, and leaves no file.
+    #[test]
+    fn a_part_is_read_back_in_blocks() {
+        let dir = std::env::temp_dir().join(format!("pointlens-parts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let parts = Parts::new(&dir.join("out.copc.laz"), 36).unwrap();
+        let key = NodeKey::ROOT;
+        let records: Vec<u8> = (0..36 * 10).map(|i| (i % 251) as u8).collect();
+        parts.put_groups(&records, &[(key, records.len())]).unwrap();
+        assert_eq!(parts.flush_all().unwrap(), [(key, 10)]);
+        for block_bytes in [1, 36 * 3, 36 * 3 + 5, 36 * 10, 36 * 64] {
+            let again = Parts::new(&dir.join(format!("b{block_bytes}.copc.laz")), 36).unwrap();
+            again.put_groups(&records, &[(key, records.len())]).unwrap();
+            again.flush_all().unwrap();
+            let mut read = Vec::new();
+            let mut sizes = Vec::new();
+            again
+                .take_in_blocks(key, block_bytes, |b| {
+                    sizes.push(b.len());
+                    read.extend_from_slice(b);
+                    Ok(())
+                })
+                .unwrap();
+            assert_eq!(read, records, "blocks of {block_bytes}");
+            assert!(sizes.iter().all(|s| s % 36 == 0 && *s > 0), "{sizes:?}");
+            assert!(!again.file(key).exists());
+        }
+        drop(parts);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A cloud's record is the one `las::Point` makes of its position and

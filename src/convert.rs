@@ -1190,8 +1190,21 @@ fn convert_source(
         });
         // A failed part stops the others from starting.
         let failed = std::sync::atomic::AtomicBool::new(false);
+        // A part starts at most this many parts ahead of the next one to
+        // write, so that the built ones waiting their turn stay few.
+        let window = 2 * threads.max(1);
+        let turn = std::sync::Condvar::new();
         let indexed: Vec<(usize, NodeKey)> = ready.iter().copied().enumerate().collect();
         let built = crate::parallel_map(&indexed, threads, |&(index, key)| {
+            {
+                // Parts are handed out in order, so the next to write is
+                // being built by another thread.
+                let mut o = out.lock().unwrap_or_else(|e| e.into_inner());
+                while index >= o.next + window && !failed.load(std::sync::atomic::Ordering::Relaxed)
+                {
+                    o = turn.wait(o).unwrap_or_else(|e| e.into_inner());
+                }
+            }
             if failed.load(std::sync::atomic::Ordering::Relaxed) {
                 return Ok(None);
             }
@@ -1218,6 +1231,7 @@ fn convert_source(
                 out.lock()
                     .unwrap_or_else(|e| e.into_inner())
                     .put(index, written)?;
+                turn.notify_all();
                 // The part's own node's points: candidates for the levels
                 // above, on disk until they are reached.
                 parts.put_own(key, &gather_records(&part, &own.points))?;
@@ -1226,7 +1240,10 @@ fn convert_source(
                 Ok((key, !nodes.is_empty()))
             })();
             if result.is_err() {
+                // Under the lock, so that no thread misses the wakeup.
+                let _o = out.lock().unwrap_or_else(|e| e.into_inner());
                 failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                turn.notify_all();
             }
             result.map(Some)
         });

@@ -975,6 +975,14 @@ pub fn convert_ply(
     if !chunks.rest_is_well_formed().map_err(io)? {
         return Ok(None);
     }
+    // What the whole read refuses (squared distances overflow f32).
+    let limit = f64::from(crate::input::MAX_COORDINATE);
+    if lo.abs().max_element() > limit || hi.abs().max_element() > limit {
+        return Err(fail(format!(
+            "a point lies beyond ±{limit:e} units ({lo} to {hi}), where squared distances \
+             overflow f32; remove it, or rescale or re-centre the cloud"
+        )));
+    }
     // 2. The records.
     let meta = Records {
         bytes: Vec::new(),

@@ -125,6 +125,8 @@ enum Command {
         /// Output file, .copc.laz (replaced atomically).
         #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
+        #[command(flatten)]
+        memory: MemoryArgs,
     },
     /// Write the bench's synthetic scene (a wavy wall and five spheres) as
     /// a binary little-endian PLY, or LAS / LAZ (by the extension),
@@ -620,7 +622,11 @@ fn main() -> ExitCode {
         }) => info(&input, origin, memory, quiet),
         Some(Command::Bench(args)) => bench(*args, quiet),
         Some(Command::Synth { points, output }) => synth(points, &output, quiet),
-        Some(Command::Convert { input, output }) => convert(&input, &output, quiet),
+        Some(Command::Convert {
+            input,
+            output,
+            memory,
+        }) => convert(&input, &output, memory, quiet),
         None => Err(anyhow::anyhow!("no command given (see 'pointlens --help')")),
     };
     match result {
@@ -863,7 +869,7 @@ fn info(input: &Path, origin: Option<[f64; 3]>, memory: MemoryArgs, quiet: bool)
         true => |_: &Path| "render reads a COPC file by node, at any size".to_string(),
         false => pointlens::input::convert_advice,
     };
-    pointlens::input::check_whole_read_fits(input, memory.memory_mb, advice)?;
+    pointlens::input::check_whole_read_fits(input, memory.memory_mb, false, advice)?;
     let cloud = load(input, origin, quiet)?;
     let (spacing, limited) =
         pointlens::tree::spacing_summary(&cloud.positions, pointlens::available_threads());
@@ -875,7 +881,7 @@ fn info(input: &Path, origin: Option<[f64; 3]>, memory: MemoryArgs, quiet: bool)
     Ok(())
 }
 
-fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
+fn convert(input: &Path, output: &Path, memory: MemoryArgs, quiet: bool) -> Result<()> {
     let name = output.to_string_lossy().to_lowercase();
     if !name.ends_with(".copc.laz") {
         bail!(
@@ -911,6 +917,13 @@ fn convert(input: &Path, output: &Path, quiet: bool) -> Result<()> {
         false => match pointlens::convert::convert_ply(input, output, threads, part_points)? {
             Some(done) => done,
             None => {
+                // Perhaps by the general reader, which names what is wrong
+                // with the file.
+                pointlens::input::check_whole_read_fits(input, memory.memory_mb, true, |_| {
+                    "convert streams only a regular binary PLY file whose vertices are all \
+                         well-formed; this one it must read whole"
+                        .into()
+                })?;
                 let cloud = load(input, None, quiet)?;
                 let records = pointlens::convert::Records::of_cloud(&cloud, input)?;
                 pointlens::convert::write_copc(&records, output, threads)?
@@ -1076,6 +1089,7 @@ fn open_input(
             pointlens::input::check_whole_read_fits(
                 &args.input,
                 args.memory.memory_mb,
+                false,
                 pointlens::input::convert_advice,
             )?;
             load(&args.input, args.origin, quiet)?
@@ -1092,12 +1106,12 @@ fn open_input(
 /// `--memory-mb`, of `render` and `info`.
 #[derive(clap::Args, Debug, Clone, Copy)]
 struct MemoryArgs {
-    /// Memory for the points, MiB (default: half this machine's): a file
-    /// read whole (by `render` a PLY/LAS/LAZ, by `info` any) that would
-    /// need more is refused in one line saying what to do (for `render`,
-    /// the `pointlens convert` command that makes it COPC); a COPC file's
-    /// decompressed nodes kept across the frames of a sequence stay within
-    /// it.
+    /// Memory for the points, MiB (default: half of what this process may
+    /// use): a file read whole (by `render` a PLY/LAS/LAZ, by `info` any,
+    /// by `convert` a PLY it cannot stream) that would need more is
+    /// refused in one line saying what to do (for `render`, the `pointlens
+    /// convert` command that makes it COPC); a COPC file's decompressed
+    /// nodes kept across the frames of a sequence stay within it.
     #[arg(long, value_name = "MB", default_value_t = pointlens::input::default_memory_mb(),
           value_parser = clap::value_parser!(u64).range(1..=1 << 30))]
     memory_mb: u64,

@@ -377,13 +377,29 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
     let dir = scratch("convert-memory");
     let out = dir.path().join("frame.png");
     let o = out.to_str().unwrap();
-    // The bunny (35,947 points) needs about 2 MiB read whole.
+    // The bunny (35,947 points of ASCII) needs about 6 MiB read whole: its
+    // text, then the cloud.
     let bunny = root().join("data/bun_zipper.ply");
     let b = bunny.to_str().unwrap();
     assert_fails(
         &["render", b, "-o", o, "--memory-mb", "1"],
         "more than --memory-mb 1; convert it to COPC",
         &out,
+    );
+    // `convert` streams a binary PLY file; an ASCII one it reads whole,
+    // within --memory-mb too.
+    let bunny_copc = dir.path().join("bunny.copc.laz");
+    assert_fails(
+        &[
+            "convert",
+            b,
+            "-o",
+            bunny_copc.to_str().unwrap(),
+            "--memory-mb",
+            "1",
+        ],
+        "more than --memory-mb 1; convert streams only a regular binary PLY",
+        &bunny_copc,
     );
     // The tile (110,000 points, about 6 MiB): the command the line gives,
     // run as given.

@@ -75,41 +75,73 @@ pub fn load_cloud(
 /// room for the frame's own.
 pub const WHOLE_READ_BYTES_PER_POINT: u64 = 60;
 
-/// `--memory-mb` by default: half this machine's memory (MemTotal of
-/// /proc/meminfo), or 4096 MiB where that cannot be read.
+/// `--memory-mb` by default: half the memory this process may use, the
+/// machine's (MemTotal of /proc/meminfo) or its control group's limit
+/// where lower (a container's: cgroup v2 `memory.max`, v1
+/// `memory.limit_in_bytes`); 4096 MiB where neither can be read.
 pub fn default_memory_mb() -> u64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|m| {
-            m.lines()
-                .find_map(|l| l.strip_prefix("MemTotal:"))
-                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-        })
-        .map_or(4096, |kib| (kib / 2048).max(1))
+    let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
+        m.lines()
+            .find_map(|l| l.strip_prefix("MemTotal:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kib| kib.saturating_mul(1024))
+    });
+    let limit = [
+        "/sys/fs/cgroup/memory.max",
+        "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+    ]
+    .iter()
+    .filter_map(|f| std::fs::read_to_string(f).ok()?.trim().parse::<u64>().ok())
+    .min();
+    let bytes = match (total, limit) {
+        (Some(t), Some(l)) => t.min(l),
+        (Some(t), None) => t,
+        (None, Some(l)) => l,
+        (None, None) => return 4096,
+    };
+    (bytes / (2 << 20)).max(1)
 }
 
-/// The points a PLY, LAS or LAZ file declares in its header, where that
-/// can be told without reading the file (not from a pipe); the header
-/// checked as its reader checks it.
-pub fn declared_points(path: &Path) -> Result<Option<u64>> {
-    match is_las(path) {
-        true => las::check_las(path).map(Some),
-        false => ply::declared_points(path),
+/// Bytes a point of a PLY file costs the general reader (ply-rs, a map
+/// per vertex), which reads what the direct one declines.
+pub const GENERAL_READ_BYTES_PER_POINT: u64 = 300;
+
+/// The points a PLY, LAS or LAZ file declares in its header and about the
+/// bytes a whole read of it takes at its peak, where that can be told
+/// without reading the file (not from a pipe); the header checked as its
+/// reader checks it. [`WHOLE_READ_BYTES_PER_POINT`] a point; an ASCII PLY
+/// file's text besides, with its line index (16 bytes a vertex); with
+/// `general`, a PLY file read by the general reader.
+pub fn whole_read_bytes(path: &Path, general: bool) -> Result<Option<(u64, u64)>> {
+    let per_point = WHOLE_READ_BYTES_PER_POINT;
+    if is_las(path) {
+        let points = las::check_las(path)?;
+        return Ok(Some((points, points.saturating_mul(per_point))));
     }
+    Ok(
+        ply::declared_points(path)?.map(|(points, ascii, file_len)| {
+            let bytes = match (general, ascii) {
+                (true, _) => file_len + points.saturating_mul(GENERAL_READ_BYTES_PER_POINT),
+                (false, true) => file_len + points.saturating_mul(per_point + 16),
+                (false, false) => points.saturating_mul(per_point),
+            };
+            (points, bytes)
+        }),
+    )
 }
 
 /// Refuses, in one line ending with `advice(path)`, a cloud to be read
-/// whole whose points would take more than `memory_mb` MiB
-/// ([`WHOLE_READ_BYTES_PER_POINT`] each, as its header declares them).
+/// whole that would take more than `memory_mb` MiB ([`whole_read_bytes`];
+/// a pipe is not checked: its size is known at its end).
 pub fn check_whole_read_fits(
     path: &Path,
     memory_mb: u64,
+    general: bool,
     advice: fn(&Path) -> String,
 ) -> Result<()> {
-    let Some(points) = declared_points(path)? else {
+    let Some((points, needed)) = whole_read_bytes(path, general)? else {
         return Ok(());
     };
-    let needed = points.saturating_mul(WHOLE_READ_BYTES_PER_POINT);
     if needed <= memory_mb.saturating_mul(1 << 20) {
         return Ok(());
     }

@@ -71,15 +71,17 @@ pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Opt
     })
 }
 
-/// The vertex count a PLY file's header declares, read without its
-/// payload; None for what is not a regular file (a pipe is read once).
-pub fn declared_points(path: &Path) -> Result<Option<u64>> {
+/// The vertex count a PLY file's header declares, whether it is ASCII,
+/// and its length, read without its payload; None for what is not a
+/// regular file (a pipe is read once).
+pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
     };
     let mut file = File::open(path).map_err(io)?;
-    if !file.metadata().map_err(io)?.is_file() {
+    let metadata = file.metadata().map_err(io)?;
+    if !metadata.is_file() {
         return Ok(None);
     }
     let mut magic = Vec::with_capacity(5);
@@ -88,7 +90,8 @@ pub fn declared_points(path: &Path) -> Result<Option<u64>> {
     file.rewind().map_err(io)?;
     let header = parse_header(&mut BufReader::with_capacity(64 << 10, file), path)?;
     let (vertex, _) = vertex_element(&header, path)?;
-    Ok(Some(vertex.count as u64))
+    let ascii = matches!(header.encoding, Encoding::Ascii);
+    Ok(Some((vertex.count as u64, ascii, metadata.len())))
 }
 
 /// A binary PLY file's vertices, read a chunk at a time in bounded memory

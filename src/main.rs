@@ -870,6 +870,27 @@ fn info(input: &Path, origin: Option<[f64; 3]>, memory: MemoryArgs, quiet: bool)
         false => pointlens::input::convert_advice,
     };
     pointlens::input::check_whole_read_fits(input, memory.memory_mb, false, advice)?;
+    if pointlens::input::gaussians::is_gaussian_file(input) {
+        let scene = pointlens::input::gaussians::load_gaussians(input)?;
+        let (lo, hi) = scene.positions.iter().fold(
+            (
+                glam::Vec3::splat(f32::INFINITY),
+                glam::Vec3::splat(f32::NEG_INFINITY),
+            ),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let v = |v: glam::Vec3| format!("{} {} {}", v.x, v.y, v.z);
+        out!(
+            "file: {}\ngaussians: {}\nsh_degree: {}\nbounds_min: {}\nbounds_max: {}\nextent: {}\n",
+            input.display(),
+            scene.len(),
+            scene.sh_degree,
+            v(lo),
+            v(hi),
+            v(hi - lo)
+        )?;
+        return Ok(());
+    }
     let cloud = load(input, origin, quiet)?;
     let (spacing, limited) =
         pointlens::tree::spacing_summary(&cloud.positions, pointlens::available_threads());
@@ -892,6 +913,12 @@ fn convert(input: &Path, output: &Path, memory: MemoryArgs, quiet: bool) -> Resu
     check_parent_dir(output, "-o")?;
     if input.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
         bail!("{}: the output would replace the input", output.display());
+    }
+    if pointlens::input::gaussians::is_gaussian_file(input) {
+        bail!(
+            "{}: it holds 3D Gaussians, which a COPC file of points cannot hold",
+            input.display()
+        );
     }
     job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
     let t = Instant::now();
@@ -1086,6 +1113,13 @@ fn open_input(
     let mut cloud = match &copc {
         Some(copc) => copc.preview()?,
         None => {
+            if pointlens::input::gaussians::is_gaussian_file(&args.input) {
+                bail!(
+                    "{}: it holds 3D Gaussians, which this version reads (`pointlens info`) \
+                     but does not render",
+                    args.input.display()
+                );
+            }
             pointlens::input::check_whole_read_fits(
                 &args.input,
                 args.memory.memory_mb,

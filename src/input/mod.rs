@@ -5,6 +5,7 @@
 //! more. docs/ARCHITECTURE.md, "Adding an input format".
 
 pub mod copc;
+pub mod gaussians;
 pub mod las;
 pub mod ply;
 

@@ -329,14 +329,14 @@ pub fn load_ply_general(path: &Path) -> Result<PointCloud> {
     load_parsed(&read_file(path)?, path)
 }
 
-fn ply_error(path: &Path, msg: String) -> Error {
+pub(super) fn ply_error(path: &Path, msg: String) -> Error {
     Error::Ply {
         path: path.to_path_buf(),
         msg,
     }
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>> {
+pub(super) fn read_file(path: &Path) -> Result<Vec<u8>> {
     let bytes = std::fs::read(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -367,7 +367,7 @@ fn parse_header(input: &mut impl BufRead, path: &Path) -> Result<Header> {
 }
 
 /// The header and the offset of the payload after it.
-fn read_header(bytes: &[u8], path: &Path) -> Result<(Header, usize)> {
+pub(super) fn read_header(bytes: &[u8], path: &Path) -> Result<(Header, usize)> {
     let mut cursor = Cursor::new(bytes);
     let header = parse_header(&mut cursor, path)?;
     Ok((header, cursor.position() as usize))
@@ -512,7 +512,7 @@ fn guarded<T, E: std::fmt::Display>(
 
 /// One scalar value of a property, as stored: what both readers convert.
 #[derive(Debug, Clone, Copy)]
-enum Scalar {
+pub(super) enum Scalar {
     Char(i8),
     UChar(u8),
     Short(i16),
@@ -540,7 +540,7 @@ impl Scalar {
     }
 
     /// The value as f64.
-    fn value(self) -> f64 {
+    pub(super) fn value(self) -> f64 {
         match self {
             Scalar::Char(v) => v as f64,
             Scalar::UChar(v) => v as f64,
@@ -600,7 +600,7 @@ struct Fields {
     stride: usize,
 }
 
-fn scalar_bytes(ty: &ScalarType) -> usize {
+pub(super) fn scalar_bytes(ty: &ScalarType) -> usize {
     match ty {
         ScalarType::Char | ScalarType::UChar => 1,
         ScalarType::Short | ScalarType::UShort => 2,
@@ -640,7 +640,7 @@ impl Fields {
 }
 
 /// Reads a binary scalar of type `ty` at the start of `b`.
-fn binary_scalar(b: &[u8], ty: &ScalarType, big_endian: bool) -> Scalar {
+pub(super) fn binary_scalar(b: &[u8], ty: &ScalarType, big_endian: bool) -> Scalar {
     macro_rules! read {
         ($t:ty, $n:expr) => {{
             let a: [u8; $n] = b[..$n].try_into().expect("record holds the field");
@@ -666,7 +666,7 @@ fn binary_scalar(b: &[u8], ty: &ScalarType, big_endian: bool) -> Scalar {
 /// Parses an ASCII token as the general reader does: only tokens of its
 /// grammar (`[-+]?digits(.digits)?([eE][-+]?digits)?`), then Rust's parser
 /// for the property's own type. None for anything else.
-fn ascii_scalar(token: &[u8], ty: &ScalarType) -> Option<Scalar> {
+pub(super) fn ascii_scalar(token: &[u8], ty: &ScalarType) -> Option<Scalar> {
     if !is_ply_number(token) {
         return None;
     }
@@ -1022,7 +1022,7 @@ fn skip_or_end(input: &mut impl BufRead, mut n: u64) -> io::Result<bool> {
 /// Skips one binary instance of `element`, its list counts read as the
 /// general reader reads them: false when the file ends first or a count is
 /// negative (or not an integer).
-fn skip_binary_element(
+pub(super) fn skip_binary_element(
     input: &mut impl BufRead,
     element: &ElementDef,
     big_endian: bool,
@@ -1085,7 +1085,7 @@ fn ascii_element_ok(tokens: &[&[u8]], element: &ElementDef) -> bool {
 }
 
 /// Tokens of an ASCII line, split on spaces and tabs.
-fn ascii_tokens(line: &[u8]) -> Vec<&[u8]> {
+pub(super) fn ascii_tokens(line: &[u8]) -> Vec<&[u8]> {
     line.split(|&b| b == b' ' || b == b'\t')
         .filter(|t| !t.is_empty())
         .collect()

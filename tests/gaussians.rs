@@ -212,3 +212,156 @@ fn the_command_line_knows_a_gaussian_scene() {
         &copc,
     );
 }
+
+/// A camera on the −z side of the origin looking at it, y up.
+fn camera_at(z: f32, size: u32) -> pointlens::camera::Camera {
+    pointlens::camera::Camera {
+        width: size,
+        height: size,
+        eye: glam::Vec3::new(0.0, 0.0, -z),
+        target: glam::Vec3::ZERO,
+        up: glam::Vec3::Y,
+        fovy_deg: 40.0,
+        aperture_radius: 0.0,
+        focus_distance: z,
+    }
+}
+
+/// A scene of isotropic Gaussians of SH degree 0: (centre, σ, opacity,
+/// colour) each; the colour is what the DC term gives (c = C0·dc + 0.5).
+fn isotropic(
+    gaussians: &[(glam::Vec3, f32, f32, glam::Vec3)],
+) -> pointlens::input::gaussians::GaussianScene {
+    const C0: f32 = 0.282_094_8;
+    pointlens::input::gaussians::GaussianScene {
+        positions: gaussians.iter().map(|g| g.0).collect(),
+        scales: gaussians.iter().map(|g| glam::Vec3::splat(g.1)).collect(),
+        rotations: gaussians.iter().map(|_| glam::Quat::IDENTITY).collect(),
+        opacities: gaussians.iter().map(|g| g.2).collect(),
+        sh_degree: 0,
+        sh: gaussians
+            .iter()
+            .flat_map(|g| ((g.3 - glam::Vec3::splat(0.5)) / C0).to_array())
+            .collect(),
+    }
+}
+
+/// One isotropic Gaussian facing the camera: every pixel is the 2D
+/// Gaussian of variance (f·σ/z)² + 0.3 px² at its centre, composited over
+/// the background (α = min(0.99, o·e^power), none below 1/255).
+#[test]
+fn the_reference_draws_one_gaussian_as_the_formula_says() {
+    let (z, sigma, opacity) = (4.0f32, 0.05f32, 0.8f32);
+    let color = glam::Vec3::new(0.9, 0.4, 0.1);
+    let background = glam::Vec3::new(0.0, 0.2, 1.0);
+    let camera = camera_at(z, 64);
+    let scene = isotropic(&[(glam::Vec3::ZERO, sigma, opacity, color)]);
+    let image = pointlens::gaussians::render_reference(&scene, &camera, background);
+    let s = camera.f_px() * sigma / z;
+    let variance = s * s + 0.3;
+    let mut drawn = 0;
+    for y in 0..64 {
+        for x in 0..64 {
+            let d = glam::Vec2::new(x as f32 + 0.5 - 32.0, y as f32 + 0.5 - 32.0);
+            let mut alpha = (opacity * (-0.5 * d.length_squared() / variance).exp()).min(0.99);
+            if alpha < 1.0 / 255.0 {
+                alpha = 0.0;
+            }
+            let want = color * alpha + background * (1.0 - alpha);
+            let got = image[y * 64 + x];
+            assert!(
+                (got - want).abs().max_element() < 1e-5,
+                "pixel ({x}, {y}): {got} against {want}"
+            );
+            drawn += usize::from(alpha > 0.0);
+        }
+    }
+    assert!(drawn > 50, "{drawn} pixels drawn");
+}
+
+/// Front to back by depth, whatever the scene's order; an opaque stack
+/// ends a pixel before its transmittance falls below 10⁻⁴.
+#[test]
+fn the_reference_composites_front_to_back() {
+    let camera = camera_at(4.0, 32);
+    let (red, green) = (
+        glam::Vec3::new(1.0, 0.0, 0.0),
+        glam::Vec3::new(0.0, 1.0, 0.0),
+    );
+    let far = (glam::Vec3::new(0.0, 0.0, 1.0), 0.2, 0.6, green);
+    let near = (glam::Vec3::new(0.0, 0.0, -1.0), 0.2, 0.5, red);
+    let background = glam::Vec3::splat(0.25);
+    for order in [[near, far], [far, near]] {
+        let image = pointlens::gaussians::render_reference(&isotropic(&order), &camera, background);
+        // The centre pixel sits half a pixel off both centres.
+        let at = |z: f32, sigma: f32, opacity: f32| {
+            let s = camera.f_px() * sigma / z;
+            (opacity * (-0.5 * 0.5 / (s * s + 0.3)).exp()).min(0.99)
+        };
+        let (a_near, a_far) = (at(3.0, 0.2, 0.5), at(5.0, 0.2, 0.6));
+        let want = red * a_near
+            + green * a_far * (1.0 - a_near)
+            + background * (1.0 - a_near) * (1.0 - a_far);
+        let got = image[16 * 32 + 16];
+        assert!(
+            (got - want).abs().max_element() < 1e-5,
+            "{got} against {want}"
+        );
+    }
+    // Ten Gaussians of opacity 0.95 over the centre: transmittance 0.05,
+    // 0.0025, 1.25·10⁻⁴ after three; the fourth would take it below 10⁻⁴,
+    // so it ends the pixel and the rest is background.
+    let stack: Vec<_> = (0..10)
+        .map(|k| (glam::Vec3::new(0.0, 0.0, k as f32 * 0.1), 1.0, 0.95, red))
+        .collect();
+    let image = pointlens::gaussians::render_reference(&isotropic(&stack), &camera, background);
+    let got = image[16 * 32 + 16];
+    let (mut t, mut want, mut drawn) = (1.0f32, glam::Vec3::ZERO, 0);
+    for k in 0..10 {
+        let s = camera.f_px() * 1.0 / (4.0 + k as f32 * 0.1);
+        let alpha = (0.95 * (-0.5 * 0.5 / (s * s + 0.3)).exp()).min(0.99);
+        if t * (1.0 - alpha) < 1e-4 {
+            break;
+        }
+        want += red * alpha * t;
+        t *= 1.0 - alpha;
+        drawn += 1;
+    }
+    assert_eq!(drawn, 3);
+    want += background * t;
+    assert!(
+        (got - want).abs().max_element() < 1e-5,
+        "{got} against {want}"
+    );
+}
+
+/// An elongated Gaussian turned a quarter about the view axis draws the
+/// transposed image (the rotation, the 3D covariance and its projection
+/// agree); and elongated along x it is wider than high.
+#[test]
+fn the_reference_turns_an_anisotropic_gaussian() {
+    let camera = camera_at(4.0, 64);
+    let mut scene = isotropic(&[(glam::Vec3::ZERO, 0.1, 0.9, glam::Vec3::ONE)]);
+    scene.scales[0] = glam::Vec3::new(0.2, 0.03, 0.05);
+    let flat = pointlens::gaussians::render_reference(&scene, &camera, glam::Vec3::ZERO);
+    scene.rotations[0] = glam::Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let turned = pointlens::gaussians::render_reference(&scene, &camera, glam::Vec3::ZERO);
+    let lit = |img: &[glam::Vec3], horizontal: bool| {
+        (0..64)
+            .filter(|&i| {
+                let (x, y) = if horizontal { (i, 32) } else { (32, i) };
+                img[y * 64 + x].x > 0.0
+            })
+            .count()
+    };
+    assert!(lit(&flat, true) > 2 * lit(&flat, false), "wider than high");
+    for y in 0..64 {
+        for x in 0..64 {
+            let (a, b) = (flat[y * 64 + x], turned[x * 64 + y]);
+            assert!(
+                (a - b).abs().max_element() < 1e-5,
+                "({x}, {y}): {a} against {b}"
+            );
+        }
+    }
+}

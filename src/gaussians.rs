@@ -1,0 +1,222 @@
+//! The CPU reference of 3D Gaussian rendering (issue 31, item 4): a
+//! scene's pinhole image as the reference rasterizer (graphdeco-inria's
+//! diff-gaussian-rasterization) defines it, in pointlens's camera
+//! (docs/ARCHITECTURE.md, "3D Gaussian scenes"). For tests, on small
+//! images: one pixel at a time, every Gaussian of its 16 × 16 tile.
+//!
+//! Per Gaussian: its eye-space centre (culled at z ≤ 0.2); the 3D
+//! covariance Σ = R S Sᵀ Rᵀ; the 2D covariance J W Σ Wᵀ Jᵀ with the
+//! Jacobian of the projection at the centre (its x/z and y/z clamped to
+//! 1.3 × the half field of view's tangent) plus 0.3 px² on the diagonal
+//! (the reference's low-pass: its anti-aliasing); the radius ⌈3√λ_max⌉ and
+//! the 16-px tiles its square covers; the colour from the SH at the
+//! direction camera → centre, + 0.5, clamped at 0. Per pixel, at its
+//! centre, front to back by eye depth: α = min(0.99, o·e^power), skipped
+//! below 1/255 or where power > 0; the Gaussian that would take the
+//! transmittance below 10⁻⁴ ends the pixel without adding; the background
+//! takes what transmittance is left. The values composited are those the
+//! scene was trained on (sRGB-encoded).
+
+use glam::{Mat3, Vec2, Vec3};
+
+use crate::camera::Camera;
+use crate::input::gaussians::GaussianScene;
+
+/// The reference rasterizer's tile side, pixels.
+pub const TILE_PX: i32 = 16;
+
+/// The SH basis constants of the reference code, degrees 0–3.
+const SH_C0: f32 = 0.282_094_8;
+const SH_C1: f32 = 0.488_602_52;
+const SH_C2: [f32; 5] = [
+    1.092_548_4,
+    -1.092_548_4,
+    0.315_391_57,
+    -1.092_548_4,
+    0.546_274_2,
+];
+const SH_C3: [f32; 7] = [
+    -0.590_043_6,
+    2.890_611_4,
+    -0.457_045_8,
+    0.373_176_33,
+    -0.457_045_8,
+    1.445_305_7,
+    -0.590_043_6,
+];
+
+/// The colour of SH coefficients `sh` (`[k][channel]`, degree `degree`)
+/// seen along the unit direction `d`: the reference's evaluation, + 0.5,
+/// clamped at 0.
+pub fn sh_color(sh: &[f32], degree: u32, d: Vec3) -> Vec3 {
+    let c = |k: usize| Vec3::new(sh[3 * k], sh[3 * k + 1], sh[3 * k + 2]);
+    let mut result = SH_C0 * c(0);
+    if degree > 0 {
+        let (x, y, z) = (d.x, d.y, d.z);
+        result += -SH_C1 * y * c(1) + SH_C1 * z * c(2) - SH_C1 * x * c(3);
+        if degree > 1 {
+            let (xx, yy, zz) = (x * x, y * y, z * z);
+            let (xy, yz, xz) = (x * y, y * z, x * z);
+            result += SH_C2[0] * xy * c(4)
+                + SH_C2[1] * yz * c(5)
+                + SH_C2[2] * (2.0 * zz - xx - yy) * c(6)
+                + SH_C2[3] * xz * c(7)
+                + SH_C2[4] * (xx - yy) * c(8);
+            if degree > 2 {
+                result += SH_C3[0] * y * (3.0 * xx - yy) * c(9)
+                    + SH_C3[1] * xy * z * c(10)
+                    + SH_C3[2] * y * (4.0 * zz - xx - yy) * c(11)
+                    + SH_C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy) * c(12)
+                    + SH_C3[4] * x * (4.0 * zz - xx - yy) * c(13)
+                    + SH_C3[5] * z * (xx - yy) * c(14)
+                    + SH_C3[6] * x * (xx - 3.0 * yy) * c(15);
+            }
+        }
+    }
+    (result + Vec3::splat(0.5)).max(Vec3::ZERO)
+}
+
+/// A Gaussian as the frame sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct Splat2d {
+    /// Centre in pixels (pointlens's: pixel centres at +0.5).
+    pub centre_px: Vec2,
+    /// Eye depth of the centre.
+    pub depth: f32,
+    /// The inverse 2D covariance (a, b, c): power = −½(a dx² + c dy²) − b dx dy.
+    pub conic: Vec3,
+    /// ⌈3√λ_max⌉, pixels.
+    pub radius_px: i32,
+    /// Tiles covered, [min, max) in x and y.
+    pub tiles: [i32; 4],
+    pub color: Vec3,
+    pub opacity: f32,
+}
+
+/// Gaussian `g` of `scene` through `camera`'s pinhole (its lens ignored),
+/// or None where the reference culls it.
+pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat2d> {
+    let eye_from_world = camera.eye_from_world_transform();
+    let p = scene.positions[g];
+    let e = eye_from_world.apply(p);
+    if e.z <= 0.2 || e.z.is_nan() {
+        return None;
+    }
+    // Σ = R S Sᵀ Rᵀ.
+    let r = Mat3::from_quat(scene.rotations[g]);
+    let m = r * Mat3::from_diagonal(scene.scales[g]);
+    let sigma = m * m.transpose();
+    // W: the world → eye rotation (rows right, up, forward).
+    let (right, up, forward) = camera.basis();
+    let w = Mat3::from_cols(right, up, forward).transpose();
+    // The Jacobian of (W/2 + f x/z, H/2 − f y/z), at the centre with x/z and
+    // y/z clamped as the reference clamps them.
+    let f = camera.f_px();
+    let tan_x = camera.width as f32 / (2.0 * f);
+    let tan_y = camera.height as f32 / (2.0 * f);
+    let (lim_x, lim_y) = (1.3 * tan_x, 1.3 * tan_y);
+    let tx = (e.x / e.z).clamp(-lim_x, lim_x) * e.z;
+    let ty = (e.y / e.z).clamp(-lim_y, lim_y) * e.z;
+    let z = e.z;
+    // Rows of J as columns of its transpose (glam is column-major).
+    let jt = Mat3::from_cols(
+        Vec3::new(f / z, 0.0, -f * tx / (z * z)),
+        Vec3::new(0.0, -f / z, f * ty / (z * z)),
+        Vec3::ZERO,
+    );
+    let t = jt.transpose() * w;
+    let cov = t * sigma * t.transpose();
+    let (a, b, c) = (cov.x_axis.x + 0.3, cov.y_axis.x, cov.y_axis.y + 0.3);
+    let det = a * c - b * b;
+    if det == 0.0 {
+        return None;
+    }
+    let conic = Vec3::new(c / det, -b / det, a / det);
+    let mid = 0.5 * (a + c);
+    let lambda1 = mid + (mid * mid - det).max(0.1).sqrt();
+    let lambda2 = mid - (mid * mid - det).max(0.1).sqrt();
+    let radius_px = (3.0 * lambda1.max(lambda2).sqrt()).ceil() as i32;
+    let centre_px = camera.pixel_of_eye(e);
+    // The reference's pixel coordinates put pixel centres at integers.
+    let at = centre_px - Vec2::splat(0.5);
+    let grid = (
+        (camera.width as i32 + TILE_PX - 1) / TILE_PX,
+        (camera.height as i32 + TILE_PX - 1) / TILE_PX,
+    );
+    let lo = |v: f32, n: i32| {
+        ((v - radius_px as f32) / TILE_PX as f32)
+            .max(0.0)
+            .min(n as f32) as i32
+    };
+    let hi = |v: f32, n: i32| {
+        ((v + radius_px as f32 + TILE_PX as f32 - 1.0) / TILE_PX as f32)
+            .max(0.0)
+            .min(n as f32) as i32
+    };
+    let tiles = [
+        lo(at.x, grid.0),
+        hi(at.x, grid.0),
+        lo(at.y, grid.1),
+        hi(at.y, grid.1),
+    ];
+    if (tiles[1] - tiles[0]) * (tiles[3] - tiles[2]) == 0 {
+        return None;
+    }
+    let direction = (p - camera.eye).normalize();
+    Some(Splat2d {
+        centre_px,
+        depth: e.z,
+        conic,
+        radius_px,
+        tiles,
+        color: sh_color(scene.sh_of(g), scene.sh_degree, direction),
+        opacity: scene.opacities[g],
+    })
+}
+
+/// The pinhole image of `scene` through `camera` over `background`: RGB
+/// rows from the top, as composited (sRGB-encoded values).
+pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3) -> Vec<Vec3> {
+    let mut splats: Vec<(usize, Splat2d)> = (0..scene.len())
+        .filter_map(|g| project(scene, g, camera).map(|s| (g, s)))
+        .collect();
+    // Front to back; equal depths in the scene's order.
+    splats.sort_by(|a, b| a.1.depth.total_cmp(&b.1.depth).then(a.0.cmp(&b.0)));
+    let (w, h) = (camera.width as i32, camera.height as i32);
+    let mut image = vec![Vec3::ZERO; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let tile = (x / TILE_PX, y / TILE_PX);
+            let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let mut t = 1.0f32;
+            let mut color = Vec3::ZERO;
+            for (_, s) in &splats {
+                if tile.0 < s.tiles[0]
+                    || tile.0 >= s.tiles[1]
+                    || tile.1 < s.tiles[2]
+                    || tile.1 >= s.tiles[3]
+                {
+                    continue;
+                }
+                let d = s.centre_px - pixel;
+                let power =
+                    -0.5 * (s.conic.x * d.x * d.x + s.conic.z * d.y * d.y) - s.conic.y * d.x * d.y;
+                if power > 0.0 {
+                    continue;
+                }
+                let alpha = (s.opacity * power.exp()).min(0.99);
+                if alpha < 1.0 / 255.0 {
+                    continue;
+                }
+                let next = t * (1.0 - alpha);
+                if next < 1e-4 {
+                    break;
+                }
+                color += s.color * alpha * t;
+                t = next;
+            }
+            image[(y * w + x) as usize] = color + t * background;
+        }
+    }
+    image
+}

@@ -96,19 +96,38 @@ pub struct Splat2d {
 /// Gaussian `g` of `scene` through `camera`'s pinhole (its lens ignored),
 /// or None where the reference culls it.
 pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat2d> {
+    project_through(scene, g, camera, Vec2::ZERO)
+}
+
+/// Gaussian `g` of `scene` seen from the point `lens` of `camera`'s lens
+/// (eye-space x and y, scene units; |lens| ≤ R) through the projection
+/// sheared so that the focus plane stays in place: eye point e is drawn
+/// where the pinhole draws (e.x − l.x + l.x·e.z/S, e.y − l.y + l.y·e.z/S,
+/// e.z), an affine map applied to the Gaussian's centre and covariance
+/// alike (so defocus enlarges it), its colour seen from the lens point.
+pub fn project_through(
+    scene: &GaussianScene,
+    g: usize,
+    camera: &Camera,
+    lens: Vec2,
+) -> Option<Splat2d> {
     let eye_from_world = camera.eye_from_world_transform();
     let p = scene.positions[g];
-    let e = eye_from_world.apply(p);
-    if e.z <= 0.2 || e.z.is_nan() {
+    let e0 = eye_from_world.apply(p);
+    if e0.z <= 0.2 || e0.z.is_nan() {
         return None;
     }
+    let s = camera.focus_distance;
+    let shear = Mat3::from_cols(Vec3::X, Vec3::Y, Vec3::new(lens.x / s, lens.y / s, 1.0));
+    let e = shear * e0 - lens.extend(0.0);
     // Σ = R S Sᵀ Rᵀ.
     let r = Mat3::from_quat(scene.rotations[g]);
     let m = r * Mat3::from_diagonal(scene.scales[g]);
     let sigma = m * m.transpose();
-    // W: the world → eye rotation (rows right, up, forward).
+    // W: the world → eye rotation (rows right, up, forward), then the
+    // shear.
     let (right, up, forward) = camera.basis();
-    let w = Mat3::from_cols(right, up, forward).transpose();
+    let w = shear * Mat3::from_cols(right, up, forward).transpose();
     // The Jacobian of (W/2 + f x/z, H/2 − f y/z), at the centre with x/z and
     // y/z clamped as the reference clamps them.
     let f = camera.f_px();
@@ -162,7 +181,8 @@ pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat
     if (tiles[1] - tiles[0]) * (tiles[3] - tiles[2]) == 0 {
         return None;
     }
-    let direction = (p - camera.eye).normalize();
+    let lens_world = camera.eye + right * lens.x + up * lens.y;
+    let direction = (p - lens_world).normalize();
     Some(Splat2d {
         centre_px,
         depth: e.z,
@@ -177,8 +197,48 @@ pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat
 /// The pinhole image of `scene` through `camera` over `background`: RGB
 /// rows from the top, as composited (sRGB-encoded values).
 pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3) -> Vec<Vec3> {
+    render_through(scene, camera, background, Vec2::ZERO)
+}
+
+/// The thin-lens image of `scene` through `camera` (`accum`'s reference):
+/// the mean, in linear light, of the images seen from the lens points
+/// `R · u` for each `u` of `lens_samples` (points of the unit disk),
+/// each image's composited values decoded from sRGB first (the scene was
+/// trained on encoded values; averaging those instead moves a blurred
+/// image far from the physical one). Linear-light RGB rows from the top.
+pub fn render_reference_lens(
+    scene: &GaussianScene,
+    camera: &Camera,
+    background: Vec3,
+    lens_samples: &[Vec2],
+) -> Vec<Vec3> {
+    let decode = |c: Vec3| {
+        Vec3::new(
+            crate::image_io::srgb_to_linear(c.x),
+            crate::image_io::srgb_to_linear(c.y),
+            crate::image_io::srgb_to_linear(c.z),
+        )
+    };
+    let mut sum = vec![Vec3::ZERO; (camera.width * camera.height) as usize];
+    for &u in lens_samples {
+        let image = render_through(scene, camera, background, camera.aperture_radius * u);
+        for (s, c) in sum.iter_mut().zip(image) {
+            *s += decode(c);
+        }
+    }
+    let n = lens_samples.len().max(1) as f32;
+    sum.iter().map(|s| *s / n).collect()
+}
+
+/// The image from the lens point `lens` ([`project_through`]).
+fn render_through(
+    scene: &GaussianScene,
+    camera: &Camera,
+    background: Vec3,
+    lens: Vec2,
+) -> Vec<Vec3> {
     let mut splats: Vec<(usize, Splat2d)> = (0..scene.len())
-        .filter_map(|g| project(scene, g, camera).map(|s| (g, s)))
+        .filter_map(|g| project_through(scene, g, camera, lens).map(|s| (g, s)))
         .collect();
     // Front to back; equal depths in the scene's order.
     splats.sort_by(|a, b| a.1.depth.total_cmp(&b.1.depth).then(a.0.cmp(&b.0)));

@@ -365,3 +365,88 @@ fn the_reference_turns_an_anisotropic_gaussian() {
         }
     }
 }
+
+/// `n` points spread evenly over the unit disk (a Vogel spiral).
+fn disk(n: usize) -> Vec<glam::Vec2> {
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    (0..n)
+        .map(|i| {
+            let r = ((i as f32 + 0.5) / n as f32).sqrt();
+            let a = i as f32 * golden;
+            glam::Vec2::new(r * a.cos(), r * a.sin())
+        })
+        .collect()
+}
+
+/// Per-axis variance and centroid of an image's red channel.
+fn moments(image: &[glam::Vec3], size: usize) -> (glam::Vec2, glam::Vec2) {
+    let (mut sum, mut first, mut second) = (0.0f64, glam::DVec2::ZERO, glam::DVec2::ZERO);
+    for y in 0..size {
+        for x in 0..size {
+            let w = f64::from(image[y * size + x].x);
+            let p = glam::DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+            sum += w;
+            first += w * p;
+            second += w * p * p;
+        }
+    }
+    let mean = first / sum;
+    ((second / sum - mean * mean).as_vec2(), mean.as_vec2())
+}
+
+/// Through a thin lens a Gaussian off the focus plane spreads over its
+/// circle of confusion (each lens point sees it re-projected, so the blur
+/// adds the disk's variance, (c/2)²/4 an axis, to the pinhole blob's); one
+/// on the focus plane stays as the pinhole draws it.
+#[test]
+fn the_lens_reference_blurs_by_the_circle_of_confusion() {
+    let size = 64;
+    let mut camera = camera_at(4.0, size as u32);
+    let samples = disk(400);
+    // Faint, so that compositing stays near linear.
+    let off = isotropic(&[(glam::Vec3::new(0.0, 0.0, 2.0), 0.01, 0.05, glam::Vec3::ONE)]);
+    let pinhole = pointlens::gaussians::render_reference_lens(
+        &off,
+        &camera,
+        glam::Vec3::ZERO,
+        &[glam::Vec2::ZERO],
+    );
+    camera.aperture_radius = 0.8;
+    let coc_px = camera.coc_px(6.0);
+    assert!(coc_px > 8.0 && coc_px < 20.0, "a CoC of {coc_px} px");
+    let blurred =
+        pointlens::gaussians::render_reference_lens(&off, &camera, glam::Vec3::ZERO, &samples);
+    let (v0, c0) = moments(&pinhole, size);
+    let (v1, c1) = moments(&blurred, size);
+    let disk_variance = (coc_px / 2.0).powi(2) / 4.0;
+    for a in 0..2 {
+        let want = v0[a] + disk_variance;
+        assert!(
+            (v1[a] - want).abs() < 0.05 * want,
+            "axis {a}: variance {} against {want} ({} + {disk_variance})",
+            v1[a],
+            v0[a]
+        );
+        assert!((c1[a] - c0[a]).abs() < 0.2, "centroid {c1} against {c0}");
+    }
+    // On the focus plane: the same image.
+    let mut on = isotropic(&[(glam::Vec3::ZERO, 0.05, 0.8, glam::Vec3::new(0.9, 0.5, 0.2))]);
+    // Flat along the view: nothing of it off the focus plane.
+    on.scales[0].z = 1e-4;
+    let mut pinhole_camera = camera;
+    pinhole_camera.aperture_radius = 0.0;
+    let sharp = pointlens::gaussians::render_reference_lens(
+        &on,
+        &pinhole_camera,
+        glam::Vec3::ZERO,
+        &[glam::Vec2::ZERO],
+    );
+    let focused =
+        pointlens::gaussians::render_reference_lens(&on, &camera, glam::Vec3::ZERO, &samples);
+    let worst = sharp
+        .iter()
+        .zip(&focused)
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 2e-3, "in focus, {worst} from the pinhole image");
+}

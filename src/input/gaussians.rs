@@ -12,8 +12,8 @@ use glam::{Quat, Vec3};
 use ply_rs_bw::ply::{Encoding, Header, PropertyType};
 
 use super::ply::{
-    ascii_scalar, ascii_tokens, binary_scalar, ply_error, read_file, read_header, scalar_bytes,
-    skip_binary_element,
+    ascii_scalar, ascii_tokens, binary_scalar, open_ply, ply_error, read_file, read_header,
+    scalar_bytes, skip_binary_element, Opened,
 };
 use crate::error::Result;
 
@@ -77,26 +77,10 @@ pub fn is_gaussian_header(header: &Header) -> bool {
 /// Whether the PLY file at `path` holds 3D Gaussians (its header read
 /// alone); false for what is not a regular PLY file.
 pub fn is_gaussian_file(path: &Path) -> bool {
-    use std::io::{BufReader, Read};
-    let Ok(file) = std::fs::File::open(path) else {
-        return false;
-    };
-    if !file.metadata().is_ok_and(|m| m.is_file()) {
-        return false;
-    }
-    // A header is short: its first 64 KiB, parsed as far as it goes.
-    let mut start = Vec::new();
-    if BufReader::new(file)
-        .take(64 << 10)
-        .read_to_end(&mut start)
-        .is_err()
-    {
-        return false;
-    }
-    if !start.starts_with(b"ply") {
-        return false;
-    }
-    read_header(&start, path).is_ok_and(|(h, _)| is_gaussian_header(&h))
+    matches!(
+        open_ply(path, 64 << 10),
+        Ok(Opened::Regular { header, .. }) if is_gaussian_header(&header)
+    )
 }
 
 /// SH degree of a vertex with `rest` `f_rest_*` properties.

@@ -120,10 +120,10 @@ pub fn whole_read_bytes(path: &Path, general: bool) -> Result<Option<(u64, u64)>
         return Ok(Some((points, points.saturating_mul(per_point))));
     }
     Ok(
-        ply::declared_points(path)?.map(|(points, ascii, file_len)| {
+        ply::declared_points(path)?.map(|(points, ascii, payload_len)| {
             let bytes = match (general, ascii) {
-                (true, _) => file_len + points.saturating_mul(GENERAL_READ_BYTES_PER_POINT),
-                (false, true) => file_len + points.saturating_mul(per_point + 16),
+                (true, _) => payload_len + points.saturating_mul(GENERAL_READ_BYTES_PER_POINT),
+                (false, true) => payload_len + points.saturating_mul(per_point + 16),
                 (false, false) => points.saturating_mul(per_point),
             };
             (points, bytes)

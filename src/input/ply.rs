@@ -71,10 +71,21 @@ pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Opt
     })
 }
 
-/// The vertex count a PLY file's header declares, whether it is ASCII,
-/// and its length, read without its payload; None for what is not a
-/// regular file (a pipe is read once).
-pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
+/// A PLY file opened: a regular file with its header parsed (the reader
+/// left at the payload, of `payload_len` bytes), or anything else (a pipe,
+/// a device) as opened, to be read whole: its size is known at its end.
+pub(super) enum Opened {
+    Regular {
+        input: BufReader<File>,
+        header: Header,
+        payload_len: u64,
+    },
+    Stream(File),
+}
+
+/// Opens `path` as [`Opened`], its magic bytes checked where it is a
+/// regular file, its header read through a buffer of `buffer_bytes`.
+pub(super) fn open_ply(path: &Path, buffer_bytes: usize) -> Result<Opened> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -82,16 +93,39 @@ pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
     let mut file = File::open(path).map_err(io)?;
     let metadata = file.metadata().map_err(io)?;
     if !metadata.is_file() {
-        return Ok(None);
+        return Ok(Opened::Stream(file));
     }
     let mut magic = Vec::with_capacity(5);
     (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
     check_magic(&magic, path)?;
     file.rewind().map_err(io)?;
-    let header = parse_header(&mut BufReader::with_capacity(64 << 10, file), path)?;
+    let mut input = BufReader::with_capacity(buffer_bytes, file);
+    let header = parse_header(&mut input, path)?;
+    let payload_len = metadata
+        .len()
+        .saturating_sub(input.stream_position().map_err(io)?);
+    Ok(Opened::Regular {
+        input,
+        header,
+        payload_len,
+    })
+}
+
+/// The vertex count a PLY file's header declares, whether it is ASCII,
+/// and the length of its payload, read without the payload; None for
+/// what is not a regular file (a pipe is read once).
+pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
+    let Opened::Regular {
+        header,
+        payload_len,
+        ..
+    } = open_ply(path, 64 << 10)?
+    else {
+        return Ok(None);
+    };
     let (vertex, _) = vertex_element(&header, path)?;
     let ascii = matches!(header.encoding, Encoding::Ascii);
-    Ok(Some((vertex.count as u64, ascii, metadata.len())))
+    Ok(Some((vertex.count as u64, ascii, payload_len)))
 }
 
 /// A binary PLY file's vertices, read a chunk at a time in bounded memory
@@ -118,20 +152,14 @@ impl VertexChunks {
             path: path.to_path_buf(),
             source,
         };
-        let mut file = File::open(path).map_err(io)?;
-        let metadata = file.metadata().map_err(io)?;
-        if !metadata.is_file() {
+        let Opened::Regular {
+            input: reader,
+            header,
+            payload_len,
+        } = open_ply(path, 1 << 20)?
+        else {
             return Ok(None);
-        }
-        let mut magic = Vec::with_capacity(5);
-        (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
-        check_magic(&magic, path)?;
-        file.rewind().map_err(io)?;
-        let mut reader = BufReader::with_capacity(1 << 20, file);
-        let header = parse_header(&mut reader, path)?;
-        let payload_len = metadata
-            .len()
-            .saturating_sub(reader.stream_position().map_err(io)?);
+        };
         let (vertex, layout) = vertex_element(&header, path)?;
         if matches!(header.encoding, Encoding::Ascii) {
             return Ok(None);
@@ -238,43 +266,40 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
         path: path.to_path_buf(),
         source,
     };
-    let mut file = File::open(path).map_err(io)?;
-    let metadata = file.metadata().map_err(io)?;
-    let bytes = if metadata.is_file() {
-        let file_len = metadata.len();
-        let mut magic = Vec::with_capacity(5);
-        (&mut file).take(5).read_to_end(&mut magic).map_err(io)?;
-        check_magic(&magic, path)?;
-        file.rewind().map_err(io)?;
-        let mut input = BufReader::with_capacity(64 << 10, file);
-        let header = parse_header(&mut input, path)?;
-        let (vertex, layout) = vertex_element(&header, path)?;
-        if !matches!(header.encoding, Encoding::Ascii) {
-            let payload_len = file_len.saturating_sub(input.stream_position().map_err(io)?);
-            let cloud = read_binary(
-                &mut input,
-                payload_len,
-                &header,
-                vertex,
-                &layout,
-                chunk_bytes,
-            )
-            .map_err(io)?;
-            let z_up = declares_z_up(&header);
-            return Ok(cloud.map_or(Direct::Declined(None), |c| {
-                Direct::Read(PointCloud { z_up, ..c })
-            }));
+    let bytes = match open_ply(path, 64 << 10)? {
+        Opened::Regular {
+            mut input,
+            header,
+            payload_len,
+        } => {
+            let (vertex, layout) = vertex_element(&header, path)?;
+            if !matches!(header.encoding, Encoding::Ascii) {
+                let cloud = read_binary(
+                    &mut input,
+                    payload_len,
+                    &header,
+                    vertex,
+                    &layout,
+                    chunk_bytes,
+                )
+                .map_err(io)?;
+                let z_up = declares_z_up(&header);
+                return Ok(cloud.map_or(Direct::Declined(None), |c| {
+                    Direct::Read(PointCloud { z_up, ..c })
+                }));
+            }
+            // ASCII is read whole: its lines are found in memory.
+            drop(input);
+            read_file(path)?
         }
-        // ASCII is read whole: its lines are found in memory.
-        drop(input);
-        read_file(path)?
-    } else {
         // A pipe or a device, whose size is known at its end: read whole,
         // from the handle already open.
-        let mut bytes = Vec::new();
-        file.read_to_end(&mut bytes).map_err(io)?;
-        check_magic(&bytes, path)?;
-        bytes
+        Opened::Stream(mut file) => {
+            let mut bytes = Vec::new();
+            file.read_to_end(&mut bytes).map_err(io)?;
+            check_magic(&bytes, path)?;
+            bytes
+        }
     };
     let (header, payload_at) = read_header(&bytes, path)?;
     let (vertex, layout) = vertex_element(&header, path)?;

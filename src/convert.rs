@@ -17,9 +17,10 @@
 //! extended VLR. Written to a temporary file beside the output and renamed
 //! into place when complete.
 //!
-//! A LAS, LAZ or COPC input is converted out of core ([`convert_las`]:
-//! parts of the octree spilled to files beside the output, built apart);
-//! an in-memory cloud (PLY) by [`write_copc`].
+//! A LAS, LAZ or COPC input ([`convert_las`]) and a binary PLY file
+//! ([`convert_ply`]) are converted out of core: parts of the octree
+//! spilled to files beside the output, built apart. A cloud read whole
+//! (an ASCII PLY file, a pipe) is written by [`write_copc`].
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
@@ -131,8 +132,8 @@ impl Records {
     }
 
     /// The records of an in-memory cloud (a PLY file's): format 7 with its
-    /// colors as 16-bit sRGB ([`cloud_record`]), on the grid of
-    /// [`Records::for_cloud_within`] its bounds.
+    /// colors as 16-bit sRGB (`cloud_record`), on the grid of
+    /// `Records::for_cloud_within` its bounds.
     pub fn of_cloud(cloud: &PointCloud, path: &Path) -> Result<Records> {
         let (lo, hi) = cloud.bounds();
         let (lo, hi) = (lo.as_dvec3() + cloud.origin, hi.as_dvec3() + cloud.origin);
@@ -213,7 +214,7 @@ fn cloud_record(
 }
 
 /// Converts records of any LAS point format (0–10, extra bytes after)
-/// into format 6 or 7 byte by byte, as [`write_record`] does through
+/// into format 6 or 7 byte by byte, as `write_record` does through
 /// `las::Point` (a test holds them equal) but without building a point:
 /// the distribution's hot loop.
 ///
@@ -868,22 +869,24 @@ fn write_file(
 pub const PART_POINTS: u64 = 2_000_000;
 
 /// Converts a LAS, LAZ or COPC file to COPC out of core
-/// (docs/ARCHITECTURE.md, "Converting to COPC"):
+/// (docs/ARCHITECTURE.md, "Converting to COPC"), through
+/// `convert_source`:
 ///
 /// 1. One pass over the input's points puts each record (in format 6 or
 ///    7) into a file for its octree cell at a level where the parts are
 ///    about `part_points` each (the header's count spread over a surface),
 ///    beside the output; a part that came out larger is split into its
-///    eight children, again, until none is.
-/// 2. Each part is built as an octree in memory ([`build_node`]), on every
-///    core a part each; its nodes below the part's own go to the file as
-///    they are made, and the part's own node's points stay as candidates.
-/// 3. The candidates are sampled from the root down to the parts' cells,
-///    each node keeping a point per cell of its 128³ grid; what reaches a
-///    part's cell is that node's points.
+///    eight children, a block at a time, until none is.
+/// 2. Each part is built as an octree in memory (`build_node`), on every
+///    core a part each; its nodes below the part's own are written in the
+///    parts' order, and the part's own node's points go to a file.
+/// 3. The levels above the parts are sampled from the bottom up (`Top`),
+///    each node keeping a point per cell of its 128³ grid from its
+///    children's points.
 ///
-/// Memory: the parts being built, the candidates, and the write buffers
-/// of the distribution (bounded); disk: the input's records once more.
+/// Memory: the parts being built and those waiting their turn, the path
+/// of the top being built, and the distribution's buffers (bounded);
+/// disk: the input's records once more.
 pub fn convert_las(
     input: &Path,
     output: &Path,
@@ -1715,7 +1718,7 @@ mod tests {
     }
 
     /// The byte-level conversion equals the one through `las::Point`
-    /// ([`write_record`]) for every input format, on random records.
+    /// (`write_record`) for every input format, on random records.
     /// Outside its scope: a legacy class of 28, which las reads as overlap
     /// (its test looks at four bits), and an extended record of class 12,
     /// which las moves to class 1 with the overlap flag and the

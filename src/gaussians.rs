@@ -76,6 +76,13 @@ pub fn sh_color(sh: &[f32], degree: u32, d: Vec3) -> Vec3 {
     (result + Vec3::splat(0.5)).max(Vec3::ZERO)
 }
 
+/// The 3D covariance Σ = R S Sᵀ Rᵀ of Gaussian `g` (world units²).
+pub fn covariance(scene: &GaussianScene, g: usize) -> Mat3 {
+    let r = Mat3::from_quat(scene.rotations[g]);
+    let m = r * Mat3::from_diagonal(scene.scales[g]);
+    m * m.transpose()
+}
+
 /// A Gaussian as the frame sees it.
 #[derive(Debug, Clone, Copy)]
 pub struct Splat2d {
@@ -120,10 +127,7 @@ pub fn project_through(
     let s = camera.focus_distance;
     let shear = Mat3::from_cols(Vec3::X, Vec3::Y, Vec3::new(lens.x / s, lens.y / s, 1.0));
     let e = shear * e0 - lens.extend(0.0);
-    // Σ = R S Sᵀ Rᵀ.
-    let r = Mat3::from_quat(scene.rotations[g]);
-    let m = r * Mat3::from_diagonal(scene.scales[g]);
-    let sigma = m * m.transpose();
+    let sigma = covariance(scene, g);
     // W: the world → eye rotation (rows right, up, forward), then the
     // shear.
     let (right, up, forward) = camera.basis();
@@ -194,8 +198,9 @@ pub fn project_through(
     })
 }
 
-/// The pinhole image of `scene` through `camera` over `background`: RGB
-/// rows from the top, as composited (sRGB-encoded values).
+/// The pinhole image of `scene` through `camera` over `background` (an
+/// sRGB-encoded colour, composited as the scene was trained): RGB rows
+/// from the top, as composited (sRGB-encoded values).
 pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3) -> Vec<Vec3> {
     render_through(scene, camera, background, Vec2::ZERO)
 }
@@ -205,7 +210,8 @@ pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3
 /// `R · u` for each `u` of `lens_samples` (points of the unit disk),
 /// each image's composited values decoded from sRGB first (the scene was
 /// trained on encoded values; averaging those instead moves a blurred
-/// image far from the physical one). Linear-light RGB rows from the top.
+/// image far from the physical one), over the encoded `background`.
+/// Linear-light RGB rows from the top.
 pub fn render_reference_lens(
     scene: &GaussianScene,
     camera: &Camera,

@@ -26,6 +26,7 @@ pub mod layered;
 pub mod output;
 pub mod peel_cull;
 pub mod pinhole;
+pub mod radix_sort;
 pub mod rdb;
 pub mod sample_plan;
 pub mod splat_compute;

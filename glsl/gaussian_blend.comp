@@ -1,0 +1,95 @@
+#version 460
+// Front-to-back compositing of one lens point's Gaussians, a workgroup per
+// 16 x 16 tile (src/gaussian_render.rs; crate::gaussians::render_through
+// is the reference): at each pixel centre, alpha = min(0.99, o e^power),
+// skipped below 1/255 or where power > 0; the Gaussian that would take the
+// transmittance below 1e-4 ends the pixel; the background (encoded) takes
+// what is left. The composite, sRGB-encoded as trained, is decoded and
+// added to the pixel's sum in linear light. Nothing is added when the tile
+// list overflowed (the host renders the frame again).
+#include "gaussian.glsl"
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+const uint GROUP = 256u;
+
+layout(binding = 0, std430) readonly buffer In { Projected projected[]; };
+layout(binding = 1, std430) readonly buffer TileValues { uint tile_values[]; };
+layout(binding = 2, std430) readonly buffer Ranges { uvec2 ranges[]; };
+layout(binding = 3, std430) readonly buffer Counts { uint counts[]; };
+layout(binding = 4, std430) buffer Sum { vec4 sum[]; };
+
+layout(push_constant) uniform Push {
+    vec4 background;     // sRGB-encoded
+    uint width;
+    uint height;
+    uint capacity;
+    uint entries_index;
+} pc;
+
+shared vec2 s_centre[GROUP];
+shared vec4 s_conic_opacity[GROUP];
+shared vec3 s_color[GROUP];
+shared uint s_done;
+
+void main() {
+    if (counts[pc.entries_index] > pc.capacity) {
+        return; // the whole dispatch: the list overflowed
+    }
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uint grid_x = (pc.width + uint(TILE_PX) - 1u) / uint(TILE_PX);
+    uint tile = gl_WorkGroupID.y * grid_x + gl_WorkGroupID.x;
+    uint t = gl_LocalInvocationIndex;
+    bool inside = pixel.x < pc.width && pixel.y < pc.height;
+    bool done = !inside;
+    vec2 at = vec2(pixel) + vec2(0.5);
+    uvec2 range = ranges[tile];
+    float transmittance = 1.0;
+    vec3 color = vec3(0.0);
+    for (uint first = range.x; first < range.y; first += GROUP) {
+        barrier(); // the previous batch is read
+        if (t == 0u) {
+            s_done = 0u;
+        }
+        barrier();
+        if (done) {
+            atomicAdd(s_done, 1u);
+        }
+        uint k = first + t;
+        if (k < range.y) {
+            Projected p = projected[tile_values[k]];
+            s_centre[t] = p.centre_depth.xy;
+            s_conic_opacity[t] = p.conic_opacity;
+            s_color[t] = p.color.rgb;
+        }
+        barrier();
+        if (s_done == GROUP) {
+            break;
+        }
+        uint batch = min(GROUP, range.y - first);
+        for (uint j = 0u; j < batch && !done; j++) {
+            vec2 d = s_centre[j] - at;
+            vec4 co = s_conic_opacity[j];
+            float power = -0.5 * (co.x * d.x * d.x + co.z * d.y * d.y) - co.y * d.x * d.y;
+            if (power > 0.0) {
+                continue;
+            }
+            float alpha = min(0.99, co.w * exp(power));
+            if (alpha < 1.0 / 255.0) {
+                continue;
+            }
+            float next = transmittance * (1.0 - alpha);
+            if (next < 0.0001) {
+                done = true;
+                break;
+            }
+            color += s_color[j] * alpha * transmittance;
+            transmittance = next;
+        }
+    }
+    if (inside) {
+        vec3 c = color + transmittance * pc.background.rgb;
+        uint i = pixel.y * pc.width + pixel.x;
+        sum[i] += vec4(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b), 0.0);
+    }
+}

@@ -1,0 +1,340 @@
+//! 3D Gaussians on the device (issue 31; docs/ARCHITECTURE.md, "3D
+//! Gaussian scenes"): the radix sort and prefix sum against the CPU's, and
+//! the device's pinhole and thin-lens images against the CPU reference
+//! (crate::gaussians), under validation.
+
+mod common;
+
+use glam::{Quat, Vec2, Vec3};
+use pointlens::camera::{lens_samples, Camera};
+use pointlens::gaussian_render::GaussianRenderer;
+use pointlens::gaussians::{render_reference_lens, TILE_PX};
+use pointlens::input::gaussians::GaussianScene;
+use pointlens::passes::radix_sort::{
+    words_buffer, RadixSort, ScanScratch, SortScratch, SortedIn, NONE,
+};
+use pointlens::vk::{Access, Buffer, Frame};
+
+/// A fixed sequence of numbers in [0, 1).
+struct Sequence(u32);
+
+impl Sequence {
+    fn next(&mut self) -> f32 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        (self.0 >> 8) as f32 / (1u32 << 24) as f32
+    }
+    fn word(&mut self) -> u32 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        self.0
+    }
+}
+
+fn upload_words(ctx: &std::sync::Arc<pointlens::vk::Context>, name: &str, words: &[u32]) -> Buffer {
+    Buffer::with_bytes(
+        ctx,
+        name,
+        bytemuck::cast_slice(words),
+        ash::vk::BufferUsageFlags::STORAGE_BUFFER
+            | ash::vk::BufferUsageFlags::TRANSFER_SRC
+            | ash::vk::BufferUsageFlags::TRANSFER_DST,
+    )
+    .unwrap()
+}
+
+fn read_words(buffer: &Buffer) -> Vec<u32> {
+    bytemuck::pod_collect_to_vec(buffer.mapped().unwrap())
+}
+
+/// Sorts of random keys of every size around a block (4096) and of a few
+/// blocks, by all 32 bits and by their low 13 (higher bits zero), with
+/// many equal keys: the device's order is the CPU's stable sort's, values
+/// included; and the prefix sum of values read through the sorted order.
+#[test]
+fn the_radix_sort_is_stable_and_the_scan_exact() {
+    common::with_gpu(|ctx| {
+        let sort = RadixSort::new(ctx).unwrap();
+        let mut seq = Sequence(7);
+        for (n, bits) in [
+            (1u32, 32u32),
+            (4095, 32),
+            (4096, 13),
+            (4097, 32),
+            (50_001, 13),
+            (70_000, 32),
+        ] {
+            let keys: Vec<u32> = (0..n)
+                .map(|_| match bits {
+                    32 => seq.word() % 9000 * 477_211, // many repeats, high bits set
+                    _ => seq.word() % (1 << bits),
+                })
+                .collect();
+            let values: Vec<u32> = (0..n).map(|i| i * 3 + 1).collect();
+            let small: Vec<u32> = (0..n).map(|_| seq.word() % 17).collect();
+            let key_buffer = upload_words(ctx, "test keys", &keys);
+            let value_buffer = upload_words(ctx, "test values", &values);
+            // Values index `small`: the scan reads small[value / 3].
+            let index: Vec<u32> = (0..n).collect();
+            let index_buffer = upload_words(ctx, "test index", &index);
+            let small_buffer = upload_words(ctx, "test small", &small);
+            let counts = upload_words(ctx, "test counts", &[n, 0, 0, 0]);
+            let scratch = SortScratch::new(ctx, "test sort", n).unwrap();
+            let scan_scratch = ScanScratch::new(ctx, "test scan", n).unwrap();
+            let prefix = words_buffer(ctx, "test prefix", n as u64).unwrap();
+            let host = |name: &str| {
+                Buffer::new(
+                    ctx,
+                    name,
+                    4 * n as u64,
+                    ash::vk::BufferUsageFlags::TRANSFER_DST,
+                    gpu_allocator::MemoryLocation::GpuToCpu,
+                )
+                .unwrap()
+            };
+            let (keys_out, values_out, prefix_out) =
+                (host("keys out"), host("values out"), host("prefix out"));
+            let counts_out = Buffer::new(
+                ctx,
+                "counts out",
+                16,
+                ash::vk::BufferUsageFlags::TRANSFER_DST,
+                gpu_allocator::MemoryLocation::GpuToCpu,
+            )
+            .unwrap();
+            let mut frame = Frame::begin(ctx, "sort test").unwrap();
+            frame.pass("sort", |rec| {
+                rec.memory_barrier(Access::HOST_READ, Access::COMPUTE_READ_WRITE);
+                let at = sort.record_sort(
+                    rec,
+                    &key_buffer,
+                    &value_buffer,
+                    &scratch,
+                    &counts,
+                    0,
+                    n,
+                    bits,
+                );
+                let (k, v) = match at {
+                    SortedIn::Input => (&key_buffer, &value_buffer),
+                    SortedIn::Scratch => (&scratch.keys, &scratch.values),
+                };
+                // The scan of small[] in input order, its total to counts[1..3].
+                sort.record_scan(
+                    rec,
+                    &small_buffer,
+                    Some(&index_buffer),
+                    &prefix,
+                    &scan_scratch,
+                    &counts,
+                    n,
+                    NONE,
+                    1,
+                );
+                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COPY_SRC);
+                rec.copy_buffer(k, &keys_out);
+                rec.copy_buffer(v, &values_out);
+                rec.copy_buffer(&prefix, &prefix_out);
+                rec.copy_buffer(&counts, &counts_out);
+                rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
+            });
+            frame.submit_and_wait().unwrap();
+            let mut expected: Vec<(u32, u32)> =
+                keys.iter().copied().zip(values.iter().copied()).collect();
+            expected.sort_by_key(|p| p.0); // stable
+            let got: Vec<(u32, u32)> = read_words(&keys_out)
+                .into_iter()
+                .zip(read_words(&values_out))
+                .collect();
+            assert!(got == expected, "sort of {n} keys by {bits} bits differs");
+            let mut sum = 0u32;
+            let expected_prefix: Vec<u32> = small
+                .iter()
+                .map(|v| {
+                    let s = sum;
+                    sum += v;
+                    s
+                })
+                .collect();
+            assert_eq!(read_words(&prefix_out), expected_prefix, "prefix of {n}");
+            let c = read_words(&counts_out);
+            assert_eq!((c[1], c[2]), (sum, sum), "total of {n}");
+        }
+    });
+}
+
+/// `n` Gaussians in a box in front of the camera at the origin looking
+/// down +z: anisotropic and turned, overlapping, opacities from nearly
+/// clear to the 0.99 cap, SH degree 3.
+fn random_scene(n: usize, seed: u32) -> GaussianScene {
+    let mut s = Sequence(seed);
+    let degree = 3u32;
+    let coefficients = 16;
+    let mut scene = GaussianScene {
+        positions: Vec::new(),
+        scales: Vec::new(),
+        rotations: Vec::new(),
+        opacities: Vec::new(),
+        sh_degree: degree,
+        sh: Vec::new(),
+    };
+    for _ in 0..n {
+        scene.positions.push(Vec3::new(
+            2.0 * s.next() - 1.0,
+            1.6 * s.next() - 0.8,
+            3.0 + 3.0 * s.next(),
+        ));
+        let size = 0.01 + 0.12 * s.next() * s.next();
+        scene.scales.push(Vec3::new(
+            size * (0.2 + s.next()),
+            size * (0.2 + s.next()),
+            size * (0.2 + s.next()),
+        ));
+        let axis = Vec3::new(s.next() - 0.5, s.next() - 0.5, s.next() - 0.5).normalize_or(Vec3::Z);
+        scene
+            .rotations
+            .push(Quat::from_axis_angle(axis, 6.0 * s.next()));
+        scene.opacities.push(0.02 + 0.999 * s.next().sqrt());
+        for k in 0..coefficients {
+            let amplitude = if k == 0 { 1.5 } else { 0.3 };
+            for _ in 0..3 {
+                scene.sh.push(amplitude * (2.0 * s.next() - 1.0));
+            }
+        }
+    }
+    scene
+}
+
+fn camera(width: u32, height: u32) -> Camera {
+    Camera {
+        width,
+        height,
+        eye: Vec3::ZERO,
+        target: Vec3::new(0.0, 0.0, 1.0),
+        up: Vec3::Y,
+        fovy_deg: 30.0,
+        aperture_radius: 0.0,
+        focus_distance: 4.0,
+    }
+}
+
+/// Largest and mean absolute difference of two linear RGB images.
+fn differences(gpu: &pointlens::image_io::LinearImage, cpu: &[Vec3]) -> (f32, f32) {
+    let (mut max, mut sum) = (0.0f32, 0.0f64);
+    for (g, c) in gpu.pixels.iter().zip(cpu) {
+        let d = (Vec3::new(g[0], g[1], g[2]) - *c).abs().max_element();
+        max = max.max(d);
+        sum += d as f64;
+    }
+    (max, (sum / cpu.len() as f64) as f32)
+}
+
+/// The device's pinhole image is the CPU reference's, decoded to linear
+/// light, on 2,000 overlapping Gaussians at 100 × 84 (edge tiles partly
+/// outside): the two differ only in the order of floating-point operations
+/// (the device computes T = J W by rows) and in exp, sqrt and pow: 8e-7
+/// at most on lavapipe; tolerance 1e-4 for a pixel (room for a GPU's
+/// faster exp and pow), 1e-6 on average. A denser scene of 5,000 over a
+/// background goes the same way.
+#[test]
+fn the_pinhole_image_is_the_cpu_references() {
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        for (n, seed, background) in [(2000, 3, Vec3::ZERO), (5000, 4, Vec3::new(0.05, 0.2, 1.0))] {
+            let scene = random_scene(n, seed);
+            let camera = camera(100, 84);
+            let gpu = renderer.upload(&scene).unwrap();
+            let frame = renderer
+                .render(&gpu, &camera, &[Vec2::ZERO], background)
+                .unwrap();
+            // The reference composites over the background as trained:
+            // encoded; the renderer takes it in linear light.
+            let encoded = background
+                .to_array()
+                .map(pointlens::image_io::linear_to_srgb);
+            let cpu = render_reference_lens(&scene, &camera, Vec3::from(encoded), &[Vec2::ZERO]);
+            let (max, mean) = differences(&frame.image, &cpu);
+            eprintln!(
+                "pinhole, {n} Gaussians: max {max:e}, mean {mean:e}, {} tile entries",
+                frame.entries
+            );
+            assert!(max <= 1e-4 && mean <= 1e-6, "max {max}, mean {mean}");
+            // Not a blank image: the scene covers most pixels.
+            let lit = cpu
+                .iter()
+                .filter(|c| (**c - background).abs().max_element() > 0.05)
+                .count();
+            assert!(lit > cpu.len() / 2, "{lit} pixels show Gaussians");
+            assert!(frame.entries as usize > n, "{} entries", frame.entries);
+        }
+    });
+}
+
+/// With a lens, every lens point re-projects every Gaussian through its
+/// sheared projection and the images average in linear light: the
+/// device's 24-point `accum` is the CPU reference's of the same points
+/// (the pinhole's tolerance; 5e-7 at most measured), and differs from the pinhole image.
+#[test]
+fn the_thin_lens_image_is_the_cpu_references() {
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        let scene = random_scene(1500, 5);
+        let mut camera = camera(80, 64);
+        camera.aperture_radius = 0.08;
+        let lens = lens_samples(24);
+        let gpu = renderer.upload(&scene).unwrap();
+        let frame = renderer.render(&gpu, &camera, &lens, Vec3::ZERO).unwrap();
+        let cpu = render_reference_lens(&scene, &camera, Vec3::ZERO, &lens);
+        let (max, mean) = differences(&frame.image, &cpu);
+        eprintln!("accum 24: max {max:e}, mean {mean:e}");
+        assert!(max <= 1e-4 && mean <= 1e-6, "max {max}, mean {mean}");
+        let pinhole = render_reference_lens(&scene, &camera, Vec3::ZERO, &[Vec2::ZERO]);
+        let (blur, _) = differences(&frame.image, &pinhole);
+        assert!(blur > 0.05, "the lens changes the image by {blur}");
+        // A timing for every pass of the chain.
+        let names: Vec<&str> = frame
+            .timings
+            .passes
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect();
+        for pass in ["project", "depth sort", "tile list", "tile sort", "blend"] {
+            assert!(
+                names.contains(&format!("gaussians: {pass}").as_str()),
+                "{names:?}"
+            );
+        }
+    });
+}
+
+/// A tile list longer than the renderer's first guess: the frame is
+/// rendered again with room for it, and equals (bitwise) a frame rendered
+/// with room from the start.
+#[test]
+fn a_tile_list_that_outgrows_its_buffer_renders_again() {
+    common::with_gpu(|ctx| {
+        // 600 large Gaussians over 512 × 512 (1,024 tiles): far more than
+        // the 65,536 entries a first frame has room for.
+        let mut scene = random_scene(600, 6);
+        for s in &mut scene.scales {
+            *s *= 6.0;
+        }
+        let camera = camera(512, 512);
+        let first = GaussianRenderer::new(ctx).unwrap();
+        let gpu = first.upload(&scene).unwrap();
+        let grown = first
+            .render(&gpu, &camera, &[Vec2::ZERO], Vec3::ZERO)
+            .unwrap();
+        assert!(
+            grown.retries >= 1 && grown.entries > 65_536,
+            "{} entries, {} retries",
+            grown.entries,
+            grown.retries
+        );
+        let again = first
+            .render(&gpu, &camera, &[Vec2::ZERO], Vec3::ZERO)
+            .unwrap();
+        assert_eq!(again.retries, 0, "the renderer keeps the room it learnt");
+        assert!(grown.image.pixels == again.image.pixels);
+        let tiles = (512 / TILE_PX as u32).pow(2);
+        assert!(grown.entries <= 600 * tiles);
+    });
+}

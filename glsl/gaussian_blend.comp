@@ -1,7 +1,8 @@
 #version 460
 // Front-to-back compositing of one lens point's Gaussians, a workgroup per
 // 16 x 16 tile (src/gaussian_render.rs; crate::gaussians::render_through
-// is the reference): at each pixel centre, alpha = min(0.99, o e^power),
+// is the reference): at each pixel centre (moved by the sample's jitter
+// where --ssaa takes several), alpha = min(0.99, o e^power),
 // skipped below 1/255 or where power > 0; the Gaussian that would take the
 // transmittance below 1e-4 ends the pixel; the background (encoded) takes
 // what is left. The composite, sRGB-encoded as trained, is decoded and
@@ -21,6 +22,7 @@ layout(binding = 4, std430) buffer Sum { vec4 sum[]; };
 
 layout(push_constant) uniform Push {
     vec4 background;     // sRGB-encoded
+    vec2 jitter;         // the sample's offset from the pixel centre, px
     uint width;
     uint height;
     uint capacity;
@@ -42,7 +44,7 @@ void main() {
     uint t = gl_LocalInvocationIndex;
     bool inside = pixel.x < pc.width && pixel.y < pc.height;
     bool done = !inside;
-    vec2 at = vec2(pixel) + vec2(0.5);
+    vec2 at = vec2(pixel) + vec2(0.5) + pc.jitter;
     uvec2 range = ranges[tile];
     float transmittance = 1.0;
     vec3 color = vec3(0.0);

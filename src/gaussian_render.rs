@@ -32,6 +32,7 @@ use crate::input::gaussians::GaussianScene;
 use crate::passes::radix_sort::{
     words_buffer, RadixSort, ScanScratch, SortScratch, SortedIn, NONE,
 };
+use crate::passes::sample_plan::ssaa_jitter;
 use crate::push_constants;
 use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, FrameTimings};
 
@@ -89,6 +90,7 @@ push_constants! {
 push_constants! {
     pub struct BlendPush {
         pub background: [f32; 4],
+        pub jitter: [f32; 2],
         pub width: u32,
         pub height: u32,
         pub capacity: u32,
@@ -161,6 +163,11 @@ impl GaussianRenderer {
         })
     }
 
+    /// The device it renders on.
+    pub fn ctx(&self) -> &Arc<Context> {
+        &self.ctx
+    }
+
     /// Uploads `scene`: its centres, opacities and covariances (computed
     /// here, as the CPU reference computes them), and its SH coefficients.
     /// An error names what does not fit the device's buffers.
@@ -219,15 +226,23 @@ impl GaussianRenderer {
 
     /// Renders `scene` through `camera` from the lens points `R · u` for
     /// each `u` of `lens` (points of the unit disk; `[0, 0]` alone is the
-    /// pinhole image) over `background` (linear light): the mean of their
-    /// images in linear light.
+    /// pinhole image), each at the K × K sub-pixel positions of `ssaa`
+    /// (the cell centres of [`ssaa_jitter`]; 1: the pixel centre, as the
+    /// reference rasterizer samples) over `background` (linear light): the
+    /// mean of their images in linear light.
     pub fn render(
         &self,
         scene: &GpuGaussians,
         camera: &Camera,
         lens: &[Vec2],
+        ssaa: u32,
         background: Vec3,
     ) -> Result<GaussianFrame> {
+        assert!(ssaa >= 1, "at least one sample a pixel");
+        let samples: Vec<(Vec2, Vec2)> = lens
+            .iter()
+            .flat_map(|&u| (0..ssaa * ssaa).map(move |s| (u, ssaa_jitter(s, ssaa))))
+            .collect();
         use std::sync::atomic::Ordering::Relaxed;
         assert!(!lens.is_empty(), "at least one lens point");
         let limit = max_words(&self.ctx).min(u32::MAX as u64 / 2) as u32;
@@ -238,7 +253,8 @@ impl GaussianRenderer {
             .clamp(1 << 16, limit);
         let mut retries = 0;
         loop {
-            let (frame, entries) = self.render_with(scene, camera, lens, background, capacity)?;
+            let (frame, entries) =
+                self.render_with(scene, camera, &samples, background, capacity)?;
             self.capacity.fetch_max(entries.min(limit), Relaxed);
             if entries <= capacity {
                 return Ok(GaussianFrame { retries, ..frame });
@@ -255,13 +271,14 @@ impl GaussianRenderer {
         }
     }
 
-    /// One try with a tile list of `capacity` entries: the frame and the
-    /// most entries any lens point needed.
+    /// One try with a tile list of `capacity` entries, a chain per (lens
+    /// point, jitter) of `samples`: the frame and the most entries any
+    /// chain needed.
     fn render_with(
         &self,
         scene: &GpuGaussians,
         camera: &Camera,
-        lens: &[Vec2],
+        samples: &[(Vec2, Vec2)],
         background: Vec3,
         capacity: u32,
     ) -> Result<(GaussianFrame, u32)> {
@@ -323,7 +340,7 @@ impl GaussianRenderer {
             SortedIn::Input => (&tile_keys, &tile_values),
             SortedIn::Scratch => (&tile_scratch.keys, &tile_scratch.values),
         };
-        for &u in lens {
+        for &(u, jitter) in samples {
             let l = camera.aperture_radius * u;
             let lens_world = eye + right * l.x + up * l.y;
             let push = ProjectPush {
@@ -455,6 +472,7 @@ impl GaussianRenderer {
                         background_encoded[2],
                         0.0,
                     ],
+                    jitter: jitter.to_array(),
                     width,
                     height,
                     capacity,
@@ -477,7 +495,7 @@ impl GaussianRenderer {
         };
         let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&mapped(&counts_readback)?);
         let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&mapped(&sum_readback)?);
-        let scale = 1.0 / lens.len() as f32;
+        let scale = 1.0 / samples.len() as f32;
         let image = LinearImage {
             width,
             height,

@@ -21,6 +21,7 @@ use glam::{Mat3, Vec2, Vec3};
 
 use crate::camera::Camera;
 use crate::input::gaussians::GaussianScene;
+use crate::passes::sample_plan::ssaa_jitter;
 
 /// The reference rasterizer's tile side, pixels.
 pub const TILE_PX: i32 = 16;
@@ -202,7 +203,7 @@ pub fn project_through(
 /// sRGB-encoded colour, composited as the scene was trained): RGB rows
 /// from the top, as composited (sRGB-encoded values).
 pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3) -> Vec<Vec3> {
-    render_through(scene, camera, background, Vec2::ZERO)
+    render_through(scene, camera, background, Vec2::ZERO, Vec2::ZERO)
 }
 
 /// The thin-lens image of `scene` through `camera` (`accum`'s reference):
@@ -210,13 +211,16 @@ pub fn render_reference(scene: &GaussianScene, camera: &Camera, background: Vec3
 /// `R · u` for each `u` of `lens_samples` (points of the unit disk),
 /// each image's composited values decoded from sRGB first (the scene was
 /// trained on encoded values; averaging those instead moves a blurred
-/// image far from the physical one), over the encoded `background`.
-/// Linear-light RGB rows from the top.
+/// image far from the physical one), over the encoded `background`; each
+/// lens point at the K × K sub-pixel positions of `ssaa` (the cell
+/// centres of [`ssaa_jitter`]; 1: the pixel centre). Linear-light RGB rows
+/// from the top.
 pub fn render_reference_lens(
     scene: &GaussianScene,
     camera: &Camera,
     background: Vec3,
     lens_samples: &[Vec2],
+    ssaa: u32,
 ) -> Vec<Vec3> {
     let decode = |c: Vec3| {
         Vec3::new(
@@ -227,21 +231,32 @@ pub fn render_reference_lens(
     };
     let mut sum = vec![Vec3::ZERO; (camera.width * camera.height) as usize];
     for &u in lens_samples {
-        let image = render_through(scene, camera, background, camera.aperture_radius * u);
-        for (s, c) in sum.iter_mut().zip(image) {
-            *s += decode(c);
+        for k in 0..ssaa * ssaa {
+            let jitter = ssaa_jitter(k, ssaa);
+            let image = render_through(
+                scene,
+                camera,
+                background,
+                camera.aperture_radius * u,
+                jitter,
+            );
+            for (s, c) in sum.iter_mut().zip(image) {
+                *s += decode(c);
+            }
         }
     }
-    let n = lens_samples.len().max(1) as f32;
+    let n = (lens_samples.len() as u32 * ssaa * ssaa).max(1) as f32;
     sum.iter().map(|s| *s / n).collect()
 }
 
-/// The image from the lens point `lens` ([`project_through`]).
+/// The image from the lens point `lens` ([`project_through`]), each pixel
+/// sampled at its centre + `jitter` (px).
 fn render_through(
     scene: &GaussianScene,
     camera: &Camera,
     background: Vec3,
     lens: Vec2,
+    jitter: Vec2,
 ) -> Vec<Vec3> {
     let mut splats: Vec<(usize, Splat2d)> = (0..scene.len())
         .filter_map(|g| project_through(scene, g, camera, lens).map(|s| (g, s)))
@@ -253,7 +268,7 @@ fn render_through(
     for y in 0..h {
         for x in 0..w {
             let tile = (x / TILE_PX, y / TILE_PX);
-            let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+            let pixel = Vec2::new(x as f32 + 0.5, y as f32 + 0.5) + jitter;
             let mut t = 1.0f32;
             let mut color = Vec3::ZERO;
             for (_, s) in &splats {

@@ -29,9 +29,10 @@ use crate::camera::{self, Camera, CameraSpec, Coordinates};
 use crate::cloud::PointCloud;
 use crate::color::{ColorMode, ColorRanges};
 use crate::error::{Error, Result};
+use crate::gaussian_render::{GaussianRenderer, GpuGaussians};
 use crate::image_io::{
-    check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_png_rgba,
-    write_text_atomically, ExrChannel, LinearImage,
+    check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_image,
+    write_png_rgba, write_text_atomically, ExrChannel, LinearImage,
 };
 use crate::input::copc::{CopcClouds, NodeEntry};
 use crate::options::{check_lod, Lod, Method};
@@ -418,7 +419,108 @@ impl RenderJob {
                 load_ms,
                 ..measure.into_report(renderer, &self.spec, scene)
             };
-            log_memory(renderer, job, started);
+            log_memory(renderer.ctx(), job, started);
+            events(JobEvent::Written {
+                number: job.number,
+                output: &job.output,
+                seconds: started.elapsed().as_secs_f64(),
+                report: &report,
+            })?;
+            outcome.cameras.push((job.number, spec));
+            outcome.reports.push(report);
+        }
+        Ok(outcome)
+    }
+
+    /// Checks that the job asks for nothing a Gaussian scene cannot give
+    /// (docs/ARCHITECTURE.md, "3D Gaussian scenes"): `pinhole` or `accum`,
+    /// no `--focus-pixel`, no depth or CoC pass, no transparent
+    /// background. The lens points of its method.
+    pub fn gaussian_lens(&self) -> Result<Vec<glam::Vec2>> {
+        let refuse = |what: &str| {
+            Err(Error::InvalidArgument(format!(
+                "a scene of 3D Gaussians renders without {what} in this version"
+            )))
+        };
+        if self.spec.focus_pixel.is_some() {
+            return refuse("--focus-pixel");
+        }
+        if self.spec.written.passes.z || self.spec.written.passes.coc {
+            return refuse("--passes (its depth and CoC are not one surface's)");
+        }
+        if self.spec.written.transparent {
+            return refuse("a transparent --background");
+        }
+        match self.spec.method {
+            Method::Pinhole => Ok(vec![glam::Vec2::ZERO]),
+            Method::Accum(a) => {
+                crate::options::check_samples(a.samples)?;
+                Ok(camera::lens_samples(a.samples))
+            }
+            m => Err(Error::InvalidArgument(format!(
+                "--method {}: a scene of 3D Gaussians renders with pinhole or accum in this version",
+                m.short_name()
+            ))),
+        }
+    }
+
+    /// Renders the plan's frames of a Gaussian scene (`plan` made from its
+    /// centres), each image written as the point frames are, and `events`
+    /// told the same.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_gaussians(
+        &self,
+        renderer: &GaussianRenderer,
+        scene: &GpuGaussians,
+        plan: &Plan,
+        stop: &AtomicBool,
+        load_ms: f64,
+        events: &mut dyn FnMut(JobEvent) -> Result<()>,
+    ) -> Result<Outcome> {
+        let lens = self.gaussian_lens()?;
+        let mut outcome = Outcome::default();
+        for (done, job) in plan.frames.iter().enumerate() {
+            if stop.load(Ordering::SeqCst) {
+                return Err(Error::Interrupted {
+                    written: done,
+                    total: plan.frames.len(),
+                    next: job.number,
+                });
+            }
+            let started = Instant::now();
+            let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
+            events(JobEvent::Camera {
+                number: job.number,
+                spec: &spec,
+            })?;
+            let frame = renderer.render(
+                scene,
+                &job.camera,
+                &lens,
+                self.spec.ssaa,
+                self.spec.background,
+            )?;
+            let t_encode = Instant::now();
+            write_image(&frame.image, &job.output)?;
+            let report = FrameReport {
+                load_ms,
+                encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
+                counts: vec![
+                    ("gaussians.tile_entries".into(), frame.entries as u64),
+                    ("gaussians.retries".into(), frame.retries as u64),
+                ],
+                ..FrameReport::new(
+                    &renderer.ctx().info,
+                    self.spec.method.short_name(),
+                    (job.camera.width, job.camera.height),
+                    self.spec.ssaa,
+                    scene.len() as usize,
+                    0,
+                    &frame.timings,
+                    Default::default(),
+                )
+            };
+            log_memory(renderer.ctx(), job, started);
             events(JobEvent::Written {
                 number: job.number,
                 output: &job.output,
@@ -482,14 +584,14 @@ pub fn camera_path(outcome: &Outcome) -> CameraPath {
 
 /// Logs a written frame with the device's and the process's memory (a long
 /// sequence shows whether either grows).
-fn log_memory(renderer: &Renderer, job: &FrameJob, started: Instant) {
+fn log_memory(ctx: &crate::vk::Context, job: &FrameJob, started: Instant) {
     let (rss, peak) = crate::report::host_memory_bytes().unwrap_or_default();
     log::info!(
         "frame {}: {} in {:.2} s (device memory {} B, host resident {} B, peak {} B)",
         job.number,
         job.output.display(),
         started.elapsed().as_secs_f64(),
-        renderer.ctx().allocated_bytes(),
+        ctx.allocated_bytes(),
         rss,
         peak
     );

@@ -15,6 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
 use pointlens::camera::{self, CameraSpec};
 use pointlens::chart;
+use pointlens::gaussian_render::GaussianRenderer;
 use pointlens::image_io::{
     check_output_path, check_parent_dir, check_png_path, read_image, srgb_to_linear, write_image,
     write_text_atomically,
@@ -134,8 +135,17 @@ enum Command {
     #[command(allow_negative_numbers = true)]
     Synth {
         /// Number of points.
+        #[arg(
+            long,
+            required_unless_present = "gaussians",
+            conflicts_with = "gaussians"
+        )]
+        points: Option<u64>,
+        /// Number of 3D Gaussians instead (SH degree 3, the reference
+        /// code's PLY layout; -o must be .ply), centred on the scene's
+        /// points: anisotropic, overlapping, semi-transparent.
         #[arg(long)]
-        points: u64,
+        gaussians: Option<u64>,
         /// Output file, .ply, .las or .laz (replaced atomically).
         #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
@@ -278,9 +288,11 @@ struct RenderArgs {
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
     samples: u32,
-    /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard sprites).
-    #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
-    ssaa: u32,
+    /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard
+    /// sprites; default 4). A scene of 3D Gaussians is sampled at pixel
+    /// centres as trained (default 1); K > 1 averages K×K cell centres.
+    #[arg(long, value_parser = checked(check_ssaa))]
+    ssaa: Option<u32>,
     /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
     /// (default: all K² in one pass into a target K times larger where the
     /// device holds it, else multisampled passes where its sample counts
@@ -621,7 +633,14 @@ fn main() -> ExitCode {
             memory,
         }) => info(&input, origin, memory, quiet),
         Some(Command::Bench(args)) => bench(*args, quiet),
-        Some(Command::Synth { points, output }) => synth(points, &output, quiet),
+        Some(Command::Synth {
+            points,
+            gaussians,
+            output,
+        }) => match gaussians {
+            Some(n) => synth_gaussians(n, &output, quiet),
+            None => synth(points.unwrap_or(0), &output, quiet),
+        },
         Some(Command::Convert {
             input,
             output,
@@ -969,6 +988,35 @@ fn convert(input: &Path, output: &Path, memory: MemoryArgs, quiet: bool) -> Resu
     Ok(())
 }
 
+/// `synth --gaussians N`.
+fn synth_gaussians(count: u64, output: &Path, quiet: bool) -> Result<()> {
+    if count == 0 {
+        bail!("--gaussians must be at least 1");
+    }
+    if !output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"))
+    {
+        bail!("{}: Gaussians are written as .ply", output.display());
+    }
+    check_parent_dir(output, "-o")?;
+    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
+    let bar = progress(count, "{bar:30} {pos}/{len} Gaussians, {elapsed}", quiet);
+    let t = Instant::now();
+    let written =
+        pointlens::synth::write_gaussians(output, count, &mut |done| bar.set_position(done));
+    bar.finish_and_clear();
+    written?;
+    let bytes = std::fs::metadata(output).map_or(0, |m| m.len());
+    out!(
+        "{}: {count} Gaussians, {:.1} MB, {:.2} s\n",
+        output.display(),
+        bytes as f64 / 1e6,
+        t.elapsed().as_secs_f64()
+    )?;
+    Ok(())
+}
+
 fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
     if points == 0 {
         bail!("--points must be at least 1");
@@ -1027,6 +1075,9 @@ fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
 /// (`pointlens::job`): checks, signals, the cloud, every frame's camera,
 /// the scene, the frames, the timings.
 fn render(args: RenderArgs, quiet: bool) -> Result<()> {
+    if pointlens::input::gaussians::is_gaussian_file(&args.input) {
+        return render_gaussians(args, quiet);
+    }
     let shot = shot_of(&args)?;
     let splat = splat_of(&args)?;
     let job = RenderJob::new(job_spec(&args, shot)?)?;
@@ -1088,6 +1139,108 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     Ok(ctx.check_validation()?)
 }
 
+/// `render` of a scene of 3D Gaussians (docs/ARCHITECTURE.md, "3D
+/// Gaussian scenes"): the cameras framed on the Gaussians' centres, each
+/// frame rendered by [`GaussianRenderer`]; flags about points are refused.
+fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
+    let point_flags = [
+        ("--splat-size", args.splat_size.is_some()),
+        ("--splat-px", args.splat_px.is_some()),
+        ("--color", args.color.is_some()),
+        ("--edl", args.edl.is_some()),
+        ("--lod-blur", args.lod_blur.is_some()),
+        ("--tile-px", args.tile_px.is_some()),
+        ("--origin", args.origin.is_some()),
+        ("--samples-per-pass", args.samples_per_pass.is_some()),
+    ];
+    if let Some((flag, _)) = point_flags.iter().find(|(_, given)| *given) {
+        bail!(
+            "{}: {flag} is about points, and the file holds 3D Gaussians",
+            args.input.display()
+        );
+    }
+    let shot = shot_of(&args)?;
+    let spec = JobSpec {
+        ssaa: args.ssaa.unwrap_or(1),
+        ..job_spec(&args, shot)?
+    };
+    let job = RenderJob::new(spec)?;
+    job.gaussian_lens()?;
+    let stop = Arc::new(AtomicBool::new(false));
+    job::watch_signals(job.is_sequence(), stop.clone())?;
+    let t_load = Instant::now();
+    let scene = pointlens::input::gaussians::load_gaussians(&args.input)?;
+    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+    // The cameras are framed on the centres.
+    let centres = PointCloud {
+        colors: vec![Vec3::ZERO; scene.positions.len()],
+        positions: scene.positions.clone(),
+        ..PointCloud::default()
+    };
+    let plan = job.plan(&centres)?;
+    drop(centres);
+    if plan.frames.is_empty() {
+        log::warn!(
+            "nothing to render: the {} frames' files exist",
+            plan.skipped
+        );
+        return Ok(());
+    }
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    log::info!("device: {}", ctx.info.describe());
+    let renderer = GaussianRenderer::new(&ctx)?;
+    let gpu = renderer.upload(&scene)?;
+    drop(scene);
+    let sequence = job.is_sequence();
+    let bar = match sequence {
+        true => progress(
+            plan.frames.len() as u64,
+            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
+            quiet,
+        ),
+        false => ProgressBar::hidden(),
+    };
+    let outcome = job.render_gaussians(&renderer, &gpu, &plan, &stop, load_ms, &mut |event| {
+        match event {
+            JobEvent::Camera { spec, .. } if args.print_camera && !sequence => {
+                emit(&format!("{}\n", spec.to_json()))?;
+            }
+            JobEvent::Camera { .. } => {}
+            JobEvent::Written {
+                number,
+                seconds,
+                report,
+                ..
+            } => {
+                bar.set_message(format!("{seconds:.2} s/frame"));
+                bar.inc(1);
+                if args.timings {
+                    if sequence {
+                        eprintln!("frame {number}:");
+                    }
+                    eprint!("{}", report.text());
+                }
+            }
+        }
+        Ok(())
+    });
+    match &outcome {
+        Err(pointlens::Error::Interrupted { .. }) => bar.abandon(),
+        _ => bar.finish_and_clear(),
+    }
+    let outcome = outcome?;
+    if args.print_camera && sequence {
+        out!("{}\n", job::camera_path(&outcome).to_json())?;
+    }
+    job.write_timings(&outcome.reports)?;
+    drop(gpu);
+    drop(renderer);
+    Ok(ctx.check_validation()?)
+}
+
 /// `render`'s input: a COPC file opened to be read by node, each frame
 /// the nodes it needs (with its root node's points as the cloud the
 /// cameras are framed on), or any other file read whole; colored by
@@ -1113,13 +1266,6 @@ fn open_input(
     let mut cloud = match &copc {
         Some(copc) => copc.preview()?,
         None => {
-            if pointlens::input::gaussians::is_gaussian_file(&args.input) {
-                bail!(
-                    "{}: it holds 3D Gaussians, which this version reads (`pointlens info`) \
-                     but does not render",
-                    args.input.display()
-                );
-            }
             pointlens::input::check_whole_read_fits(
                 &args.input,
                 args.memory.memory_mb,
@@ -1315,7 +1461,7 @@ fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
         camera_flags: camera_flags(args),
         focus_pixel: args.focus_pixel,
         method: method_of(args),
-        ssaa: args.ssaa,
+        ssaa: args.ssaa.unwrap_or(pointlens::options::DEFAULT_SSAA),
         samples_per_pass: args.samples_per_pass,
         background: background_of(args)?,
         lod: Lod {

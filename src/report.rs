@@ -40,7 +40,7 @@ fn one() -> u32 {
 }
 
 /// The upload of a cloud (once per scene, not part of any frame).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Upload {
     /// Splat sizes on the CPU: the splat hierarchy's local spacing (before
     /// the hierarchy: the k-nearest-neighbour spacing; 0 in reports written

@@ -291,3 +291,97 @@ fn encode_records(range: Range<u64>, out: &mut [u8]) {
         }
     });
 }
+
+/// Floats of one Gaussian of [`write_gaussians`]: x y z, nx ny nz, f_dc
+/// (3), f_rest (45, degree 3), opacity, scale (3), rot (4).
+pub const GAUSSIAN_FLOATS: usize = 62;
+
+/// Draw `k` (< 64) of Gaussian `i`'s own stream, uniform in [0, 1): apart
+/// from the points' draws.
+fn gaussian_draw(i: u64, k: u64) -> f32 {
+    draw((1 << 50) + 64 * i + k)
+}
+
+/// Gaussian `i` of a synthetic scene of `count` (`synth --gaussians`), as
+/// the reference code stores it (pre-activation): centred on point `i` of
+/// the scene, its DC term the point's color as trained (sRGB-encoded),
+/// small SH terms of degree 3, an opacity between 0.2 and 0.99, and
+/// standard deviations of 0.3 to 1.5 times the mean spacing of `count`
+/// points along axes turned at random: anisotropic, overlapping and
+/// semi-transparent.
+pub fn gaussian(i: u64, count: u64) -> [f32; GAUSSIAN_FLOATS] {
+    const C0: f32 = 0.282_094_8;
+    let (p, color) = point(i);
+    let d = |k: u64| gaussian_draw(i, k);
+    // The scene's surfaces: about 6.9 square units.
+    let spacing = (6.9 / count.max(1) as f32).sqrt();
+    let mut v = [0.0f32; GAUSSIAN_FLOATS];
+    v[..3].copy_from_slice(&p.to_array());
+    for c in 0..3 {
+        let encoded = crate::image_io::linear_to_srgb(color[c]);
+        v[6 + c] = (encoded - 0.5) / C0;
+    }
+    for k in 0..45 {
+        v[9 + k] = 0.1 * (2.0 * d(k as u64) - 1.0);
+    }
+    let opacity = 0.2 + 0.79 * d(45);
+    v[54] = (opacity / (1.0 - opacity)).ln();
+    for a in 0..3 {
+        v[55 + a] = (spacing * (0.3 + 1.2 * d(46 + a as u64))).ln();
+    }
+    let q = [d(49), d(50), d(51), d(52)].map(|x| 2.0 * x - 1.0);
+    let norm = q.iter().map(|x| x * x).sum::<f32>().sqrt().max(1e-6);
+    for (k, x) in q.iter().enumerate() {
+        v[58 + k] = x / norm;
+    }
+    v
+}
+
+/// The PLY header of [`write_gaussians`]: the reference code's layout.
+pub fn gaussian_header(count: u64) -> String {
+    let mut h = format!(
+        "ply\nformat binary_little_endian 1.0\n\
+         comment pointlens synth: Gaussians on the synthetic scene of pointlens bench\n\
+         element vertex {count}\n"
+    );
+    let mut names: Vec<String> = ["x", "y", "z", "nx", "ny", "nz"].map(String::from).to_vec();
+    names.extend((0..3).map(|c| format!("f_dc_{c}")));
+    names.extend((0..45).map(|k| format!("f_rest_{k}")));
+    names.push("opacity".into());
+    names.extend((0..3).map(|c| format!("scale_{c}")));
+    names.extend((0..4).map(|c| format!("rot_{c}")));
+    for n in names {
+        h += &format!("property float {n}\n");
+    }
+    h + "end_header\n"
+}
+
+/// Writes `count` Gaussians of [`gaussian`] to `path` (binary PLY, the
+/// reference code's layout), [`CHUNK_POINTS`] at a time, atomically.
+pub fn write_gaussians(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -> Result<()> {
+    if count == 0 {
+        return Err(Error::InvalidArgument(
+            "a synthetic scene needs at least 1 Gaussian".into(),
+        ));
+    }
+    write_atomically(path, |mut file| {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        file.write_all(gaussian_header(count).as_bytes())
+            .map_err(io)?;
+        let mut start = 0;
+        while start < count {
+            let end = count.min(start + CHUNK_POINTS as u64);
+            let buf: Vec<u8> = (start..end)
+                .flat_map(|i| gaussian(i, count))
+                .flat_map(f32::to_le_bytes)
+                .collect();
+            file.write_all(&buf).map_err(io)?;
+            progress(end);
+            start = end;
+        }
+        file.sync_all().map_err(io)
+    })
+}

@@ -243,14 +243,14 @@ fn the_pinhole_image_is_the_cpu_references() {
             let camera = camera(100, 84);
             let gpu = renderer.upload(&scene).unwrap();
             let frame = renderer
-                .render(&gpu, &camera, &[Vec2::ZERO], background)
+                .render(&gpu, &camera, &[Vec2::ZERO], 1, background)
                 .unwrap();
             // The reference composites over the background as trained:
             // encoded; the renderer takes it in linear light.
             let encoded = background
                 .to_array()
                 .map(pointlens::image_io::linear_to_srgb);
-            let cpu = render_reference_lens(&scene, &camera, Vec3::from(encoded), &[Vec2::ZERO]);
+            let cpu = render_reference_lens(&scene, &camera, Vec3::from(encoded), &[Vec2::ZERO], 1);
             let (max, mean) = differences(&frame.image, &cpu);
             eprintln!(
                 "pinhole, {n} Gaussians: max {max:e}, mean {mean:e}, {} tile entries",
@@ -281,12 +281,14 @@ fn the_thin_lens_image_is_the_cpu_references() {
         camera.aperture_radius = 0.08;
         let lens = lens_samples(24);
         let gpu = renderer.upload(&scene).unwrap();
-        let frame = renderer.render(&gpu, &camera, &lens, Vec3::ZERO).unwrap();
-        let cpu = render_reference_lens(&scene, &camera, Vec3::ZERO, &lens);
+        let frame = renderer
+            .render(&gpu, &camera, &lens, 1, Vec3::ZERO)
+            .unwrap();
+        let cpu = render_reference_lens(&scene, &camera, Vec3::ZERO, &lens, 1);
         let (max, mean) = differences(&frame.image, &cpu);
         eprintln!("accum 24: max {max:e}, mean {mean:e}");
         assert!(max <= 1e-4 && mean <= 1e-6, "max {max}, mean {mean}");
-        let pinhole = render_reference_lens(&scene, &camera, Vec3::ZERO, &[Vec2::ZERO]);
+        let pinhole = render_reference_lens(&scene, &camera, Vec3::ZERO, &[Vec2::ZERO], 1);
         let (blur, _) = differences(&frame.image, &pinhole);
         assert!(blur > 0.05, "the lens changes the image by {blur}");
         // A timing for every pass of the chain.
@@ -321,7 +323,7 @@ fn a_tile_list_that_outgrows_its_buffer_renders_again() {
         let first = GaussianRenderer::new(ctx).unwrap();
         let gpu = first.upload(&scene).unwrap();
         let grown = first
-            .render(&gpu, &camera, &[Vec2::ZERO], Vec3::ZERO)
+            .render(&gpu, &camera, &[Vec2::ZERO], 1, Vec3::ZERO)
             .unwrap();
         assert!(
             grown.retries >= 1 && grown.entries > 65_536,
@@ -330,11 +332,34 @@ fn a_tile_list_that_outgrows_its_buffer_renders_again() {
             grown.retries
         );
         let again = first
-            .render(&gpu, &camera, &[Vec2::ZERO], Vec3::ZERO)
+            .render(&gpu, &camera, &[Vec2::ZERO], 1, Vec3::ZERO)
             .unwrap();
         assert_eq!(again.retries, 0, "the renderer keeps the room it learnt");
         assert!(grown.image.pixels == again.image.pixels);
         let tiles = (512 / TILE_PX as u32).pow(2);
         assert!(grown.entries <= 600 * tiles);
+    });
+}
+
+/// `--ssaa 3`: every lens point at the 3 × 3 cell centres of the pixel,
+/// averaged in linear light, as the CPU reference samples them (the
+/// pinhole's tolerance); it smooths the pinhole image's edges.
+#[test]
+fn supersampling_takes_the_cell_centres() {
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        let scene = random_scene(800, 8);
+        let camera = camera(64, 48);
+        let gpu = renderer.upload(&scene).unwrap();
+        let frame = renderer
+            .render(&gpu, &camera, &[Vec2::ZERO], 3, Vec3::ZERO)
+            .unwrap();
+        let cpu = render_reference_lens(&scene, &camera, Vec3::ZERO, &[Vec2::ZERO], 3);
+        let (max, mean) = differences(&frame.image, &cpu);
+        eprintln!("ssaa 3: max {max:e}, mean {mean:e}");
+        assert!(max <= 1e-4 && mean <= 1e-6, "max {max}, mean {mean}");
+        let centres = render_reference_lens(&scene, &camera, Vec3::ZERO, &[Vec2::ZERO], 1);
+        let (moved, _) = differences(&frame.image, &centres);
+        assert!(moved > 0.01, "supersampling changes the image by {moved}");
     });
 }

@@ -25,3 +25,16 @@ const int TILE_PX = 16;
 float srgb_to_linear(float c) {
     return c <= 0.04045 ? c / 12.92 : pow((c + 0.055) / 1.055, 2.4);
 }
+
+// The opacity a Gaussian adds at a sample d = centre - sample (px): the
+// reference's alpha = min(0.99, o e^power), 0 where power > 0 or alpha is
+// below 1/255 (the Gaussian is skipped there).
+float gaussian_alpha(vec2 d, vec4 conic_opacity) {
+    vec4 co = conic_opacity;
+    float power = -0.5 * (co.x * d.x * d.x + co.z * d.y * d.y) - co.y * d.x * d.y;
+    if (power > 0.0) {
+        return 0.0;
+    }
+    float alpha = min(0.99, co.w * exp(power));
+    return alpha < 1.0 / 255.0 ? 0.0 : alpha;
+}

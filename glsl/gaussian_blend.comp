@@ -70,14 +70,8 @@ void main() {
         }
         uint batch = min(GROUP, range.y - first);
         for (uint j = 0u; j < batch && !done; j++) {
-            vec2 d = s_centre[j] - at;
-            vec4 co = s_conic_opacity[j];
-            float power = -0.5 * (co.x * d.x * d.x + co.z * d.y * d.y) - co.y * d.x * d.y;
-            if (power > 0.0) {
-                continue;
-            }
-            float alpha = min(0.99, co.w * exp(power));
-            if (alpha < 1.0 / 255.0) {
+            float alpha = gaussian_alpha(s_centre[j] - at, s_conic_opacity[j]);
+            if (alpha == 0.0) {
                 continue;
             }
             float next = transmittance * (1.0 - alpha);

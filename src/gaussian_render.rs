@@ -27,19 +27,28 @@ use gpu_allocator::MemoryLocation;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gaussians::{covariance, TILE_PX};
+use crate::image_io::f16_to_f32;
 use crate::image_io::{linear_to_srgb, LinearImage};
 use crate::input::gaussians::GaussianScene;
+use crate::options::LayeredOptions;
+use crate::passes::layered::{Layered, Slices};
 use crate::passes::radix_sort::{
     words_buffer, RadixSort, ScanScratch, SortScratch, SortedIn, NONE,
 };
 use crate::passes::sample_plan::ssaa_jitter;
+use crate::passes::{Configured, DofInput, DofMethod, FrameView, GBufferLayer, Window};
 use crate::push_constants;
-use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, FrameTimings};
+use crate::vk::{
+    Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, FrameTimings, Image,
+};
 
 static PROJECT_SPIRV: &[u8] =
     include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_project.comp.spv"));
 static TILES_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_tiles.comp.spv"));
 static BLEND_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_blend.comp.spv"));
+static LAYERS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_layers.comp.spv"));
+static STORE_SPIRV: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_layer_store.comp.spv"));
 
 /// Invocations per workgroup of `project` and `tile list` (their
 /// `local_size_x`).
@@ -98,6 +107,31 @@ push_constants! {
     }
 }
 
+push_constants! {
+    pub struct LayersPush {
+        pub background: [f32; 4],
+        pub background_encoded: [f32; 4],
+        pub width: u32,
+        pub height: u32,
+        pub capacity: u32,
+        pub entries_index: u32,
+        pub layers: u32,
+        pub layer_lo: f32,
+        pub layer_width: f32,
+        pub f_px: f32,
+        pub aperture_radius: f32,
+        pub focus_distance: f32,
+    }
+}
+
+push_constants! {
+    pub struct StorePush {
+        pub width: u32,
+        pub height: u32,
+        pub layer: u32,
+    }
+}
+
 /// Words of the `counts` buffer: the Gaussians; this lens point's tile
 /// entries; the most entries of any lens point so far.
 const COUNT_GAUSSIANS: u32 = 0;
@@ -106,6 +140,8 @@ const COUNT_WORDS: u64 = 4;
 
 /// A Gaussian scene on the device.
 pub struct GpuGaussians {
+    /// The centres, for the depth range of a frame.
+    centres: Vec<Vec3>,
     gaussians: Buffer,
     sh: Buffer,
     count: u32,
@@ -122,6 +158,20 @@ impl GpuGaussians {
     /// Whether the scene has none.
     pub fn is_empty(&self) -> bool {
         self.count == 0
+    }
+
+    /// The eye-depth range of the centres `camera` does not cull (eye
+    /// depth above 0.2, as the projection), None when it culls all.
+    pub fn depths(&self, camera: &Camera) -> Option<(f32, f32)> {
+        let eye_from_world = camera.eye_from_world_transform();
+        self.centres
+            .iter()
+            .map(|p| eye_from_world.apply(*p).z)
+            .filter(|z| *z > 0.2)
+            .fold(None, |range, z| match range {
+                None => Some((z, z)),
+                Some((lo, hi)) => Some((f32::min(lo, z), f32::max(hi, z))),
+            })
     }
 }
 
@@ -141,6 +191,9 @@ pub struct GaussianRenderer {
     project: ComputePipeline<ProjectPush>,
     tiles: ComputePipeline<TilesPush>,
     blend: ComputePipeline<BlendPush>,
+    layers: ComputePipeline<LayersPush>,
+    store: ComputePipeline<StorePush>,
+    layered: Layered,
     sort: RadixSort,
     capacity: std::sync::atomic::AtomicU32,
 }
@@ -158,6 +211,14 @@ impl GaussianRenderer {
             project: ComputePipeline::new(ctx, "gaussian_project", PROJECT_SPIRV, &[b; 6])?,
             tiles: ComputePipeline::new(ctx, "gaussian_tiles", TILES_SPIRV, &[b; 8])?,
             blend: ComputePipeline::new(ctx, "gaussian_blend", BLEND_SPIRV, &[b; 5])?,
+            layers: ComputePipeline::new(ctx, "gaussian_layers", LAYERS_SPIRV, &[b; 6])?,
+            store: ComputePipeline::new(
+                ctx,
+                "gaussian_layer_store",
+                STORE_SPIRV,
+                &[b, b, Binding::StorageImage, Binding::StorageImage],
+            )?,
+            layered: Layered::new(ctx)?,
             sort: RadixSort::new(ctx)?,
             capacity: std::sync::atomic::AtomicU32::new(0),
         })
@@ -216,6 +277,7 @@ impl GaussianRenderer {
             Buffer::with_bytes(ctx, name, bytes, usage)
         };
         Ok(GpuGaussians {
+            centres: scene.positions.clone(),
             gaussians: upload("gaussians", bytemuck::cast_slice(&gaussians))?,
             sh: upload("gaussian sh", bytemuck::cast_slice(&scene.sh))?,
             count: n as u32,
@@ -239,12 +301,25 @@ impl GaussianRenderer {
         background: Vec3,
     ) -> Result<GaussianFrame> {
         assert!(ssaa >= 1, "at least one sample a pixel");
+        assert!(!lens.is_empty(), "at least one lens point");
         let samples: Vec<(Vec2, Vec2)> = lens
             .iter()
             .flat_map(|&u| (0..ssaa * ssaa).map(move |s| (u, ssaa_jitter(s, ssaa))))
             .collect();
+        self.with_room(scene, |capacity| {
+            self.render_with(scene, camera, &samples, background, capacity)
+        })
+    }
+
+    /// Runs `render` with a tile list of the capacity learnt so far, and
+    /// again with more room while a chain needed more (`render` returns
+    /// the frame and the most entries any chain needed).
+    fn with_room(
+        &self,
+        scene: &GpuGaussians,
+        mut render: impl FnMut(u32) -> Result<(GaussianFrame, u32)>,
+    ) -> Result<GaussianFrame> {
         use std::sync::atomic::Ordering::Relaxed;
-        assert!(!lens.is_empty(), "at least one lens point");
         let limit = max_words(&self.ctx).min(u32::MAX as u64 / 2) as u32;
         let mut capacity = self
             .capacity
@@ -253,8 +328,7 @@ impl GaussianRenderer {
             .clamp(1 << 16, limit);
         let mut retries = 0;
         loop {
-            let (frame, entries) =
-                self.render_with(scene, camera, &samples, background, capacity)?;
+            let (frame, entries) = render(capacity)?;
             self.capacity.fetch_max(entries.min(limit), Relaxed);
             if entries <= capacity {
                 return Ok(GaussianFrame { retries, ..frame });
@@ -271,6 +345,145 @@ impl GaussianRenderer {
         }
     }
 
+    /// Records the chain of one lens point `u` (unit disk) through
+    /// `camera` into `chain`'s buffers, up to the sorted tile list: the
+    /// projected Gaussians and each tile's range of the returned values.
+    fn record_chain<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        scene: &'r GpuGaussians,
+        chain: &'r Chain,
+        camera: &Camera,
+        u: Vec2,
+    ) -> &'r Buffer {
+        let n = scene.count;
+        let (right, up, forward) = camera.basis();
+        let eye = camera.eye;
+        let l = camera.aperture_radius * u;
+        let lens_world = eye + right * l.x + up * l.y;
+        let push = ProjectPush {
+            right: right.extend(eye.x).to_array(),
+            up: up.extend(eye.y).to_array(),
+            forward: forward.extend(eye.z).to_array(),
+            lens_world: lens_world.extend(camera.focus_distance).to_array(),
+            lens: l.to_array(),
+            f_px: camera.f_px(),
+            count: n,
+            width: chain.width,
+            height: chain.height,
+            sh_degree: scene.sh_degree,
+            sh_stride: scene.sh_stride,
+        };
+        frame.pass("gaussians: project", |rec| {
+            let binds = [
+                Bind::StorageBuffer(&scene.gaussians),
+                Bind::StorageBuffer(&scene.sh),
+                Bind::StorageBuffer(&chain.projected),
+                Bind::StorageBuffer(&chain.depth_keys),
+                Bind::StorageBuffer(&chain.order),
+                Bind::StorageBuffer(&chain.touched),
+            ];
+            // The previous lens point's passes read what this writes.
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+            rec.dispatch(
+                &self.project,
+                &binds,
+                &push,
+                [n.div_ceil(GROUP).max(1), 1, 1],
+            );
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+        });
+        let at = frame.pass("gaussians: depth sort", |rec| {
+            self.sort.record_sort(
+                rec,
+                &chain.depth_keys,
+                &chain.order,
+                &chain.depth_scratch,
+                &chain.counts,
+                COUNT_GAUSSIANS,
+                n,
+                32,
+            )
+        });
+        let depth_order = match at {
+            SortedIn::Input => &chain.order,
+            SortedIn::Scratch => &chain.depth_scratch.values,
+        };
+        let tiles_push = |stage| TilesPush {
+            stage,
+            count: n,
+            capacity: chain.capacity,
+            grid_x: chain.grid.0,
+            entries_index: COUNT_ENTRIES,
+        };
+        frame.pass("gaussians: tile list", |rec| {
+            self.sort.record_scan(
+                rec,
+                &chain.touched,
+                Some(depth_order),
+                &chain.offsets,
+                &chain.scan_scratch,
+                &chain.counts,
+                n,
+                NONE,
+                COUNT_ENTRIES,
+            );
+            let binds = [
+                Bind::StorageBuffer(&chain.projected),
+                Bind::StorageBuffer(depth_order),
+                Bind::StorageBuffer(&chain.touched),
+                Bind::StorageBuffer(&chain.offsets),
+                Bind::StorageBuffer(&chain.tile_keys),
+                Bind::StorageBuffer(&chain.tile_values),
+                Bind::StorageBuffer(&chain.ranges),
+                Bind::StorageBuffer(&chain.counts),
+            ];
+            rec.dispatch(
+                &self.tiles,
+                &binds,
+                &tiles_push(0),
+                [n.div_ceil(GROUP).max(1), 1, 1],
+            );
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+        });
+        let at = frame.pass("gaussians: tile sort", |rec| {
+            self.sort.record_sort(
+                rec,
+                &chain.tile_keys,
+                &chain.tile_values,
+                &chain.tile_scratch,
+                &chain.counts,
+                COUNT_ENTRIES,
+                chain.capacity,
+                chain.tile_bits,
+            )
+        });
+        let (keys, values) = match at {
+            SortedIn::Input => (&chain.tile_keys, &chain.tile_values),
+            SortedIn::Scratch => (&chain.tile_scratch.keys, &chain.tile_scratch.values),
+        };
+        frame.pass("gaussians: tile ranges", |rec| {
+            // The previous lens point's blend read the ranges.
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::FILL);
+            rec.fill_u32(&chain.ranges, 0);
+            rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
+            let binds = [
+                Bind::StorageBuffer(&chain.projected),
+                Bind::StorageBuffer(depth_order),
+                Bind::StorageBuffer(&chain.touched),
+                Bind::StorageBuffer(&chain.offsets),
+                Bind::StorageBuffer(keys),
+                Bind::StorageBuffer(values),
+                Bind::StorageBuffer(&chain.ranges),
+                Bind::StorageBuffer(&chain.counts),
+            ];
+            let groups = chain.capacity.div_ceil(GROUP).clamp(1, 65535);
+            rec.dispatch(&self.tiles, &binds, &tiles_push(1), [groups, 1, 1]);
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+        });
+        values
+    }
+
     /// One try with a tile list of `capacity` entries, a chain per (lens
     /// point, jitter) of `samples`: the frame and the most entries any
     /// chain needed.
@@ -283,186 +496,26 @@ impl GaussianRenderer {
         capacity: u32,
     ) -> Result<(GaussianFrame, u32)> {
         let ctx = &self.ctx;
-        let n = scene.count;
         let (width, height) = (camera.width, camera.height);
-        let grid = (
-            width.div_ceil(TILE_PX as u32),
-            height.div_ceil(TILE_PX as u32),
-        );
-        let tiles = grid.0 * grid.1;
+        let chain = Chain::new(ctx, scene.count, capacity, width, height)?;
         let pixels = width as u64 * height as u64;
-        if 16 * pixels > ctx.info.max_storage_buffer_range {
-            return Err(Error::InvalidArgument(format!(
-                "a {width} × {height} image of Gaussians is more than this device binds in one buffer"
-            )));
-        }
-        let tile_bits = 32 - (tiles.max(2) - 1).leading_zeros();
-        let gpu_words = |name: &str, words: u64| words_buffer(ctx, name, words);
-        let projected = gpu_words("gaussians projected", n as u64 * PROJECTED_BYTES / 4)?;
-        let depth_keys = gpu_words("gaussian depth keys", n as u64)?;
-        let order = gpu_words("gaussian order", n as u64)?;
-        let touched = gpu_words("gaussian tiles touched", n as u64)?;
-        let offsets = gpu_words("gaussian tile offsets", n as u64)?;
-        let depth_scratch = SortScratch::new(ctx, "gaussian depth sort", n)?;
-        let scan_scratch = ScanScratch::new(ctx, "gaussian tile offset blocks", n)?;
-        let tile_keys = gpu_words("gaussian tile keys", capacity as u64)?;
-        let tile_values = gpu_words("gaussian tile values", capacity as u64)?;
-        let tile_scratch = SortScratch::new(ctx, "gaussian tile sort", capacity)?;
-        let ranges = gpu_words("gaussian tile ranges", 2 * tiles as u64)?;
-        let counts = gpu_words("gaussian counts", COUNT_WORDS)?;
-        let sum = gpu_words("gaussian sum", 4 * pixels)?;
-        let host = |name: &str, bytes: u64| {
-            Buffer::new(
-                ctx,
-                name,
-                bytes,
-                vk::BufferUsageFlags::TRANSFER_DST,
-                MemoryLocation::GpuToCpu,
-            )
-        };
-        let sum_readback = host("gaussian sum readback", 16 * pixels)?;
-        let counts_readback = host("gaussian counts readback", 4 * COUNT_WORDS)?;
-
-        let (right, up, forward) = camera.basis();
-        let eye = camera.eye;
+        let sum = words_buffer(ctx, "gaussian sum", 4 * pixels)?;
+        let sum_readback = readback(ctx, "gaussian sum readback", 16 * pixels)?;
         let background_encoded = background.to_array().map(linear_to_srgb);
         let mut frame = Frame::begin(ctx, "gaussians")?;
         frame.pass("clear", |rec| {
-            rec.update_u32(&counts, &[n, 0, 0, 0]);
+            rec.update_u32(&chain.counts, &[scene.count, 0, 0, 0]);
             rec.fill_u32(&sum, 0);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
         });
-        let sorted_order = |at: SortedIn| match at {
-            SortedIn::Input => &order,
-            SortedIn::Scratch => &depth_scratch.values,
-        };
-        let sorted_tiles = |at: SortedIn| match at {
-            SortedIn::Input => (&tile_keys, &tile_values),
-            SortedIn::Scratch => (&tile_scratch.keys, &tile_scratch.values),
-        };
         for &(u, jitter) in samples {
-            let l = camera.aperture_radius * u;
-            let lens_world = eye + right * l.x + up * l.y;
-            let push = ProjectPush {
-                right: right.extend(eye.x).to_array(),
-                up: up.extend(eye.y).to_array(),
-                forward: forward.extend(eye.z).to_array(),
-                lens_world: lens_world.extend(camera.focus_distance).to_array(),
-                lens: l.to_array(),
-                f_px: camera.f_px(),
-                count: n,
-                width,
-                height,
-                sh_degree: scene.sh_degree,
-                sh_stride: scene.sh_stride,
-            };
-            frame.pass("gaussians: project", |rec| {
-                let binds = [
-                    Bind::StorageBuffer(&scene.gaussians),
-                    Bind::StorageBuffer(&scene.sh),
-                    Bind::StorageBuffer(&projected),
-                    Bind::StorageBuffer(&depth_keys),
-                    Bind::StorageBuffer(&order),
-                    Bind::StorageBuffer(&touched),
-                ];
-                // The previous lens point's passes read what this writes.
-                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-                rec.dispatch(
-                    &self.project,
-                    &binds,
-                    &push,
-                    [n.div_ceil(GROUP).max(1), 1, 1],
-                );
-                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-            });
-            let at = frame.pass("gaussians: depth sort", |rec| {
-                self.sort.record_sort(
-                    rec,
-                    &depth_keys,
-                    &order,
-                    &depth_scratch,
-                    &counts,
-                    COUNT_GAUSSIANS,
-                    n,
-                    32,
-                )
-            });
-            let depth_order = sorted_order(at);
-            frame.pass("gaussians: tile list", |rec| {
-                self.sort.record_scan(
-                    rec,
-                    &touched,
-                    Some(depth_order),
-                    &offsets,
-                    &scan_scratch,
-                    &counts,
-                    n,
-                    NONE,
-                    COUNT_ENTRIES,
-                );
-                let binds = [
-                    Bind::StorageBuffer(&projected),
-                    Bind::StorageBuffer(depth_order),
-                    Bind::StorageBuffer(&touched),
-                    Bind::StorageBuffer(&offsets),
-                    Bind::StorageBuffer(&tile_keys),
-                    Bind::StorageBuffer(&tile_values),
-                    Bind::StorageBuffer(&ranges),
-                    Bind::StorageBuffer(&counts),
-                ];
-                let push = TilesPush {
-                    stage: 0,
-                    count: n,
-                    capacity,
-                    grid_x: grid.0,
-                    entries_index: COUNT_ENTRIES,
-                };
-                rec.dispatch(&self.tiles, &binds, &push, [n.div_ceil(GROUP).max(1), 1, 1]);
-                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-            });
-            let at = frame.pass("gaussians: tile sort", |rec| {
-                self.sort.record_sort(
-                    rec,
-                    &tile_keys,
-                    &tile_values,
-                    &tile_scratch,
-                    &counts,
-                    COUNT_ENTRIES,
-                    capacity,
-                    tile_bits,
-                )
-            });
-            let (keys, values) = sorted_tiles(at);
+            let values = self.record_chain(&mut frame, scene, &chain, camera, u);
             frame.pass("gaussians: blend", |rec| {
-                // The previous lens point's blend read the ranges.
-                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::FILL);
-                rec.fill_u32(&ranges, 0);
-                rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
                 let binds = [
-                    Bind::StorageBuffer(&projected),
-                    Bind::StorageBuffer(depth_order),
-                    Bind::StorageBuffer(&touched),
-                    Bind::StorageBuffer(&offsets),
-                    Bind::StorageBuffer(keys),
+                    Bind::StorageBuffer(&chain.projected),
                     Bind::StorageBuffer(values),
-                    Bind::StorageBuffer(&ranges),
-                    Bind::StorageBuffer(&counts),
-                ];
-                let push = TilesPush {
-                    stage: 1,
-                    count: n,
-                    capacity,
-                    grid_x: grid.0,
-                    entries_index: COUNT_ENTRIES,
-                };
-                let groups = capacity.div_ceil(GROUP).clamp(1, 65535);
-                rec.dispatch(&self.tiles, &binds, &push, [groups, 1, 1]);
-                rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-                let binds = [
-                    Bind::StorageBuffer(&projected),
-                    Bind::StorageBuffer(values),
-                    Bind::StorageBuffer(&ranges),
-                    Bind::StorageBuffer(&counts),
+                    Bind::StorageBuffer(&chain.ranges),
+                    Bind::StorageBuffer(&chain.counts),
                     Bind::StorageBuffer(&sum),
                 ];
                 let push = BlendPush {
@@ -478,23 +531,17 @@ impl GaussianRenderer {
                     capacity,
                     entries_index: COUNT_ENTRIES,
                 };
-                rec.dispatch(&self.blend, &binds, &push, [grid.0, grid.1, 1]);
+                rec.dispatch(&self.blend, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
             });
         }
         frame.pass("readback", |rec| {
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COPY_SRC);
             rec.copy_buffer(&sum, &sum_readback);
-            rec.copy_buffer(&counts, &counts_readback);
+            rec.copy_buffer(&chain.counts, &chain.counts_readback);
             rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
         });
         let timings = frame.submit_and_wait()?;
-        let mapped = |b: &Buffer| {
-            b.mapped()
-                .map(|m| m.to_vec())
-                .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))
-        };
-        let counts: Vec<u32> = bytemuck::pod_collect_to_vec(&mapped(&counts_readback)?);
-        let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&mapped(&sum_readback)?);
+        let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(host_bytes(&sum_readback)?);
         let scale = 1.0 / samples.len() as f32;
         let image = LinearImage {
             width,
@@ -504,7 +551,211 @@ impl GaussianRenderer {
                 .map(|s| [s[0] * scale, s[1] * scale, s[2] * scale, 1.0])
                 .collect(),
         };
-        let entries = counts[COUNT_ENTRIES as usize + 1];
+        let entries = chain.most_entries()?;
+        Ok((
+            GaussianFrame {
+                image,
+                timings,
+                entries,
+                retries: 0,
+            },
+            entries,
+        ))
+    }
+
+    /// Renders `scene` through `camera` with the layered method (issue 31;
+    /// docs/ARCHITECTURE.md, "3D Gaussian scenes"): the pinhole chain over
+    /// the frame and a guard band, its Gaussians composited in depth
+    /// layers of equal signed-CoC width (at most [`MAX_LAYERS`]), each layer
+    /// as a G-buffer layer of premultiplied colour, coverage and depth, then
+    /// the point method's spreading and back-to-front composite.
+    pub fn render_layered(
+        &self,
+        scene: &GpuGaussians,
+        camera: &Camera,
+        background: Vec3,
+    ) -> Result<GaussianFrame> {
+        let depths = scene.depths(camera);
+        self.with_room(scene, |capacity| {
+            self.render_layered_with(scene, depths, camera, background, capacity)
+        })
+    }
+
+    fn render_layered_with(
+        &self,
+        scene: &GpuGaussians,
+        depths: Option<(f32, f32)>,
+        camera: &Camera,
+        background: Vec3,
+        capacity: u32,
+    ) -> Result<(GaussianFrame, u32)> {
+        let ctx = &self.ctx;
+        let max_coc_px = depths.map_or(0.0, |(lo, hi)| camera.max_coc_px(lo, hi));
+        let guard = camera.guard_band_px(max_coc_px, 0.0);
+        let view = FrameView {
+            camera: *camera,
+            window: Window::whole(camera),
+            guard,
+            max_coc_px,
+            depths,
+        };
+        let (width, height) = (view.full_width(), view.full_height());
+        // The frame with its guard band: the same focal length in pixels.
+        let big = Camera {
+            width,
+            height,
+            fovy_deg: 2.0 * (height as f32 / (2.0 * camera.f_px())).atan().to_degrees(),
+            ..*camera
+        };
+        let chain = Chain::new(ctx, scene.count, capacity, width, height)?;
+        let layers = Layers::of(camera, depths);
+        let pixels = width as u64 * height as u64;
+        let layer_color = words_buffer(
+            ctx,
+            "gaussian layer color",
+            2 * pixels * layers.count as u64,
+        )?;
+        let layer_eye = words_buffer(ctx, "gaussian layer eye", 4 * pixels * layers.count as u64)?;
+        let storage = vk::ImageUsageFlags::STORAGE;
+        let gbuffer: Vec<GBufferLayer> = (0..layers.count)
+            .map(|_| {
+                Ok(GBufferLayer {
+                    color: Image::new_2d(
+                        ctx,
+                        "gaussian layer",
+                        vk::Format::R16G16B16A16_SFLOAT,
+                        width,
+                        height,
+                        1,
+                        storage,
+                    )?,
+                    eye: Image::new_2d(
+                        ctx,
+                        "gaussian layer eye",
+                        vk::Format::R32G32B32A32_SFLOAT,
+                        width,
+                        height,
+                        1,
+                        storage,
+                    )?,
+                })
+            })
+            .collect::<Result<_>>()?;
+        let method = Configured {
+            pipelines: &self.layered,
+            options: LayeredOptions {
+                layers: layers.count,
+                keep_occluded: true,
+            },
+        };
+        let dof = method.prepare(ctx, &view)?;
+        let result_readback = readback(
+            ctx,
+            "gaussian layered readback",
+            8 * camera.width as u64 * camera.height as u64,
+        )?;
+        let mut frame = Frame::begin(ctx, "gaussians layered")?;
+        frame.pass("clear", |rec| {
+            rec.update_u32(&chain.counts, &[scene.count, 0, 0, 0]);
+            rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
+        });
+        let values = self.record_chain(&mut frame, scene, &chain, &big, Vec2::ZERO);
+        frame.pass("gaussians: layers", |rec| {
+            let binds = [
+                Bind::StorageBuffer(&chain.projected),
+                Bind::StorageBuffer(values),
+                Bind::StorageBuffer(&chain.ranges),
+                Bind::StorageBuffer(&chain.counts),
+                Bind::StorageBuffer(&layer_color),
+                Bind::StorageBuffer(&layer_eye),
+            ];
+            let push = LayersPush {
+                background: background.extend(0.0).to_array(),
+                background_encoded: [
+                    linear_to_srgb(background.x),
+                    linear_to_srgb(background.y),
+                    linear_to_srgb(background.z),
+                    0.0,
+                ],
+                width,
+                height,
+                capacity,
+                entries_index: COUNT_ENTRIES,
+                layers: layers.count,
+                layer_lo: layers.lo,
+                layer_width: layers.width,
+                f_px: camera.f_px(),
+                aperture_radius: camera.aperture_radius,
+                focus_distance: camera.focus_distance,
+            };
+            rec.dispatch(&self.layers, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
+            let images: Vec<_> = gbuffer
+                .iter()
+                .flat_map(|l| {
+                    [
+                        (&l.color, Access::NONE, Access::COMPUTE_WRITE),
+                        (&l.eye, Access::NONE, Access::COMPUTE_WRITE),
+                    ]
+                })
+                .collect();
+            rec.barriers(&images);
+            for (l, layer) in gbuffer.iter().enumerate() {
+                let binds = [
+                    Bind::StorageBuffer(&layer_color),
+                    Bind::StorageBuffer(&layer_eye),
+                    Bind::StorageImage(&layer.color),
+                    Bind::StorageImage(&layer.eye),
+                ];
+                let push = StorePush {
+                    width,
+                    height,
+                    layer: l as u32,
+                };
+                rec.dispatch(
+                    &self.store,
+                    &binds,
+                    &push,
+                    [width.div_ceil(8), height.div_ceil(8), 1],
+                );
+            }
+        });
+        let input = DofInput {
+            color: &gbuffer[0].color,
+            eye: &gbuffer[0].eye,
+            layers: &gbuffer,
+            background,
+            view,
+        };
+        let result = dof.record(&mut frame, &input);
+        frame.pass("readback", |rec| {
+            rec.barriers(&[(result, Access::COMPUTE_READ_WRITE, Access::COPY_SRC)]);
+            rec.copy_image_to_buffer(
+                result,
+                [guard, guard],
+                [camera.width, camera.height],
+                &result_readback,
+            );
+            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COPY_SRC);
+            rec.copy_buffer(&chain.counts, &chain.counts_readback);
+            rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
+        });
+        let timings = frame.submit_and_wait()?;
+        let bytes = host_bytes(&result_readback)?;
+        let image = LinearImage {
+            width: camera.width,
+            height: camera.height,
+            pixels: bytes
+                .chunks_exact(8)
+                .map(|t| {
+                    let c: [f32; 4] = std::array::from_fn(|i| {
+                        f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))
+                    });
+                    [c[0], c[1], c[2], 1.0]
+                })
+                .collect(),
+        };
+        let entries = chain.most_entries()?;
         Ok((
             GaussianFrame {
                 image,
@@ -517,6 +768,116 @@ impl GaussianRenderer {
     }
 }
 
+/// The most depth layers of the layered method on Gaussians: the point
+/// method's most peeled layers ([`crate::options::check_layers`]).
+pub const MAX_LAYERS: u32 = 8;
+
+/// The depth layers of a frame of Gaussians: `count` layers of `width` px
+/// of signed CoC from `lo`, nearest first (as the point method's slices,
+/// [`Slices::of`], at most [`MAX_LAYERS`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layers {
+    pub count: u32,
+    pub lo: f32,
+    pub width: f32,
+}
+
+impl Layers {
+    /// The layers for Gaussians centred at eye depths `depths`.
+    pub fn of(camera: &Camera, depths: Option<(f32, f32)>) -> Layers {
+        let slices = Slices::of(camera, depths);
+        let count = slices.count.min(MAX_LAYERS);
+        Layers {
+            count,
+            lo: slices.lo,
+            width: slices.width * slices.count as f32 / count as f32,
+        }
+    }
+}
+
+/// The buffers of one chain (per lens point) of `count` Gaussians into a
+/// `width` × `height` frame with a tile list of `capacity` entries.
+struct Chain {
+    width: u32,
+    height: u32,
+    grid: (u32, u32),
+    tile_bits: u32,
+    capacity: u32,
+    projected: Buffer,
+    depth_keys: Buffer,
+    order: Buffer,
+    touched: Buffer,
+    offsets: Buffer,
+    depth_scratch: SortScratch,
+    scan_scratch: ScanScratch,
+    tile_keys: Buffer,
+    tile_values: Buffer,
+    tile_scratch: SortScratch,
+    ranges: Buffer,
+    counts: Buffer,
+    counts_readback: Buffer,
+}
+
+impl Chain {
+    fn new(ctx: &Arc<Context>, n: u32, capacity: u32, width: u32, height: u32) -> Result<Chain> {
+        let grid = (
+            width.div_ceil(TILE_PX as u32),
+            height.div_ceil(TILE_PX as u32),
+        );
+        let tiles = grid.0 * grid.1;
+        if 16 * width as u64 * height as u64 > ctx.info.max_storage_buffer_range {
+            return Err(Error::InvalidArgument(format!(
+                "a {width} × {height} image of Gaussians is more than this device binds in one buffer"
+            )));
+        }
+        let gpu_words = |name: &str, words: u64| words_buffer(ctx, name, words);
+        Ok(Chain {
+            width,
+            height,
+            grid,
+            tile_bits: 32 - (tiles.max(2) - 1).leading_zeros(),
+            capacity,
+            projected: gpu_words("gaussians projected", n as u64 * PROJECTED_BYTES / 4)?,
+            depth_keys: gpu_words("gaussian depth keys", n as u64)?,
+            order: gpu_words("gaussian order", n as u64)?,
+            touched: gpu_words("gaussian tiles touched", n as u64)?,
+            offsets: gpu_words("gaussian tile offsets", n as u64)?,
+            depth_scratch: SortScratch::new(ctx, "gaussian depth sort", n)?,
+            scan_scratch: ScanScratch::new(ctx, "gaussian tile offset blocks", n)?,
+            tile_keys: gpu_words("gaussian tile keys", capacity as u64)?,
+            tile_values: gpu_words("gaussian tile values", capacity as u64)?,
+            tile_scratch: SortScratch::new(ctx, "gaussian tile sort", capacity)?,
+            ranges: gpu_words("gaussian tile ranges", 2 * tiles as u64)?,
+            counts: gpu_words("gaussian counts", COUNT_WORDS)?,
+            counts_readback: readback(ctx, "gaussian counts readback", 4 * COUNT_WORDS)?,
+        })
+    }
+
+    /// After the frame: the most tile entries any lens point needed.
+    fn most_entries(&self) -> Result<u32> {
+        let counts: Vec<u32> = bytemuck::pod_collect_to_vec(host_bytes(&self.counts_readback)?);
+        Ok(counts[COUNT_ENTRIES as usize + 1])
+    }
+}
+
+/// A host-visible buffer of `bytes` that copies write.
+fn readback(ctx: &Arc<Context>, name: &str, bytes: u64) -> Result<Buffer> {
+    Buffer::new(
+        ctx,
+        name,
+        bytes,
+        vk::BufferUsageFlags::TRANSFER_DST,
+        MemoryLocation::GpuToCpu,
+    )
+}
+
+/// The mapped bytes of a readback buffer.
+fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
+    buffer
+        .mapped()
+        .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -527,6 +888,12 @@ mod tests {
         check_push_layout::<ProjectPush>("gaussian_project", PROJECT_SPIRV).unwrap();
         check_push_layout::<TilesPush>("gaussian_tiles", TILES_SPIRV).unwrap();
         check_push_layout::<BlendPush>("gaussian_blend", BLEND_SPIRV).unwrap();
+        check_push_layout::<LayersPush>("gaussian_layers", LAYERS_SPIRV).unwrap();
+        check_push_layout::<StorePush>("gaussian_layer_store", STORE_SPIRV).unwrap();
+        assert!(include_str!("../glsl/gaussian_layers.comp")
+            .contains(&format!("const uint MAX_LAYERS = {MAX_LAYERS}u;")));
+        assert!(crate::options::check_layers(MAX_LAYERS).is_ok());
+        assert!(crate::options::check_layers(MAX_LAYERS + 1).is_err());
         assert_eq!(std::mem::size_of::<GpuGaussian>(), 48);
         let glsl = include_str!("../glsl/gaussian.glsl");
         assert!(glsl.contains("vec4 position_opacity;\n    vec4 cov_a;"));

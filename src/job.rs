@@ -433,9 +433,10 @@ impl RenderJob {
     }
 
     /// Checks that the job asks for nothing a Gaussian scene cannot give
-    /// (docs/ARCHITECTURE.md, "3D Gaussian scenes"): `pinhole` or `accum`,
-    /// no `--focus-pixel`, no depth or CoC pass, no transparent
-    /// background. The lens points of its method.
+    /// (docs/ARCHITECTURE.md, "3D Gaussian scenes"): `pinhole`, `layered`
+    /// (one sample a pixel) or `accum`, no `--focus-pixel`, no depth or
+    /// CoC pass, no transparent background. The lens points of its method
+    /// (the centre for `layered`).
     pub fn gaussian_lens(&self) -> Result<Vec<glam::Vec2>> {
         let refuse = |what: &str| {
             Err(Error::InvalidArgument(format!(
@@ -451,14 +452,17 @@ impl RenderJob {
         if self.spec.written.transparent {
             return refuse("a transparent --background");
         }
+        if matches!(self.spec.method, Method::Layered(_)) && self.spec.ssaa > 1 {
+            return refuse("--ssaa above 1 with --method layered");
+        }
         match self.spec.method {
-            Method::Pinhole => Ok(vec![glam::Vec2::ZERO]),
+            Method::Pinhole | Method::Layered(_) => Ok(vec![glam::Vec2::ZERO]),
             Method::Accum(a) => {
                 crate::options::check_samples(a.samples)?;
                 Ok(camera::lens_samples(a.samples))
             }
             m => Err(Error::InvalidArgument(format!(
-                "--method {}: a scene of 3D Gaussians renders with pinhole or accum in this version",
+                "--method {}: a scene of 3D Gaussians renders with pinhole, layered or accum",
                 m.short_name()
             ))),
         }
@@ -493,13 +497,18 @@ impl RenderJob {
                 number: job.number,
                 spec: &spec,
             })?;
-            let frame = renderer.render(
-                scene,
-                &job.camera,
-                &lens,
-                self.spec.ssaa,
-                self.spec.background,
-            )?;
+            let frame = match self.spec.method {
+                Method::Layered(_) => {
+                    renderer.render_layered(scene, &job.camera, self.spec.background)?
+                }
+                _ => renderer.render(
+                    scene,
+                    &job.camera,
+                    &lens,
+                    self.spec.ssaa,
+                    self.spec.background,
+                )?,
+            };
             let t_encode = Instant::now();
             write_image(&frame.image, &job.output)?;
             let report = FrameReport {

@@ -363,3 +363,51 @@ fn supersampling_takes_the_cell_centres() {
         assert!(moved > 0.01, "supersampling changes the image by {moved}");
     });
 }
+
+/// PSNR (dB) of `image` against `reference`, RGB in linear light clamped
+/// to [0, 1].
+fn psnr(
+    image: &pointlens::image_io::LinearImage,
+    reference: &pointlens::image_io::LinearImage,
+) -> f64 {
+    let mut sum = 0.0f64;
+    for (a, b) in image.pixels.iter().zip(&reference.pixels) {
+        for c in 0..3 {
+            let d = (a[c].clamp(0.0, 1.0) - b[c].clamp(0.0, 1.0)) as f64;
+            sum += d * d;
+        }
+    }
+    let mse = sum / (3 * image.pixels.len()) as f64;
+    10.0 * (1.0 / mse.max(1e-20)).log10()
+}
+
+/// The layered method on Gaussians against `accum 256` (the reference) on
+/// 3,000 Gaussians 3 to 6 units deep focused at 4 with CoCs up to 7 px:
+/// 38.5 dB measured where the pinhole image reaches 26.2 — floors 35 dB
+/// and 8 dB above the pinhole; and with no lens the layers give the
+/// pinhole image (87 dB measured, the layers' half floats; floor 60).
+#[test]
+fn layered_gaussians_approach_accum() {
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        let scene = random_scene(3000, 9);
+        let mut camera = camera(96, 72);
+        let gpu = renderer.upload(&scene).unwrap();
+        let pinhole = renderer
+            .render(&gpu, &camera, &[Vec2::ZERO], 1, Vec3::ZERO)
+            .unwrap();
+        let sharp = renderer.render_layered(&gpu, &camera, Vec3::ZERO).unwrap();
+        let p0 = psnr(&sharp.image, &pinhole.image);
+        eprintln!("layered at R = 0 against pinhole: {p0:.1} dB");
+        camera.aperture_radius = 0.3;
+        let accum = renderer
+            .render(&gpu, &camera, &lens_samples(256), 1, Vec3::ZERO)
+            .unwrap();
+        let layered = renderer.render_layered(&gpu, &camera, Vec3::ZERO).unwrap();
+        let p = psnr(&layered.image, &accum.image);
+        let p_pin = psnr(&pinhole.image, &accum.image);
+        eprintln!("layered against accum 256: {p:.1} dB (pinhole {p_pin:.1} dB)");
+        assert!(p0 > 60.0, "{p0} dB");
+        assert!(p > 35.0 && p > p_pin + 8.0, "{p} dB, pinhole {p_pin} dB");
+    });
+}

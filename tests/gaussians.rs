@@ -210,11 +210,21 @@ fn the_command_line_knows_a_gaussian_scene() {
         "llvmpipe",
         "--validate",
     ];
-    // What a Gaussian scene cannot do yet, and flags about points: one
-    // line, no file.
+    // What a Gaussian scene cannot do, and flags about points: one line,
+    // no file.
     let refused = [
-        (vec!["--method", "layered"], "renders with pinhole or accum"),
-        (vec!["--method", "rdb"], "renders with pinhole or accum"),
+        (
+            vec!["--method", "rdb"],
+            "renders with pinhole, layered or accum",
+        ),
+        (
+            vec!["--method", "fast"],
+            "renders with pinhole, layered or accum",
+        ),
+        (
+            vec!["--ssaa", "2"],
+            "without --ssaa above 1 with --method layered",
+        ),
         (
             vec!["--method", "pinhole", "--splat-px", "3"],
             "--splat-px is about points",
@@ -230,10 +240,12 @@ fn the_command_line_knows_a_gaussian_scene() {
         args.extend(small);
         assert_fails(&args, phrase, &png);
     }
-    // Pinhole and accum write their images, a sequence its frames.
+    // Pinhole, accum and layered (the default) write their images, a
+    // sequence its frames.
     for method in [
         &["--method", "pinhole"][..],
         &["--method", "accum", "--samples", "4"],
+        &["--aperture-radius", "0.05"],
     ] {
         let mut args = vec!["render", p, "-o", o];
         args.extend(method);

@@ -305,7 +305,16 @@ impl LayeredImages {
             )?,
             band_rows,
             behind: image("layered behind", vk::Format::R32G32B32A32_SFLOAT, 1)?,
-            result: image("layered result", vk::Format::R16G16B16A16_SFLOAT, 1)?,
+            // Read by the output pass, or copied (Gaussians' readback).
+            result: Image::new_2d(
+                ctx,
+                "layered result",
+                vk::Format::R16G16B16A16_SFLOAT,
+                w,
+                h,
+                1,
+                storage | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
             counts: Buffer::new(
                 ctx,
                 "layered counts",

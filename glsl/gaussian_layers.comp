@@ -1,0 +1,137 @@
+#version 460
+// The layered method's input from Gaussians (src/gaussian_render.rs,
+// `render_layered`): the pinhole blend of gaussian_blend.comp, a workgroup
+// per 16 x 16 tile, but each pixel composites the Gaussians of each depth
+// layer apart (layers of equal signed-CoC width, nearest first; the tile
+// list is in depth order, so a pixel meets them layer after layer). Per
+// layer and pixel it writes what a depth-peeled G-buffer layer holds: its
+// light over the background, coverage = 1 - transmittance, and the eye
+// depth of its contributions (weighted as they were composited), +inf
+// where none. A layer's light is the linear-light difference it makes
+// over what lies behind it in the pinhole view, so that the layers laid
+// over one another without blur give the pinhole image exactly.
+#include "gaussian.glsl"
+#include "lens.glsl"
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+const uint GROUP = 256u;
+
+layout(binding = 0, std430) readonly buffer In { Projected projected[]; };
+layout(binding = 1, std430) readonly buffer TileValues { uint tile_values[]; };
+layout(binding = 2, std430) readonly buffer Ranges { uvec2 ranges[]; };
+layout(binding = 3, std430) readonly buffer Counts { uint counts[]; };
+// Per layer and pixel: rgba16f as two words, and (0, 0, z, coverage).
+layout(binding = 4, std430) writeonly buffer LayerColor { uvec2 layer_color[]; };
+layout(binding = 5, std430) writeonly buffer LayerEye { vec4 layer_eye[]; };
+
+layout(push_constant) uniform Push {
+    vec4 background;           // linear
+    vec4 background_encoded;   // sRGB-encoded
+    uint width;
+    uint height;
+    uint capacity;
+    uint entries_index;
+    uint layers;
+    float layer_lo;      // signed CoC (px) of layer 0's near edge
+    float layer_width;   // signed CoC (px) per layer
+    float f_px;
+    float aperture_radius;
+    float focus_distance;
+} pc;
+
+shared vec2 s_centre[GROUP];
+shared vec4 s_conic_opacity[GROUP];
+shared vec4 s_color_depth[GROUP];
+
+uint layer_of(float z) {
+    float c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+    return uint(clamp(floor((c - pc.layer_lo) / pc.layer_width), 0.0, float(pc.layers - 1u)));
+}
+
+// The most layers (crate::gaussian_render::MAX_LAYERS).
+const uint MAX_LAYERS = 8u;
+
+vec3 decode(vec3 c) {
+    return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
+}
+
+void main() {
+    bool overflow = counts[pc.entries_index] > pc.capacity;
+    uvec2 pixel = gl_GlobalInvocationID.xy;
+    uint grid_x = (pc.width + uint(TILE_PX) - 1u) / uint(TILE_PX);
+    uint tile = gl_WorkGroupID.y * grid_x + gl_WorkGroupID.x;
+    uint t = gl_LocalInvocationIndex;
+    bool inside = pixel.x < pc.width && pixel.y < pc.height;
+    uint i = pixel.y * pc.width + pixel.x;
+    vec2 at = vec2(pixel) + vec2(0.5);
+    uvec2 range = overflow ? uvec2(0u) : ranges[tile];
+    // Per layer, front to back: the composite (encoded), transmittance,
+    // and the weights of the depths.
+    vec3 colors[MAX_LAYERS];
+    float transmittances[MAX_LAYERS];
+    float wz[MAX_LAYERS];
+    float w[MAX_LAYERS];
+    for (uint l = 0u; l < MAX_LAYERS; l++) {
+        colors[l] = vec3(0.0);
+        transmittances[l] = 1.0;
+        wz[l] = 0.0;
+        w[l] = 0.0;
+    }
+    uint stopped = 0u;
+    for (uint first = range.x; first < range.y; first += GROUP) {
+        barrier(); // the previous batch is read
+        uint k = first + t;
+        if (k < range.y) {
+            Projected p = projected[tile_values[k]];
+            s_centre[t] = p.centre_depth.xy;
+            s_conic_opacity[t] = p.conic_opacity;
+            s_color_depth[t] = vec4(p.color.rgb, p.centre_depth.z);
+        }
+        barrier();
+        uint batch = min(GROUP, range.y - first);
+        for (uint j = 0u; j < batch && inside; j++) {
+            float z = s_color_depth[j].w;
+            uint l = layer_of(z);
+            if ((stopped & (1u << l)) != 0u) {
+                continue; // the layer met the transmittance limit
+            }
+            float transmittance = transmittances[l];
+            float alpha = gaussian_alpha(s_centre[j] - at, s_conic_opacity[j]);
+            if (alpha == 0.0) {
+                continue;
+            }
+            float next = transmittance * (1.0 - alpha);
+            if (next < 0.0001) {
+                stopped |= 1u << l;
+                continue;
+            }
+            float weight = alpha * transmittance;
+            colors[l] += s_color_depth[j].rgb * weight;
+            wz[l] += weight * z;
+            w[l] += weight;
+            transmittances[l] = next;
+        }
+    }
+    if (!inside) {
+        return;
+    }
+    // Back to front: what lies behind layer l in the pinhole view
+    // (encoded), and layer l's share of the light over it, so that laid
+    // over one another in linear light without blur the layers give the
+    // pinhole image: decode(C_l + T_l B) - T_l decode(B).
+    vec3 behind = pc.background_encoded.rgb;
+    for (int l = int(pc.layers) - 1; l >= 0; l--) {
+        float t = transmittances[l];
+        vec3 over = colors[l] + t * behind;
+        vec3 share = max(decode(over) - t * decode(behind), vec3(0.0));
+        behind = over;
+        float coverage = 1.0 - t;
+        float z = w[l] > 0.0 ? wz[l] / w[l] : 1.0 / 0.0;
+        // As a G-buffer layer holds it: the colour over the background.
+        vec3 color = share + t * pc.background.rgb;
+        uint at = uint(l) * pc.width * pc.height + i;
+        layer_color[at] = uvec2(packHalf2x16(color.rg), packHalf2x16(vec2(color.b, coverage)));
+        layer_eye[at] = vec4(0.0, 0.0, w[l] > 0.0 ? z : 1.0 / 0.0, coverage);
+    }
+}

@@ -9,7 +9,10 @@
 layout(local_size_x = 256) in;
 
 layout(binding = 0, std430) readonly buffer Gaussians { Gaussian gaussians[]; };
+// SH coefficients of Gaussians [0, sh_split) and [sh_split, count): two
+// buffers, so that 10^6 Gaussians of degree 3 fit lavapipe's 128 MiB.
 layout(binding = 1, std430) readonly buffer Sh { float sh[]; };
+layout(binding = 6, std430) readonly buffer ShRest { float sh_rest[]; };
 layout(binding = 2, std430) writeonly buffer Out { Projected projected[]; };
 layout(binding = 3, std430) writeonly buffer Keys { uint keys[]; };
 layout(binding = 4, std430) writeonly buffer Values { uint values[]; };
@@ -27,6 +30,7 @@ layout(push_constant) uniform Push {
     uint height;
     uint sh_degree;
     uint sh_stride;    // floats of SH per Gaussian
+    uint sh_split;     // the first Gaussian whose SH is in sh_rest
 } pc;
 
 const float SH_C0 = 0.28209479177387814;
@@ -37,31 +41,35 @@ const float SH_C3[7] = float[](-0.5900435899266435, 2.890611442640554, -0.457045
                                0.3731763325901154, -0.4570457994644658, 1.445305721320277,
                                -0.5900435899266435);
 
-vec3 coef(uint base, uint k) {
-    return vec3(sh[base + 3u * k], sh[base + 3u * k + 1u], sh[base + 3u * k + 2u]);
+vec3 coef(uint g, uint k) {
+    if (g < pc.sh_split) {
+        uint base = g * pc.sh_stride + 3u * k;
+        return vec3(sh[base], sh[base + 1u], sh[base + 2u]);
+    }
+    uint base = (g - pc.sh_split) * pc.sh_stride + 3u * k;
+    return vec3(sh_rest[base], sh_rest[base + 1u], sh_rest[base + 2u]);
 }
 
 // crate::gaussians::sh_color.
 vec3 sh_color(uint g, vec3 d) {
-    uint base = g * pc.sh_stride;
-    vec3 result = SH_C0 * coef(base, 0u);
+    vec3 result = SH_C0 * coef(g, 0u);
     if (pc.sh_degree > 0u) {
         float x = d.x, y = d.y, z = d.z;
-        result += -SH_C1 * y * coef(base, 1u) + SH_C1 * z * coef(base, 2u) - SH_C1 * x * coef(base, 3u);
+        result += -SH_C1 * y * coef(g, 1u) + SH_C1 * z * coef(g, 2u) - SH_C1 * x * coef(g, 3u);
         if (pc.sh_degree > 1u) {
             float xx = x * x, yy = y * y, zz = z * z;
             float xy = x * y, yz = y * z, xz = x * z;
-            result += SH_C2[0] * xy * coef(base, 4u) + SH_C2[1] * yz * coef(base, 5u)
-                + SH_C2[2] * (2.0 * zz - xx - yy) * coef(base, 6u) + SH_C2[3] * xz * coef(base, 7u)
-                + SH_C2[4] * (xx - yy) * coef(base, 8u);
+            result += SH_C2[0] * xy * coef(g, 4u) + SH_C2[1] * yz * coef(g, 5u)
+                + SH_C2[2] * (2.0 * zz - xx - yy) * coef(g, 6u) + SH_C2[3] * xz * coef(g, 7u)
+                + SH_C2[4] * (xx - yy) * coef(g, 8u);
             if (pc.sh_degree > 2u) {
-                result += SH_C3[0] * y * (3.0 * xx - yy) * coef(base, 9u)
-                    + SH_C3[1] * xy * z * coef(base, 10u)
-                    + SH_C3[2] * y * (4.0 * zz - xx - yy) * coef(base, 11u)
-                    + SH_C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy) * coef(base, 12u)
-                    + SH_C3[4] * x * (4.0 * zz - xx - yy) * coef(base, 13u)
-                    + SH_C3[5] * z * (xx - yy) * coef(base, 14u)
-                    + SH_C3[6] * x * (xx - 3.0 * yy) * coef(base, 15u);
+                result += SH_C3[0] * y * (3.0 * xx - yy) * coef(g, 9u)
+                    + SH_C3[1] * xy * z * coef(g, 10u)
+                    + SH_C3[2] * y * (4.0 * zz - xx - yy) * coef(g, 11u)
+                    + SH_C3[3] * z * (2.0 * zz - 3.0 * xx - 3.0 * yy) * coef(g, 12u)
+                    + SH_C3[4] * x * (4.0 * zz - xx - yy) * coef(g, 13u)
+                    + SH_C3[5] * z * (xx - yy) * coef(g, 14u)
+                    + SH_C3[6] * x * (xx - 3.0 * yy) * coef(g, 15u);
             }
         }
     }

@@ -83,6 +83,7 @@ push_constants! {
         pub height: u32,
         pub sh_degree: u32,
         pub sh_stride: u32,
+        pub sh_split: u32,
     }
 }
 
@@ -143,7 +144,11 @@ pub struct GpuGaussians {
     /// The centres, for the depth range of a frame.
     centres: Vec<Vec3>,
     gaussians: Buffer,
+    /// The SH of Gaussians `..sh_split`, and of the rest: two buffers,
+    /// each within the device's binding range.
     sh: Buffer,
+    sh_rest: Buffer,
+    sh_split: u32,
     count: u32,
     sh_degree: u32,
     sh_stride: u32,
@@ -196,6 +201,9 @@ pub struct GaussianRenderer {
     layered: Layered,
     sort: RadixSort,
     capacity: std::sync::atomic::AtomicU32,
+    /// At most this many Gaussians' SH in the first buffer (tests of the
+    /// split; None: as many as the device binds).
+    sh_split_limit: Option<usize>,
 }
 
 /// The largest buffer a shader may bind, in 32-bit words.
@@ -208,7 +216,7 @@ impl GaussianRenderer {
         let b = Binding::StorageBuffer;
         Ok(GaussianRenderer {
             ctx: ctx.clone(),
-            project: ComputePipeline::new(ctx, "gaussian_project", PROJECT_SPIRV, &[b; 6])?,
+            project: ComputePipeline::new(ctx, "gaussian_project", PROJECT_SPIRV, &[b; 7])?,
             tiles: ComputePipeline::new(ctx, "gaussian_tiles", TILES_SPIRV, &[b; 8])?,
             blend: ComputePipeline::new(ctx, "gaussian_blend", BLEND_SPIRV, &[b; 5])?,
             layers: ComputePipeline::new(ctx, "gaussian_layers", LAYERS_SPIRV, &[b; 6])?,
@@ -221,7 +229,15 @@ impl GaussianRenderer {
             layered: Layered::new(ctx)?,
             sort: RadixSort::new(ctx)?,
             capacity: std::sync::atomic::AtomicU32::new(0),
+            sh_split_limit: None,
         })
+    }
+
+    /// Puts the SH of at most `limit` Gaussians in the first of the two
+    /// SH buffers (where the device's binding range does not already): to
+    /// test the split on small scenes.
+    pub fn set_sh_split_limit(&mut self, limit: usize) {
+        self.sh_split_limit = Some(limit);
     }
 
     /// The device it renders on.
@@ -263,9 +279,15 @@ impl GaussianRenderer {
             })
             .collect();
         let sh_bytes = 4 * scene.sh.len() as u64;
-        if sh_bytes > ctx.info.max_storage_buffer_range {
+        let stride = 3 * scene.coefficients();
+        let per_buffer = (ctx.info.max_storage_buffer_range / (4 * stride as u64)) as usize;
+        if sh_bytes > 2 * per_buffer as u64 * 4 * stride as u64 {
             return Err(too_many("SH coefficients", sh_bytes));
         }
+        let split = scene
+            .len()
+            .min(per_buffer)
+            .min(self.sh_split_limit.unwrap_or(usize::MAX));
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let upload = |name: &str, bytes: &[u8]| -> Result<Buffer> {
             // A buffer is never empty.
@@ -279,7 +301,15 @@ impl GaussianRenderer {
         Ok(GpuGaussians {
             centres: scene.positions.clone(),
             gaussians: upload("gaussians", bytemuck::cast_slice(&gaussians))?,
-            sh: upload("gaussian sh", bytemuck::cast_slice(&scene.sh))?,
+            sh: upload(
+                "gaussian sh",
+                bytemuck::cast_slice(&scene.sh[..split * stride]),
+            )?,
+            sh_rest: upload(
+                "gaussian sh rest",
+                bytemuck::cast_slice(&scene.sh[split * stride..]),
+            )?,
+            sh_split: split as u32,
             count: n as u32,
             sh_degree: scene.sh_degree,
             sh_stride: 3 * scene.coefficients() as u32,
@@ -373,6 +403,7 @@ impl GaussianRenderer {
             height: chain.height,
             sh_degree: scene.sh_degree,
             sh_stride: scene.sh_stride,
+            sh_split: scene.sh_split,
         };
         frame.pass("gaussians: project", |rec| {
             let binds = [
@@ -382,6 +413,7 @@ impl GaussianRenderer {
                 Bind::StorageBuffer(&chain.depth_keys),
                 Bind::StorageBuffer(&chain.order),
                 Bind::StorageBuffer(&chain.touched),
+                Bind::StorageBuffer(&scene.sh_rest),
             ];
             // The previous lens point's passes read what this writes.
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);

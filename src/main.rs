@@ -1194,45 +1194,15 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
     let renderer = GaussianRenderer::new(&ctx)?;
     let gpu = renderer.upload(&scene)?;
     drop(scene);
-    let sequence = job.is_sequence();
-    let bar = match sequence {
-        true => progress(
-            plan.frames.len() as u64,
-            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
-            quiet,
-        ),
-        false => ProgressBar::hidden(),
+    let how = FramesArgs {
+        print_camera: args.print_camera,
+        timings: args.timings,
+        quiet,
     };
-    let outcome = job.render_gaussians(&renderer, &gpu, &plan, &stop, load_ms, &mut |event| {
-        match event {
-            JobEvent::Camera { spec, .. } if args.print_camera && !sequence => {
-                emit(&format!("{}\n", spec.to_json()))?;
-            }
-            JobEvent::Camera { .. } => {}
-            JobEvent::Written {
-                number,
-                seconds,
-                report,
-                ..
-            } => {
-                bar.set_message(format!("{seconds:.2} s/frame"));
-                bar.inc(1);
-                if args.timings {
-                    if sequence {
-                        eprintln!("frame {number}:");
-                    }
-                    eprint!("{}", report.text());
-                }
-            }
-        }
-        Ok(())
-    });
-    match &outcome {
-        Err(pointlens::Error::Interrupted { .. }) => bar.abandon(),
-        _ => bar.finish_and_clear(),
-    }
-    let outcome = outcome?;
-    if args.print_camera && sequence {
+    let outcome = show_frames(&job, &plan, how, &mut |events| {
+        job.render_gaussians(&renderer, &gpu, &plan, &stop, load_ms, events)
+    })?;
+    if args.print_camera && job.is_sequence() {
         out!("{}\n", job::camera_path(&outcome).to_json())?;
     }
     job.write_timings(&outcome.reports)?;
@@ -1316,6 +1286,23 @@ fn render_frames(
     stop: &AtomicBool,
     how: FramesArgs,
 ) -> Result<Outcome> {
+    show_frames(job, plan, how, &mut |events| {
+        job.render(renderer, scenes, plan, stop, load_ms, events)
+    })
+}
+
+/// What a job tells as it renders ([`RenderJob::render`]).
+type Events<'a> = dyn FnMut(JobEvent) -> pointlens::Result<()> + 'a;
+
+/// Runs `render` (the frames of `plan`) with a progress bar (sequences),
+/// the camera (`--print-camera` of one image) and each frame's timings on
+/// stderr, as `render` tells its events.
+fn show_frames(
+    job: &RenderJob,
+    plan: &Plan,
+    how: FramesArgs,
+    render: &mut dyn FnMut(&mut Events<'_>) -> pointlens::Result<Outcome>,
+) -> Result<Outcome> {
     let sequence = job.is_sequence();
     let bar = match sequence {
         true => progress(
@@ -1325,7 +1312,7 @@ fn render_frames(
         ),
         false => ProgressBar::hidden(),
     };
-    let outcome = job.render(renderer, scenes, plan, stop, load_ms, &mut |event| {
+    let outcome = render(&mut |event| {
         match event {
             JobEvent::Camera { spec, .. } if how.print_camera && !sequence => {
                 emit(&format!("{}\n", spec.to_json()))?;

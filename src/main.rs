@@ -1168,6 +1168,7 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
     job.gaussian_lens()?;
     let stop = Arc::new(AtomicBool::new(false));
     job::watch_signals(job.is_sequence(), stop.clone())?;
+    pointlens::input::gaussians::check_fits(&args.input, args.memory.memory_mb)?;
     let t_load = Instant::now();
     let scene = pointlens::input::gaussians::load_gaussians(&args.input)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;

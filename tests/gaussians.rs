@@ -255,6 +255,23 @@ fn the_command_line_knows_a_gaussian_scene() {
         assert_eq!((image.width, image.height), (40, 30));
         std::fs::remove_file(&png).unwrap();
     }
+    // A scene that would not fit --memory-mb: one line, no file.
+    let large = dir.path().join("large.ply");
+    write(&large, "binary_little_endian", &scene(4000, 3), &[]);
+    let mut args = vec![
+        "render",
+        large.to_str().unwrap(),
+        "-o",
+        o,
+        "--memory-mb",
+        "1",
+    ];
+    args.extend(small);
+    assert_fails(
+        &args,
+        "4000 Gaussians need about 2 MiB, more than --memory-mb 1",
+        &png,
+    );
     let pattern = dir.path().join("f_%02d.exr");
     let mut args = vec![
         "render",

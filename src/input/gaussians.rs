@@ -94,6 +94,31 @@ fn sh_degree(rest: usize) -> Option<u32> {
     }
 }
 
+/// Host bytes a Gaussian takes beyond its file record while `render`
+/// holds the scene: the read scene's centre, scale, rotation and opacity
+/// (44 B), the upload's record (48 B) and the centres kept for each
+/// frame's depth range (12 B), rounded up; its SH coefficients are counted
+/// by the record.
+pub const RENDER_BYTES_PER_GAUSSIAN: u64 = 112;
+
+/// Refuses, in one line, a Gaussian scene whose reading and upload would
+/// take more than `memory_mb` MiB: its payload plus
+/// [`RENDER_BYTES_PER_GAUSSIAN`] a Gaussian (a pipe is not checked).
+pub fn check_fits(path: &Path, memory_mb: u64) -> Result<()> {
+    let Some((count, _, payload_len)) = super::ply::declared_points(path)? else {
+        return Ok(());
+    };
+    let needed = payload_len.saturating_add(count.saturating_mul(RENDER_BYTES_PER_GAUSSIAN));
+    if needed <= memory_mb.saturating_mul(1 << 20) {
+        return Ok(());
+    }
+    Err(crate::error::Error::InvalidArgument(format!(
+        "{}: {count} Gaussians need about {} MiB, more than --memory-mb {memory_mb}",
+        path.display(),
+        needed.div_ceil(1 << 20)
+    )))
+}
+
 /// Reads the 3D Gaussians of the PLY file at `path` (binary or ASCII,
 /// read whole). Missing properties, a count of `f_rest_*` that is no SH
 /// degree, a value that is not finite, a quaternion of zeros, a log-scale

@@ -188,6 +188,9 @@ pub struct GaussianFrame {
     pub entries: u32,
     /// Frames rendered again because a tile list outgrew its buffer.
     pub retries: u32,
+    /// Pixels rendered beyond each side of the image (`layered`'s guard
+    /// band; 0 for the others).
+    pub guard: u32,
 }
 
 /// The pipelines, and the tile list's capacity learnt from past frames.
@@ -590,6 +593,7 @@ impl GaussianRenderer {
                 timings,
                 entries,
                 retries: 0,
+                guard: 0,
             },
             entries,
         ))
@@ -794,6 +798,7 @@ impl GaussianRenderer {
                 timings,
                 entries,
                 retries: 0,
+                guard,
             },
             entries,
         ))

@@ -518,13 +518,18 @@ impl RenderJob {
                     ("gaussians.tile_entries".into(), frame.entries as u64),
                     ("gaussians.retries".into(), frame.retries as u64),
                 ],
+                gaussians: true,
                 ..FrameReport::new(
                     &renderer.ctx().info,
-                    self.spec.method.short_name(),
+                    match self.spec.method {
+                        // Its layers are depth layers, not --layers.
+                        Method::Layered(_) => "layered".into(),
+                        m => m.short_name(),
+                    },
                     (job.camera.width, job.camera.height),
                     self.spec.ssaa,
                     scene.len() as usize,
-                    0,
+                    frame.guard,
                     &frame.timings,
                     Default::default(),
                 )

@@ -117,6 +117,10 @@ pub struct FrameReport {
     pub load_ms: f64,
     /// Encoding and writing the output image.
     pub encode_ms: f64,
+    /// A frame of 3D Gaussians: `points` counts Gaussians, and there is no
+    /// splat hierarchy (false in reports written before them).
+    #[serde(default)]
+    pub gaussians: bool,
 }
 
 impl FrameReport {
@@ -149,6 +153,7 @@ impl FrameReport {
             upload,
             load_ms: 0.0,
             encode_ms: 0.0,
+            gaussians: false,
         }
     }
 
@@ -157,7 +162,7 @@ impl FrameReport {
     pub fn text(&self) -> String {
         let d = &self.device;
         let mut s = format!(
-            "device: {} ({} {})\nframe: {}x{} method {} ssaa {} ({} per raster pass) points {} guard {} px\n",
+            "device: {} ({} {})\nframe: {}x{} method {} ssaa {} ({} per raster pass) {} {} guard {} px\n",
             d.name,
             d.driver,
             d.driver_info,
@@ -166,6 +171,7 @@ impl FrameReport {
             self.method,
             self.ssaa,
             self.samples_per_pass,
+            if self.gaussians { "gaussians" } else { "points" },
             self.points,
             self.guard_px
         );
@@ -178,6 +184,13 @@ impl FrameReport {
             s += &format!("{name:<28} {value:>10}\n");
         }
         let l = &self.lod;
+        if self.gaussians {
+            s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
+            for (name, ms) in [("load wall", self.load_ms), ("encode wall", self.encode_ms)] {
+                s += &format!("{name:<20} {ms:>10.3}   (not in the frame)\n");
+            }
+            return s;
+        }
         let rule = match l.lod_blur {
             Some(f) => format!("lod-px {} lod-blur {f}", l.lod_px),
             None => format!("lod-px {}", l.lod_px),

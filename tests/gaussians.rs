@@ -247,10 +247,14 @@ fn the_command_line_knows_a_gaussian_scene() {
         &["--method", "accum", "--samples", "4"],
         &["--aperture-radius", "0.05"],
     ] {
-        let mut args = vec!["render", p, "-o", o];
+        let mut args = vec!["render", p, "-o", o, "--timings"];
         args.extend(method);
         args.extend(small);
-        assert_runs(&args);
+        let run = assert_runs(&args);
+        // The report counts Gaussians and names their chain's passes.
+        let report = String::from_utf8_lossy(&run.stderr);
+        assert!(report.contains("gaussians 30 guard"), "{report}");
+        assert!(report.contains("gaussians: tile sort"), "{report}");
         let image = pointlens::image_io::read_image(&png).unwrap();
         assert_eq!((image.width, image.height), (40, 30));
         std::fs::remove_file(&png).unwrap();

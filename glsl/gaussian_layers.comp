@@ -21,9 +21,38 @@ layout(binding = 0, std430) readonly buffer In { Projected projected[]; };
 layout(binding = 1, std430) readonly buffer TileValues { uint tile_values[]; };
 layout(binding = 2, std430) readonly buffer Ranges { uvec2 ranges[]; };
 layout(binding = 3, std430) readonly buffer Counts { uint counts[]; };
-// Per layer and pixel: rgba16f as two words, and (0, 0, z, coverage).
-layout(binding = 4, std430) writeonly buffer LayerColor { uvec2 layer_color[]; };
-layout(binding = 5, std430) writeonly buffer LayerEye { vec4 layer_eye[]; };
+// Per layer, the images of a G-buffer layer: colour over the background
+// with coverage (rgba16f), and (0, 0, z, coverage) (rgba32f). Layers past
+// pc.layers are bound to layer 0's images and never written.
+layout(binding = 4, rgba16f) uniform writeonly image2D color0;
+layout(binding = 5, rgba16f) uniform writeonly image2D color1;
+layout(binding = 6, rgba16f) uniform writeonly image2D color2;
+layout(binding = 7, rgba16f) uniform writeonly image2D color3;
+layout(binding = 8, rgba16f) uniform writeonly image2D color4;
+layout(binding = 9, rgba16f) uniform writeonly image2D color5;
+layout(binding = 10, rgba16f) uniform writeonly image2D color6;
+layout(binding = 11, rgba16f) uniform writeonly image2D color7;
+layout(binding = 12, rgba32f) uniform writeonly image2D eye0;
+layout(binding = 13, rgba32f) uniform writeonly image2D eye1;
+layout(binding = 14, rgba32f) uniform writeonly image2D eye2;
+layout(binding = 15, rgba32f) uniform writeonly image2D eye3;
+layout(binding = 16, rgba32f) uniform writeonly image2D eye4;
+layout(binding = 17, rgba32f) uniform writeonly image2D eye5;
+layout(binding = 18, rgba32f) uniform writeonly image2D eye6;
+layout(binding = 19, rgba32f) uniform writeonly image2D eye7;
+
+void store(int layer, ivec2 p, vec4 color, vec4 eye) {
+    switch (layer) {
+    case 0: imageStore(color0, p, color); imageStore(eye0, p, eye); break;
+    case 1: imageStore(color1, p, color); imageStore(eye1, p, eye); break;
+    case 2: imageStore(color2, p, color); imageStore(eye2, p, eye); break;
+    case 3: imageStore(color3, p, color); imageStore(eye3, p, eye); break;
+    case 4: imageStore(color4, p, color); imageStore(eye4, p, eye); break;
+    case 5: imageStore(color5, p, color); imageStore(eye5, p, eye); break;
+    case 6: imageStore(color6, p, color); imageStore(eye6, p, eye); break;
+    case 7: imageStore(color7, p, color); imageStore(eye7, p, eye); break;
+    }
+}
 
 layout(push_constant) uniform Push {
     vec4 background;           // linear
@@ -124,14 +153,13 @@ void main() {
     for (int l = int(pc.layers) - 1; l >= 0; l--) {
         float t = transmittances[l];
         vec3 over = colors[l] + t * behind;
-        vec3 share = max(decode(over) - t * decode(behind), vec3(0.0));
+        // Signed: a layer darker than what it covers takes light away.
+        vec3 share = decode(over) - t * decode(behind);
         behind = over;
         float coverage = 1.0 - t;
         float z = w[l] > 0.0 ? wz[l] / w[l] : 1.0 / 0.0;
         // As a G-buffer layer holds it: the colour over the background.
         vec3 color = share + t * pc.background.rgb;
-        uint at = uint(l) * pc.width * pc.height + i;
-        layer_color[at] = uvec2(packHalf2x16(color.rg), packHalf2x16(vec2(color.b, coverage)));
-        layer_eye[at] = vec4(0.0, 0.0, w[l] > 0.0 ? z : 1.0 / 0.0, coverage);
+        store(l, ivec2(pixel), vec4(color, coverage), vec4(0.0, 0.0, z, coverage));
     }
 }

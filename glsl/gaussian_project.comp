@@ -123,7 +123,9 @@ void main() {
     float b = dot(t0, st1);
     float c = dot(t1, st1) + 0.3;
     float det = a * c - b * b;
-    if (det == 0.0) {
+    // Also culled: a covariance beyond floats (a huge Gaussian near the
+    // eye), whose radius and tiles would not be numbers.
+    if (det == 0.0 || isinf(det) || isnan(det)) {
         cull(g);
         return;
     }
@@ -131,11 +133,17 @@ void main() {
     float mid = 0.5 * (a + c);
     float lambda1 = mid + sqrt(max(mid * mid - det, 0.1));
     float lambda2 = mid - sqrt(max(mid * mid - det, 0.1));
-    int radius = int(ceil(3.0 * sqrt(max(lambda1, lambda2))));
+    // Kept in floats: the tiles clamp it to the image (an int would
+    // overflow for a huge Gaussian).
+    float radius = ceil(3.0 * sqrt(max(lambda1, lambda2)));
+    if (isinf(radius) || isnan(radius)) {
+        cull(g);
+        return;
+    }
     vec2 centre = vec2(float(pc.width) / 2.0 + f * e.x / e.z, float(pc.height) / 2.0 - f * e.y / e.z);
     vec2 at = centre - vec2(0.5);
     ivec2 grid = (ivec2(pc.width, pc.height) + TILE_PX - 1) / TILE_PX;
-    float r = float(radius);
+    float r = radius;
     ivec4 tiles = ivec4(
         int(min(max((at.x - r) / float(TILE_PX), 0.0), float(grid.x))),
         int(min(max((at.x + r + float(TILE_PX) - 1.0) / float(TILE_PX), 0.0), float(grid.x))),

@@ -50,15 +50,17 @@ void main() {
         }
         return;
     }
+    // Any number of entries: each invocation every stride-th one (the
+    // dispatch is bounded by the device's workgroup count).
     uint n = min(counts[pc.entries_index], pc.capacity);
-    if (i >= n) {
-        return;
-    }
-    uint tile = tile_keys[i];
-    if (i == 0u || tile_keys[i - 1u] != tile) {
-        ranges[tile].x = i;
-    }
-    if (i + 1u == n || tile_keys[i + 1u] != tile) {
-        ranges[tile].y = i + 1u;
+    uint stride = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    for (; i < n; i += stride) {
+        uint tile = tile_keys[i];
+        if (i == 0u || tile_keys[i - 1u] != tile) {
+            ranges[tile].x = i;
+        }
+        if (i + 1u == n || tile_keys[i + 1u] != tile) {
+            ranges[tile].y = i + 1u;
+        }
     }
 }

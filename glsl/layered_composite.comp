@@ -44,7 +44,8 @@ void main() {
         vec4 spread = vec4(unpack(rg), unpack(ba));
         float a = max(spread.a, 0.0);
         float alpha = min(a, 1.0);
-        vec3 color = a > 1.0 ? max(spread.rgb, vec3(0.0)) / a : max(spread.rgb, vec3(0.0));
+        vec3 rgb = pc.gaussian_layers != 0u ? spread.rgb : max(spread.rgb, vec3(0.0));
+        vec3 color = a > 1.0 ? rgb / a : rgb;
         vec4 under = farthest ? vec4(pc.background.rgb, 0.0) : imageLoad(behind, ivec2(x, y));
         vec4 over = vec4(color + under.rgb * (1.0 - alpha), alpha + under.a * (1.0 - alpha));
         if (nearest) {

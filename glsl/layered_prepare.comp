@@ -142,7 +142,10 @@ void prepare(ivec2 p) {
     atomicAdd(group_counts[keep ? 0 : 1], 1u);
     vec3 mean = imageLoad(layer_color, p).rgb;
     // The mean holds the background's color for the uncovered samples.
-    vec3 premultiplied = max(mean - (1.0 - coverage) * pc.background.rgb, vec3(0.0));
+    vec3 premultiplied = mean - (1.0 - coverage) * pc.background.rgb;
+    if (pc.gaussian_layers == 0u) {
+        premultiplied = max(premultiplied, vec3(0.0));
+    }
     imageStore(fragment_color, at, keep ? vec4(premultiplied, coverage) : vec4(0.0));
     // Kept or not, the pixel's surface occludes the layers behind it.
     float c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);

@@ -18,4 +18,8 @@ layout(push_constant, std430) uniform LayeredPush {
     float max_coc_px;     // the largest CoC of a point in the view
     float slice_lo;       // signed CoC of the near edge of slice 0
     float slice_width;    // signed CoC per slice
+    // 1: the layers are 3D Gaussians' depth layers (src/gaussian_render.rs):
+    // one slice each, no ramp between slices, and their light signed (a
+    // layer darker than what it covers takes light away).
+    uint gaussian_layers;
 } pc;

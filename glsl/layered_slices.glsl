@@ -25,6 +25,9 @@ float slice_weight(float c, int slice) {
     if (own == slice) {
         return 1.0;
     }
+    if (pc.gaussian_layers != 0u) {
+        return 0.0;
+    }
     if (own == slice + 1 && within < RAMP) {
         return 1.0 - within / RAMP;
     }
@@ -36,7 +39,7 @@ uint slice_bits(float c) {
     float within;
     int own = slice_of(c, within);
     uint bits = 1u << uint(own);
-    if (own > 0 && within < RAMP) {
+    if (own > 0 && within < RAMP && pc.gaussian_layers == 0u) {
         bits |= 1u << uint(own - 1);
     }
     return bits;

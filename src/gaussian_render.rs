@@ -30,13 +30,12 @@ use crate::gaussians::{covariance, TILE_PX};
 use crate::image_io::f16_to_f32;
 use crate::image_io::{linear_to_srgb, LinearImage};
 use crate::input::gaussians::GaussianScene;
-use crate::options::LayeredOptions;
 use crate::passes::layered::{Layered, Slices};
 use crate::passes::radix_sort::{
     words_buffer, RadixSort, ScanScratch, SortScratch, SortedIn, NONE,
 };
 use crate::passes::sample_plan::ssaa_jitter;
-use crate::passes::{Configured, DofInput, DofMethod, FrameView, GBufferLayer, Window};
+use crate::passes::{DofInput, FrameView, GBufferLayer, Window};
 use crate::push_constants;
 use crate::vk::{
     Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, FrameTimings, Image,
@@ -47,8 +46,6 @@ static PROJECT_SPIRV: &[u8] =
 static TILES_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_tiles.comp.spv"));
 static BLEND_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_blend.comp.spv"));
 static LAYERS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_layers.comp.spv"));
-static STORE_SPIRV: &[u8] =
-    include_bytes!(concat!(env!("OUT_DIR"), "/gaussian_layer_store.comp.spv"));
 
 /// Invocations per workgroup of `project` and `tile list` (their
 /// `local_size_x`).
@@ -125,13 +122,8 @@ push_constants! {
     }
 }
 
-push_constants! {
-    pub struct StorePush {
-        pub width: u32,
-        pub height: u32,
-        pub layer: u32,
-    }
-}
+/// Chains (lens point × jitter) recorded in one submission.
+const CHAINS_PER_SUBMIT: usize = 32;
 
 /// Words of the `counts` buffer: the Gaussians; this lens point's tile
 /// entries; the most entries of any lens point so far.
@@ -200,13 +192,14 @@ pub struct GaussianRenderer {
     tiles: ComputePipeline<TilesPush>,
     blend: ComputePipeline<BlendPush>,
     layers: ComputePipeline<LayersPush>,
-    store: ComputePipeline<StorePush>,
     layered: Layered,
     sort: RadixSort,
     capacity: std::sync::atomic::AtomicU32,
     /// At most this many Gaussians' SH in the first buffer (tests of the
     /// split; None: as many as the device binds).
     sh_split_limit: Option<usize>,
+    /// `layered`'s depth layers, where a test sets them.
+    layer_count: Option<u32>,
 }
 
 /// The largest buffer a shader may bind, in 32-bit words.
@@ -222,17 +215,16 @@ impl GaussianRenderer {
             project: ComputePipeline::new(ctx, "gaussian_project", PROJECT_SPIRV, &[b; 7])?,
             tiles: ComputePipeline::new(ctx, "gaussian_tiles", TILES_SPIRV, &[b; 8])?,
             blend: ComputePipeline::new(ctx, "gaussian_blend", BLEND_SPIRV, &[b; 5])?,
-            layers: ComputePipeline::new(ctx, "gaussian_layers", LAYERS_SPIRV, &[b; 6])?,
-            store: ComputePipeline::new(
-                ctx,
-                "gaussian_layer_store",
-                STORE_SPIRV,
-                &[b, b, Binding::StorageImage, Binding::StorageImage],
-            )?,
+            layers: ComputePipeline::new(ctx, "gaussian_layers", LAYERS_SPIRV, &{
+                let mut bindings = [Binding::StorageImage; 4 + 2 * MAX_LAYERS as usize];
+                bindings[..4].fill(b);
+                bindings
+            })?,
             layered: Layered::new(ctx)?,
             sort: RadixSort::new(ctx)?,
             capacity: std::sync::atomic::AtomicU32::new(0),
             sh_split_limit: None,
+            layer_count: None,
         })
     }
 
@@ -241,6 +233,12 @@ impl GaussianRenderer {
     /// test the split on small scenes.
     pub fn set_sh_split_limit(&mut self, limit: usize) {
         self.sh_split_limit = Some(limit);
+    }
+
+    /// Makes `layered` take `count` depth layers over the frame's CoC
+    /// range (at most [`MAX_LAYERS`]): to test many layers without blur.
+    pub fn set_layer_count(&mut self, count: u32) {
+        self.layer_count = Some(count);
     }
 
     /// The device it renders on.
@@ -537,45 +535,56 @@ impl GaussianRenderer {
         let sum = words_buffer(ctx, "gaussian sum", 4 * pixels)?;
         let sum_readback = readback(ctx, "gaussian sum readback", 16 * pixels)?;
         let background_encoded = background.to_array().map(linear_to_srgb);
-        let mut frame = Frame::begin(ctx, "gaussians")?;
-        frame.pass("clear", |rec| {
-            rec.update_u32(&chain.counts, &[scene.count, 0, 0, 0]);
-            rec.fill_u32(&sum, 0);
-            rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
-        });
-        for &(u, jitter) in samples {
-            let values = self.record_chain(&mut frame, scene, &chain, camera, u);
-            frame.pass("gaussians: blend", |rec| {
-                let binds = [
-                    Bind::StorageBuffer(&chain.projected),
-                    Bind::StorageBuffer(values),
-                    Bind::StorageBuffer(&chain.ranges),
-                    Bind::StorageBuffer(&chain.counts),
-                    Bind::StorageBuffer(&sum),
-                ];
-                let push = BlendPush {
-                    background: [
-                        background_encoded[0],
-                        background_encoded[1],
-                        background_encoded[2],
-                        0.0,
-                    ],
-                    jitter: jitter.to_array(),
-                    width,
-                    height,
-                    capacity,
-                    entries_index: COUNT_ENTRIES,
-                };
-                rec.dispatch(&self.blend, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
-            });
+        // A submission per CHAINS_PER_SUBMIT chains (any --samples and
+        // --ssaa stay within one command buffer's reach), the sums and
+        // counts carried from one to the next.
+        let mut timings = FrameTimings::default();
+        let batches: Vec<&[(Vec2, Vec2)]> = samples.chunks(CHAINS_PER_SUBMIT).collect();
+        for (k, batch) in batches.iter().enumerate() {
+            let mut frame = Frame::begin(ctx, "gaussians")?;
+            if k == 0 {
+                frame.pass("clear", |rec| {
+                    rec.update_u32(&chain.counts, &[scene.count, 0, 0, 0]);
+                    rec.fill_u32(&sum, 0);
+                    rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
+                });
+            }
+            for &(u, jitter) in batch.iter() {
+                let values = self.record_chain(&mut frame, scene, &chain, camera, u);
+                frame.pass("gaussians: blend", |rec| {
+                    let binds = [
+                        Bind::StorageBuffer(&chain.projected),
+                        Bind::StorageBuffer(values),
+                        Bind::StorageBuffer(&chain.ranges),
+                        Bind::StorageBuffer(&chain.counts),
+                        Bind::StorageBuffer(&sum),
+                    ];
+                    let push = BlendPush {
+                        background: [
+                            background_encoded[0],
+                            background_encoded[1],
+                            background_encoded[2],
+                            0.0,
+                        ],
+                        jitter: jitter.to_array(),
+                        width,
+                        height,
+                        capacity,
+                        entries_index: COUNT_ENTRIES,
+                    };
+                    rec.dispatch(&self.blend, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
+                });
+            }
+            if k + 1 == batches.len() {
+                frame.pass("readback", |rec| {
+                    rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COPY_SRC);
+                    rec.copy_buffer(&sum, &sum_readback);
+                    rec.copy_buffer(&chain.counts, &chain.counts_readback);
+                    rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
+                });
+            }
+            timings.merge(&frame.submit_and_wait()?);
         }
-        frame.pass("readback", |rec| {
-            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COPY_SRC);
-            rec.copy_buffer(&sum, &sum_readback);
-            rec.copy_buffer(&chain.counts, &chain.counts_readback);
-            rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
-        });
-        let timings = frame.submit_and_wait()?;
         let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(host_bytes(&sum_readback)?);
         let scale = 1.0 / samples.len() as f32;
         let image = LinearImage {
@@ -644,14 +653,7 @@ impl GaussianRenderer {
             ..*camera
         };
         let chain = Chain::new(ctx, scene.count, capacity, width, height)?;
-        let layers = Layers::of(camera, depths);
-        let pixels = width as u64 * height as u64;
-        let layer_color = words_buffer(
-            ctx,
-            "gaussian layer color",
-            2 * pixels * layers.count as u64,
-        )?;
-        let layer_eye = words_buffer(ctx, "gaussian layer eye", 4 * pixels * layers.count as u64)?;
+        let layers = gaussian_layers(camera, depths, self.layer_count);
         let storage = vk::ImageUsageFlags::STORAGE;
         let gbuffer: Vec<GBufferLayer> = (0..layers.count)
             .map(|_| {
@@ -677,14 +679,7 @@ impl GaussianRenderer {
                 })
             })
             .collect::<Result<_>>()?;
-        let method = Configured {
-            pipelines: &self.layered,
-            options: LayeredOptions {
-                layers: layers.count,
-                keep_occluded: true,
-            },
-        };
-        let dof = method.prepare(ctx, &view)?;
+        let dof = self.layered.prepare_gaussian_layers(ctx, &view, layers)?;
         let result_readback = readback(
             ctx,
             "gaussian layered readback",
@@ -697,14 +692,26 @@ impl GaussianRenderer {
         });
         let values = self.record_chain(&mut frame, scene, &chain, &big, Vec2::ZERO);
         frame.pass("gaussians: layers", |rec| {
-            let binds = [
+            let images: Vec<_> = gbuffer
+                .iter()
+                .flat_map(|l| {
+                    [
+                        (&l.color, Access::NONE, Access::COMPUTE_WRITE),
+                        (&l.eye, Access::NONE, Access::COMPUTE_WRITE),
+                    ]
+                })
+                .collect();
+            rec.barriers(&images);
+            let mut binds = vec![
                 Bind::StorageBuffer(&chain.projected),
                 Bind::StorageBuffer(values),
                 Bind::StorageBuffer(&chain.ranges),
                 Bind::StorageBuffer(&chain.counts),
-                Bind::StorageBuffer(&layer_color),
-                Bind::StorageBuffer(&layer_eye),
             ];
+            // Layers past the last bound to the first's images, unwritten.
+            let layer = |l: usize| &gbuffer[if l < gbuffer.len() { l } else { 0 }];
+            binds.extend((0..MAX_LAYERS as usize).map(|l| Bind::StorageImage(&layer(l).color)));
+            binds.extend((0..MAX_LAYERS as usize).map(|l| Bind::StorageImage(&layer(l).eye)));
             let push = LayersPush {
                 background: background.extend(0.0).to_array(),
                 background_encoded: [
@@ -725,36 +732,6 @@ impl GaussianRenderer {
                 focus_distance: camera.focus_distance,
             };
             rec.dispatch(&self.layers, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
-            rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
-            let images: Vec<_> = gbuffer
-                .iter()
-                .flat_map(|l| {
-                    [
-                        (&l.color, Access::NONE, Access::COMPUTE_WRITE),
-                        (&l.eye, Access::NONE, Access::COMPUTE_WRITE),
-                    ]
-                })
-                .collect();
-            rec.barriers(&images);
-            for (l, layer) in gbuffer.iter().enumerate() {
-                let binds = [
-                    Bind::StorageBuffer(&layer_color),
-                    Bind::StorageBuffer(&layer_eye),
-                    Bind::StorageImage(&layer.color),
-                    Bind::StorageImage(&layer.eye),
-                ];
-                let push = StorePush {
-                    width,
-                    height,
-                    layer: l as u32,
-                };
-                rec.dispatch(
-                    &self.store,
-                    &binds,
-                    &push,
-                    [width.div_ceil(8), height.div_ceil(8), 1],
-                );
-            }
         });
         let input = DofInput {
             color: &gbuffer[0].color,
@@ -787,7 +764,8 @@ impl GaussianRenderer {
                     let c: [f32; 4] = std::array::from_fn(|i| {
                         f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))
                     });
-                    [c[0], c[1], c[2], 1.0]
+                    // Signed layers may leave a rounding below zero.
+                    [c[0].max(0.0), c[1].max(0.0), c[2].max(0.0), 1.0]
                 })
                 .collect(),
         };
@@ -809,26 +787,18 @@ impl GaussianRenderer {
 /// method's most peeled layers ([`crate::options::check_layers`]).
 pub const MAX_LAYERS: u32 = 8;
 
-/// The depth layers of a frame of Gaussians: `count` layers of `width` px
-/// of signed CoC from `lo`, nearest first (as the point method's slices,
-/// [`Slices::of`], at most [`MAX_LAYERS`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Layers {
-    pub count: u32,
-    pub lo: f32,
-    pub width: f32,
-}
-
-impl Layers {
-    /// The layers for Gaussians centred at eye depths `depths`.
-    pub fn of(camera: &Camera, depths: Option<(f32, f32)>) -> Layers {
-        let slices = Slices::of(camera, depths);
-        let count = slices.count.min(MAX_LAYERS);
-        Layers {
-            count,
-            lo: slices.lo,
-            width: slices.width * slices.count as f32 / count as f32,
-        }
+/// The depth layers of a frame of Gaussians centred at eye depths
+/// `depths`: layers of equal signed-CoC width, nearest first, as the point
+/// method's slices ([`Slices::of`]) but at most [`MAX_LAYERS`]; each is one
+/// slice of the layered method; `count` layers over the same range instead
+/// where given (tests).
+pub fn gaussian_layers(camera: &Camera, depths: Option<(f32, f32)>, count: Option<u32>) -> Slices {
+    let slices = Slices::of(camera, depths);
+    let count = count.unwrap_or(slices.count).clamp(1, MAX_LAYERS);
+    Slices {
+        count,
+        lo: slices.lo,
+        width: slices.width * slices.count as f32 / count as f32,
     }
 }
 
@@ -926,7 +896,6 @@ mod tests {
         check_push_layout::<TilesPush>("gaussian_tiles", TILES_SPIRV).unwrap();
         check_push_layout::<BlendPush>("gaussian_blend", BLEND_SPIRV).unwrap();
         check_push_layout::<LayersPush>("gaussian_layers", LAYERS_SPIRV).unwrap();
-        check_push_layout::<StorePush>("gaussian_layer_store", STORE_SPIRV).unwrap();
         assert!(include_str!("../glsl/gaussian_layers.comp")
             .contains(&format!("const uint MAX_LAYERS = {MAX_LAYERS}u;")));
         assert!(crate::options::check_layers(MAX_LAYERS).is_ok());

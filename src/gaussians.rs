@@ -152,14 +152,21 @@ pub fn project_through(
     let cov = t * sigma * t.transpose();
     let (a, b, c) = (cov.x_axis.x + 0.3, cov.y_axis.x, cov.y_axis.y + 0.3);
     let det = a * c - b * b;
-    if det == 0.0 {
+    // Also culled: a covariance beyond floats (as the device culls it).
+    if det == 0.0 || !det.is_finite() {
         return None;
     }
     let conic = Vec3::new(c / det, -b / det, a / det);
     let mid = 0.5 * (a + c);
     let lambda1 = mid + (mid * mid - det).max(0.1).sqrt();
     let lambda2 = mid - (mid * mid - det).max(0.1).sqrt();
-    let radius_px = (3.0 * lambda1.max(lambda2).sqrt()).ceil() as i32;
+    let radius = (3.0 * lambda1.max(lambda2).sqrt()).ceil();
+    if !radius.is_finite() {
+        return None;
+    }
+    // The tiles are taken from the radius as a float, clamped to the
+    // image (as on the device); the reference's int is this below 2^31.
+    let radius_px = radius.min(i32::MAX as f32) as i32;
     let centre_px = camera.pixel_of_eye(e);
     // The reference's pixel coordinates put pixel centres at integers.
     let at = centre_px - Vec2::splat(0.5);
@@ -167,13 +174,9 @@ pub fn project_through(
         (camera.width as i32 + TILE_PX - 1) / TILE_PX,
         (camera.height as i32 + TILE_PX - 1) / TILE_PX,
     );
-    let lo = |v: f32, n: i32| {
-        ((v - radius_px as f32) / TILE_PX as f32)
-            .max(0.0)
-            .min(n as f32) as i32
-    };
+    let lo = |v: f32, n: i32| ((v - radius) / TILE_PX as f32).max(0.0).min(n as f32) as i32;
     let hi = |v: f32, n: i32| {
-        ((v + radius_px as f32 + TILE_PX as f32 - 1.0) / TILE_PX as f32)
+        ((v + radius + TILE_PX as f32 - 1.0) / TILE_PX as f32)
             .max(0.0)
             .min(n as f32) as i32
     };

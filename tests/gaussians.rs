@@ -273,7 +273,7 @@ fn the_command_line_knows_a_gaussian_scene() {
     args.extend(small);
     assert_fails(
         &args,
-        "4000 Gaussians need about 2 MiB, more than --memory-mb 1",
+        "4000 Gaussians need about 3 MiB, more than --memory-mb 1",
         &png,
     );
     let pattern = dir.path().join("f_%02d.exr");

@@ -77,6 +77,7 @@ push_constants! {
         max_coc_px: f32,
         slice_lo: f32,
         slice_width: f32,
+        gaussian_layers: u32,
     }
 }
 
@@ -172,22 +173,54 @@ impl DofMethod for Configured<'_, Layered, LayeredOptions> {
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
         check_layers(self.options.layers)?;
-        let (Some(spread), Some(composite)) = (&self.pipelines.spread, &self.pipelines.composite)
-        else {
+        let slices = Slices::of(&view.camera, view.depths);
+        self.pipelines.frame(ctx, view, self.options, slices, false)
+    }
+}
+
+impl Layered {
+    /// The frame of the method over `layers` depth layers of 3D Gaussians
+    /// (`crate::gaussian_render`): one slice each (`slices`, as many as
+    /// the layers), no ramp between slices, signed light, every pixel kept.
+    pub fn prepare_gaussian_layers<'m>(
+        &'m self,
+        ctx: &Arc<Context>,
+        view: &FrameView,
+        slices: Slices,
+    ) -> Result<Box<dyn DofFrame + 'm>> {
+        let options = LayeredOptions {
+            layers: slices.count,
+            keep_occluded: true,
+        };
+        check_layers(options.layers)?;
+        self.frame(ctx, view, options, slices, true)
+    }
+
+    /// The frame's images and passes over `slices`; an error where the
+    /// device lacks 64-bit buffer atomics.
+    fn frame<'m>(
+        &'m self,
+        ctx: &Arc<Context>,
+        view: &FrameView,
+        options: LayeredOptions,
+        slices: Slices,
+        gaussian_layers: bool,
+    ) -> Result<Box<dyn DofFrame + 'm>> {
+        let (Some(spread), Some(composite)) = (&self.spread, &self.composite) else {
             return Err(Error::VulkanSetup(
                 "the layered method needs 64-bit integer atomics on storage buffers \
                  (shaderBufferInt64Atomics), which this device lacks"
                     .into(),
             ));
         };
-        let slices = Slices::of(&view.camera, view.depths);
         Ok(Box::new(LayeredFrame {
-            pipelines: self.pipelines,
+            gaussian_layers,
+            pipelines: self,
             spread,
             composite,
-            options: self.options,
+            options,
             slices,
-            images: LayeredImages::new(ctx, view, self.options.layers, slices.count)?,
+            images: LayeredImages::new(ctx, view, options.layers, slices.count)?,
         }))
     }
 }
@@ -346,6 +379,8 @@ struct LayeredFrame<'m> {
     composite: &'m ComputePipeline<LayeredPush>,
     options: LayeredOptions,
     slices: Slices,
+    /// The layers are Gaussians' (`LayeredPush::gaussian_layers`).
+    gaussian_layers: bool,
     images: LayeredImages,
 }
 
@@ -381,6 +416,7 @@ impl DofFrame for LayeredFrame<'_> {
             max_coc_px: view.max_coc_px,
             slice_lo: self.slices.lo,
             slice_width: self.slices.width,
+            gaussian_layers: u32::from(self.gaussian_layers),
         };
         let pixels = [groups(w, 8), groups(h, 8), 1];
         let first = &input.layers[0];

@@ -32,11 +32,19 @@ layout(push_constant) uniform Push {
 
 shared uint partial[GROUP];
 
+// a + b, or the largest word where it would wrap: a total beyond 32 bits
+// stays above any capacity (the host then refuses the frame) instead of
+// wrapping to a small one.
+uint add_sat(uint a, uint b) {
+    uint s = a + b;
+    return s < a ? 0xFFFFFFFFu : s;
+}
+
 void scan_partial(uint t) {
     for (uint off = 1u; off < GROUP; off <<= 1u) {
         uint add = t >= off ? partial[t - off] : 0u;
         barrier();
-        partial[t] += add;
+        partial[t] = add_sat(partial[t], add);
         barrier();
     }
 }
@@ -55,7 +63,7 @@ void main() {
         uint end = min(begin + run, blocks);
         uint sum = 0u;
         for (uint i = begin; i < end; i++) {
-            sum += sums[i];
+            sum = add_sat(sum, sums[i]);
         }
         partial[t] = sum;
         barrier();
@@ -64,7 +72,7 @@ void main() {
         for (uint i = begin; i < end; i++) {
             uint c = sums[i];
             sums[i] = base;
-            base += c;
+            base = add_sat(base, c);
         }
         if (t == GROUP - 1u && pc.total_index != NONE) {
             uint total = partial[t];
@@ -82,7 +90,7 @@ void main() {
     for (uint k = 0u; k < ITEMS; k++) {
         uint i = first + k;
         if (i < n) {
-            sum += value_at(i);
+            sum = add_sat(sum, value_at(i));
         }
     }
     partial[t] = sum;
@@ -94,12 +102,14 @@ void main() {
         }
         return;
     }
-    uint base = sums[block] + partial[t] - sum;
+    // (Where the total saturated, offsets past 2^32 are wrong, but the
+    // frame is refused before they are used.)
+    uint base = add_sat(sums[block], partial[t] - sum);
     for (uint k = 0u; k < ITEMS; k++) {
         uint i = first + k;
         if (i < n) {
             result[i] = base;
-            base += value_at(i);
+            base = add_sat(base, value_at(i));
         }
     }
 }

@@ -351,7 +351,11 @@ impl GaussianRenderer {
         mut render: impl FnMut(u32) -> Result<(GaussianFrame, u32)>,
     ) -> Result<GaussianFrame> {
         use std::sync::atomic::Ordering::Relaxed;
-        let limit = max_words(&self.ctx).min(u32::MAX as u64 / 2) as u32;
+        // Entries: what a buffer binds, and what the sort dispatches in the
+        // fewest workgroups any device allows (65,535 blocks of 4,096).
+        let limit = max_words(&self.ctx)
+            .min(u32::MAX as u64 / 2)
+            .min(65_535 * crate::passes::radix_sort::BLOCK as u64) as u32;
         let mut capacity = self
             .capacity
             .load(Relaxed)

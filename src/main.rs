@@ -281,10 +281,11 @@ struct RenderArgs {
     /// in tiles, with the same result.
     #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..=1 << 40))]
     rdb_memory_mb: Option<u64>,
-    /// Depth-peeled layers of `--method layered` (1-8; more only where
-    /// more surfaces hide one another: docs/BENCHMARKS.md).
-    #[arg(long, default_value_t = pointlens::options::DEFAULT_LAYERS, value_parser = checked(check_layers))]
-    layers: u32,
+    /// Depth-peeled layers of `--method layered` (1-8, default 2; more
+    /// only where more surfaces hide one another: docs/BENCHMARKS.md). Not
+    /// for 3D Gaussians, whose depth layers follow the circle of confusion.
+    #[arg(long, value_parser = checked(check_layers))]
+    layers: Option<u32>,
     /// Lens samples of the accumulation reference (--method accum).
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
     samples: u32,
@@ -1152,6 +1153,7 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
         ("--tile-px", args.tile_px.is_some()),
         ("--origin", args.origin.is_some()),
         ("--samples-per-pass", args.samples_per_pass.is_some()),
+        ("--layers", args.layers.is_some()),
     ];
     if let Some((flag, _)) = point_flags.iter().find(|(_, given)| *given) {
         bail!(
@@ -1411,7 +1413,7 @@ fn method_of(args: &RenderArgs) -> Method {
             samples: args.samples,
         },
         LayeredOptions {
-            layers: args.layers,
+            layers: args.layers.unwrap_or(pointlens::options::DEFAULT_LAYERS),
             ..LayeredOptions::default()
         },
     )

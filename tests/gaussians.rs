@@ -229,6 +229,7 @@ fn the_command_line_knows_a_gaussian_scene() {
             vec!["--method", "pinhole", "--splat-px", "3"],
             "--splat-px is about points",
         ),
+        (vec!["--layers", "3"], "--layers is about points"),
         (
             vec!["--method", "pinhole", "--focus-pixel", "3,3"],
             "without --focus-pixel",

@@ -27,7 +27,6 @@ use gpu_allocator::MemoryLocation;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gaussians::{covariance, TILE_PX};
-use crate::image_io::f16_to_f32;
 use crate::image_io::{linear_to_srgb, LinearImage};
 use crate::input::gaussians::GaussianScene;
 use crate::passes::layered::{Layered, Slices};
@@ -37,6 +36,7 @@ use crate::passes::radix_sort::{
 use crate::passes::sample_plan::ssaa_jitter;
 use crate::passes::{DofInput, FrameView, GBufferLayer, Window};
 use crate::push_constants;
+use crate::render::{host_bytes, rgba16f_texels};
 use crate::vk::{
     Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, FrameTimings, Image,
 };
@@ -762,15 +762,10 @@ impl GaussianRenderer {
         let image = LinearImage {
             width: camera.width,
             height: camera.height,
-            pixels: bytes
-                .chunks_exact(8)
-                .map(|t| {
-                    let c: [f32; 4] = std::array::from_fn(|i| {
-                        f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))
-                    });
-                    // Signed layers may leave a rounding below zero.
-                    [c[0].max(0.0), c[1].max(0.0), c[2].max(0.0), 1.0]
-                })
+            pixels: rgba16f_texels(bytes)
+                .into_iter()
+                // Signed layers may leave a rounding below zero.
+                .map(|c| [c[0].max(0.0), c[1].max(0.0), c[2].max(0.0), 1.0])
                 .collect(),
         };
         let entries = chain.most_entries()?;
@@ -880,13 +875,6 @@ fn readback(ctx: &Arc<Context>, name: &str, bytes: u64) -> Result<Buffer> {
         vk::BufferUsageFlags::TRANSFER_DST,
         MemoryLocation::GpuToCpu,
     )
-}
-
-/// The mapped bytes of a readback buffer.
-fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
-    buffer
-        .mapped()
-        .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))
 }
 
 #[cfg(test)]

@@ -162,6 +162,9 @@ pub enum JobEvent<'a> {
     },
 }
 
+/// What a job tells as it renders ([`RenderJob::render`]).
+pub type Events<'a> = dyn FnMut(JobEvent) -> Result<()> + 'a;
+
 /// What [`RenderJob::render`] did.
 #[derive(Debug, Clone, Default)]
 pub struct Outcome {
@@ -386,16 +389,7 @@ impl RenderJob {
         load_ms: f64,
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
     ) -> Result<Outcome> {
-        let mut outcome = Outcome::default();
-        for (done, job) in plan.frames.iter().enumerate() {
-            if stop.load(Ordering::SeqCst) {
-                return Err(Error::Interrupted {
-                    written: done,
-                    total: plan.frames.len(),
-                    next: job.number,
-                });
-            }
-            let started = Instant::now();
+        self.run_frames(renderer.ctx(), plan, stop, events, |job, events| {
             // A COPC file's scene is the nodes of the frame's camera: chosen
             // again once `--focus-pixel` has moved the focus.
             let scene = scenes.for_camera(renderer, &job.camera, self.spec.lod)?;
@@ -419,7 +413,38 @@ impl RenderJob {
                 load_ms,
                 ..measure.into_report(renderer, &self.spec, scene)
             };
-            log_memory(renderer.ctx(), job, started);
+            Ok((spec, report))
+        })
+    }
+
+    /// Runs `frame` on each frame of `plan` in order — it renders and
+    /// writes the frame, tells `events` its camera first, and returns the
+    /// camera as rendered and the report — and tells `events` each file
+    /// written. After the frame in flight when `stop` is set, the error
+    /// says how far the job got.
+    fn run_frames<F>(
+        &self,
+        ctx: &crate::vk::Context,
+        plan: &Plan,
+        stop: &AtomicBool,
+        events: &mut dyn FnMut(JobEvent) -> Result<()>,
+        mut frame: F,
+    ) -> Result<Outcome>
+    where
+        F: FnMut(&FrameJob, &mut Events<'_>) -> Result<(CameraSpec, FrameReport)>,
+    {
+        let mut outcome = Outcome::default();
+        for (done, job) in plan.frames.iter().enumerate() {
+            if stop.load(Ordering::SeqCst) {
+                return Err(Error::Interrupted {
+                    written: done,
+                    total: plan.frames.len(),
+                    next: job.number,
+                });
+            }
+            let started = Instant::now();
+            let (spec, report) = frame(job, events)?;
+            log_memory(ctx, job, started);
             events(JobEvent::Written {
                 number: job.number,
                 output: &job.output,
@@ -482,16 +507,7 @@ impl RenderJob {
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
     ) -> Result<Outcome> {
         let lens = self.gaussian_lens()?;
-        let mut outcome = Outcome::default();
-        for (done, job) in plan.frames.iter().enumerate() {
-            if stop.load(Ordering::SeqCst) {
-                return Err(Error::Interrupted {
-                    written: done,
-                    total: plan.frames.len(),
-                    next: job.number,
-                });
-            }
-            let started = Instant::now();
+        self.run_frames(renderer.ctx(), plan, stop, events, |job, events| {
             let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
             events(JobEvent::Camera {
                 number: job.number,
@@ -534,17 +550,8 @@ impl RenderJob {
                     Default::default(),
                 )
             };
-            log_memory(renderer.ctx(), job, started);
-            events(JobEvent::Written {
-                number: job.number,
-                output: &job.output,
-                seconds: started.elapsed().as_secs_f64(),
-                report: &report,
-            })?;
-            outcome.cameras.push((job.number, spec));
-            outcome.reports.push(report);
-        }
-        Ok(outcome)
+            Ok((spec, report))
+        })
     }
 
     /// The options of one frame through `camera`, its focus on what

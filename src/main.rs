@@ -1093,18 +1093,10 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     let (copc, cloud, ranges) = open_input(&args, quiet)?;
     let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
     let plan = job.plan(&cloud)?;
-    if plan.frames.is_empty() {
-        log::warn!(
-            "nothing to render: the {} frames' files exist",
-            plan.skipped
-        );
+    if !has_frames(&plan) {
         return Ok(());
     }
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    log::info!("device: {}", ctx.info.describe());
+    let ctx = render_device(&args)?;
     let mut renderer = Renderer::new(&ctx)?;
     renderer.set_raster(args.raster);
     renderer.set_edl(args.edl);
@@ -1138,6 +1130,28 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     drop(by_node);
     drop(renderer);
     Ok(ctx.check_validation()?)
+}
+
+/// Whether `plan` has frames to render; when not (every file exists, with
+/// `--skip-existing`), says so.
+fn has_frames(plan: &Plan) -> bool {
+    if plan.frames.is_empty() {
+        log::warn!(
+            "nothing to render: the {} frames' files exist",
+            plan.skipped
+        );
+    }
+    !plan.frames.is_empty()
+}
+
+/// `render`'s device (`--device`, `--validate`), named in the log.
+fn render_device(args: &RenderArgs) -> Result<Arc<Context>> {
+    let ctx = Context::new(&ContextOptions::from_env(
+        args.validate,
+        args.device.clone(),
+    ))?;
+    log::info!("device: {}", ctx.info.describe());
+    Ok(ctx)
 }
 
 /// `render` of a scene of 3D Gaussians (docs/ARCHITECTURE.md, "3D
@@ -1182,18 +1196,10 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
     };
     let plan = job.plan(&centres)?;
     drop(centres);
-    if plan.frames.is_empty() {
-        log::warn!(
-            "nothing to render: the {} frames' files exist",
-            plan.skipped
-        );
+    if !has_frames(&plan) {
         return Ok(());
     }
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    log::info!("device: {}", ctx.info.describe());
+    let ctx = render_device(&args)?;
     let renderer = GaussianRenderer::new(&ctx)?;
     let gpu = renderer.upload(&scene)?;
     drop(scene);
@@ -1294,9 +1300,6 @@ fn render_frames(
     })
 }
 
-/// What a job tells as it renders ([`RenderJob::render`]).
-type Events<'a> = dyn FnMut(JobEvent) -> pointlens::Result<()> + 'a;
-
 /// Runs `render` (the frames of `plan`) with a progress bar (sequences),
 /// the camera (`--print-camera` of one image) and each frame's timings on
 /// stderr, as `render` tells its events.
@@ -1304,7 +1307,7 @@ fn show_frames(
     job: &RenderJob,
     plan: &Plan,
     how: FramesArgs,
-    render: &mut dyn FnMut(&mut Events<'_>) -> pointlens::Result<Outcome>,
+    render: &mut dyn FnMut(&mut job::Events<'_>) -> pointlens::Result<Outcome>,
 ) -> Result<Outcome> {
     let sequence = job.is_sequence();
     let bar = match sequence {

@@ -1149,14 +1149,15 @@ impl Readback {
     }
 }
 
-fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
+/// The mapped bytes of a readback buffer.
+pub(crate) fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {
     buffer
         .mapped()
         .ok_or_else(|| Error::Allocation("readback buffer is not host-visible".into()))
 }
 
 /// Decodes tightly packed rgba16f texels.
-fn rgba16f_texels(bytes: &[u8]) -> Vec<[f32; 4]> {
+pub(crate) fn rgba16f_texels(bytes: &[u8]) -> Vec<[f32; 4]> {
     bytes
         .chunks_exact(8)
         .map(|t| std::array::from_fn(|i| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))))

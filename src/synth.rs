@@ -344,12 +344,10 @@ pub fn gaussian_header(count: u64) -> String {
          comment pointlens synth: Gaussians on the synthetic scene of pointlens bench\n\
          element vertex {count}\n"
     );
-    let mut names: Vec<String> = ["x", "y", "z", "nx", "ny", "nz"].map(String::from).to_vec();
-    names.extend((0..3).map(|c| format!("f_dc_{c}")));
-    names.extend((0..45).map(|k| format!("f_rest_{k}")));
-    names.push("opacity".into());
-    names.extend((0..3).map(|c| format!("scale_{c}")));
-    names.extend((0..4).map(|c| format!("rot_{c}")));
+    // The reference code's layout: normals after the centre.
+    let mut names = crate::input::gaussians::property_names(45);
+    names.splice(3..3, ["nx", "ny", "nz"].map(String::from));
+    assert_eq!(names.len(), GAUSSIAN_FLOATS);
     for n in names {
         h += &format!("property float {n}\n");
     }

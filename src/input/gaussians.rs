@@ -94,6 +94,18 @@ fn sh_degree(rest: usize) -> Option<u32> {
     }
 }
 
+/// The properties a Gaussian of the reference layout has, in its order,
+/// with `rest` `f_rest_*` (the optional `nx ny nz` left out).
+pub fn property_names(rest: usize) -> Vec<String> {
+    let mut names: Vec<String> = ["x", "y", "z"].map(String::from).to_vec();
+    names.extend((0..3).map(|c| format!("f_dc_{c}")));
+    names.extend((0..rest).map(|k| format!("f_rest_{k}")));
+    names.push("opacity".into());
+    names.extend((0..3).map(|c| format!("scale_{c}")));
+    names.extend((0..4).map(|c| format!("rot_{c}")));
+    names
+}
+
 /// Host bytes a Gaussian takes while `render` reads and uploads the scene
 /// beyond twice its file record (the file is read whole, and the SH it
 /// holds are copied): the read scene's centre, scale, rotation and
@@ -166,18 +178,7 @@ pub fn load_gaussians(path: &Path) -> Result<GaussianScene> {
             )))
         }
     };
-    let mut names: Vec<String> = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    names.extend((0..rest).map(|k| format!("f_rest_{k}")));
-    names.extend(
-        [
-            "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
-        ]
-        .iter()
-        .map(|s| s.to_string()),
-    );
+    let names = property_names(rest);
     let missing: Vec<&str> = names
         .iter()
         .map(String::as_str)

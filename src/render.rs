@@ -18,7 +18,7 @@ use crate::options::{
     check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
 };
 use crate::passes::edl::Edl;
-use crate::passes::output::{OutputConvert, OutputFormat};
+use crate::passes::output::{OutputBuffers, OutputConvert, OutputFormat};
 use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
 use crate::passes::{DofInput, DofMethod, FrameView, Methods, Window};
@@ -388,6 +388,9 @@ pub struct Renderer {
     edl_pass: Edl,
     /// At most this many output pixels a side per G-buffer (`--tile-px`).
     tile_px: Option<u32>,
+    /// Whether the output pass writes a device-local buffer copied to the
+    /// host's (None: where the host's buffer is not device-local).
+    staged_output: Option<bool>,
 }
 
 impl Renderer {
@@ -405,6 +408,7 @@ impl Renderer {
             edl: None,
             edl_pass: Edl::new(ctx)?,
             tile_px: None,
+            staged_output: None,
         })
     }
 
@@ -464,6 +468,15 @@ impl Renderer {
     /// drawn: off only to compare).
     pub fn set_peel_cull(&mut self, on: bool) {
         self.peel_cull = on;
+    }
+
+    /// Whether the output pass writes a device-local buffer that a copy
+    /// moves into the host-visible one (`Some(true)`), or writes the
+    /// host-visible one itself (`Some(false)`); None, the default: staged
+    /// where the host-visible buffer is not device-local (a discrete GPU),
+    /// direct on lavapipe. The same bytes either way (tested).
+    pub fn set_staged_output(&mut self, staged: Option<bool>) {
+        self.staged_output = staged;
     }
 
     /// At most `bytes` for a frame's G-buffer sample
@@ -886,7 +899,13 @@ impl Renderer {
             options.background,
         )?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
-        let readback = Readback::new(&self.ctx, &view.frame, format, keep_gbuffer)?;
+        let readback = Readback::new(
+            &self.ctx,
+            &view.frame,
+            format,
+            keep_gbuffer,
+            self.staged_output,
+        )?;
         let lens = method.gbuffer_lens();
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
@@ -909,7 +928,10 @@ impl Renderer {
             &view.frame,
             (&splats.veil_splats, splats.veil.splats_in_view.len() as u32),
             format,
-            &readback.result,
+            OutputBuffers {
+                host: &readback.result,
+                staging: readback.staging.as_ref(),
+            },
         );
         readback.record(&mut frame, &input);
         let mut timings = frame.submit_and_wait()?;
@@ -976,6 +998,9 @@ struct Readback {
     format: OutputFormat,
     /// Written by the output pass ([`OutputConvert`]).
     result: Buffer,
+    /// Device-local, where the output pass writes when staged
+    /// ([`Renderer::set_staged_output`]).
+    staging: Option<Buffer>,
     /// Color (rgba16f) and eye depth (rgba32f) of the G-buffer.
     gbuffer: Option<(Buffer, Buffer)>,
 }
@@ -1070,6 +1095,7 @@ impl Readback {
         view: &FrameView,
         format: OutputFormat,
         keep_gbuffer: bool,
+        staged: Option<bool>,
     ) -> Result<Readback> {
         let host = |name: &str, bytes: u64, usage: vk::BufferUsageFlags| {
             Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuToCpu)
@@ -1079,14 +1105,27 @@ impl Readback {
         };
         let copied = vk::BufferUsageFlags::TRANSFER_DST;
         let pixels = view.window.pixels();
+        let bytes = format.buffer_bytes(pixels);
+        let result = host(
+            "output",
+            bytes,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+        )?;
+        let staging = match staged.unwrap_or(!result.device_local()) {
+            true => Some(Buffer::new(
+                ctx,
+                "output staging",
+                bytes,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::GpuOnly,
+            )?),
+            false => None,
+        };
         Ok(Readback {
             view: *view,
             format,
-            result: host(
-                "output",
-                format.buffer_bytes(pixels),
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-            )?,
+            result,
+            staging,
             gbuffer: match keep_gbuffer {
                 true => Some((
                     host("gbuffer color readback", texels(COLOR_FORMAT), copied)?,

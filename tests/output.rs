@@ -70,6 +70,59 @@ fn device_output_equals_the_host_conversion() {
     });
 }
 
+/// The output pass writing a device-local buffer that a copy moves to the
+/// host (the path of a discrete GPU) gives the bytes of the direct path
+/// (lavapipe's), for both formats, a frame in bands of tiles included.
+#[test]
+fn staged_output_equals_the_direct_output() {
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let model = BenchModel::Bunny;
+        let cloud = model.load(&root().join("data"), 0).unwrap();
+        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+        for (method, tile_px) in [
+            (Method::Pinhole, None),
+            (Method::rdb(9, RdbMode::Centre), None),
+            (Method::accum(3), Some(40)),
+        ] {
+            let options = RenderOptions {
+                camera: model.camera(&cloud, 83, 61).unwrap(),
+                method,
+                ssaa: 2,
+                samples_per_pass: None,
+                background: Vec3::new(0.9, 0.35, 0.02),
+                lod: pointlens::options::Lod::default(),
+            };
+            renderer.set_tile_px(tile_px);
+            let mut linear = Vec::new();
+            let mut srgb = Vec::new();
+            for staged in [false, true] {
+                renderer.set_staged_output(Some(staged));
+                linear.push(renderer.render(&scene, &options).unwrap().image);
+                srgb.push(renderer.render_srgb8(&scene, &options).unwrap().image);
+            }
+            let what = format!("{method:?}, tiles {tile_px:?}");
+            let bits = |i: &pointlens::image_io::LinearImage| {
+                i.pixels
+                    .iter()
+                    .flatten()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&linear[0]), bits(&linear[1]), "{what}: linear");
+            assert_eq!(srgb[0], srgb[1], "{what}: sRGB");
+            // Not a frame of the background alone.
+            assert!(
+                srgb[0]
+                    .rgb
+                    .chunks(3)
+                    .any(|p| p != srgb[0].rgb[..3].to_vec()),
+                "{what}"
+            );
+        }
+    });
+}
+
 #[test]
 fn render_writes_the_device_encoded_png() {
     // The CLI's PNG comes from the device's bytes; its EXR from the floats.

@@ -55,6 +55,14 @@ impl OutputFormat {
     }
 }
 
+/// Where the output pass's pixels go: `host` (host-visible, at least
+/// [`OutputFormat::buffer_bytes`]), written by the shader itself or, with
+/// `staging` (device-local, as large), copied there from it.
+pub struct OutputBuffers<'r> {
+    pub host: &'r Buffer,
+    pub staging: Option<&'r Buffer>,
+}
+
 /// The pipeline and the sRGB table, made once per renderer.
 pub struct OutputConvert {
     pipeline: ComputePipeline<Push>,
@@ -93,8 +101,13 @@ impl OutputConvert {
     /// Records, as pass `output`, the conversion of the output part of
     /// `result` (G-buffer sized, `GENERAL`, last written by compute), under
     /// the first `veil.1` points of `veil.0` (`crate::veil::VeilSplat`,
-    /// written by the host), into `out` (host-visible, at least
-    /// [`OutputFormat::buffer_bytes`]), made visible to the host.
+    /// written by the host), into `out.host`, made visible to the host.
+    ///
+    /// With `out.staging` the shader writes there and a copy moves the
+    /// pixels into `out.host`: on a discrete GPU a shader writing host
+    /// memory across the bus is an order of magnitude slower than the copy
+    /// engine (H100, a 1080p frame of floats: 12.8 ms written directly,
+    /// 0.8 ms staged; docs/BENCHMARKS.md).
     pub fn record<'r>(
         &'r self,
         frame: &mut Frame<'r>,
@@ -102,8 +115,9 @@ impl OutputConvert {
         view: &FrameView,
         veil: (&'r Buffer, u32),
         format: OutputFormat,
-        out: &'r Buffer,
+        out: OutputBuffers<'r>,
     ) {
+        let OutputBuffers { host: out, staging } = out;
         let (w, h) = (view.window.width, view.window.height);
         let pixels = w as u64 * h as u64;
         assert!(
@@ -116,6 +130,8 @@ impl OutputConvert {
         let groups = count.div_ceil(64);
         let gx = groups.clamp(1, 65_535);
         let g = view.guard as i32;
+        let written = staging.unwrap_or(out);
+        assert!(written.size() >= out.size(), "staging buffer too small");
         frame.pass("output", |rec| {
             rec.barriers(&[(result, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ)]);
             rec.dispatch(
@@ -123,7 +139,7 @@ impl OutputConvert {
                 &[
                     Bind::StorageImage(result),
                     Bind::StorageBuffer(&self.srgb8_lut),
-                    Bind::StorageBuffer(out),
+                    Bind::StorageBuffer(written),
                     Bind::StorageBuffer(veil.0),
                 ],
                 &Push {
@@ -139,7 +155,14 @@ impl OutputConvert {
                 },
                 [gx, groups.div_ceil(gx).max(1), 1],
             );
-            rec.memory_barrier(Access::COMPUTE_WRITE, Access::HOST_READ);
+            match staging {
+                Some(staging) => {
+                    rec.memory_barrier(Access::COMPUTE_WRITE, Access::COPY_SRC);
+                    rec.copy_buffer(staging, out);
+                    rec.memory_barrier(Access::COPY_WRITE, Access::HOST_READ);
+                }
+                None => rec.memory_barrier(Access::COMPUTE_WRITE, Access::HOST_READ),
+            }
         });
     }
 }

@@ -129,6 +129,16 @@ impl Buffer {
         std::ptr::eq(&*self.ctx, ctx)
     }
 
+    /// Whether the buffer's memory is device-local: on a discrete GPU a
+    /// host-visible buffer usually is not (system memory across the bus),
+    /// on lavapipe and other unified-memory devices every buffer is.
+    pub fn device_local(&self) -> bool {
+        self.allocation.as_ref().is_some_and(|a| {
+            a.memory_properties()
+                .contains(vk::MemoryPropertyFlags::DEVICE_LOCAL)
+        })
+    }
+
     /// Host-visible bytes of the buffer (None for device-only memory).
     pub fn mapped(&self) -> Option<&[u8]> {
         self.allocation

@@ -19,10 +19,13 @@ use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
 
 /// Runs `test` with a validated lavapipe context, then checks the canary.
+/// `POINTLENS_TEST_DEVICE` names another device (as `--device` does) for
+/// checks on a lent GPU; the suite and CI run on lavapipe.
 pub fn with_gpu<R>(test: impl FnOnce(&Arc<Context>) -> R) -> R {
+    let device = std::env::var("POINTLENS_TEST_DEVICE").unwrap_or_else(|_| "llvmpipe".into());
     let ctx = match Context::new(&ContextOptions {
         validation: true,
-        device: Some("llvmpipe".into()),
+        device: Some(device),
     }) {
         Ok(ctx) => ctx,
         Err(e) => panic!(

@@ -93,7 +93,7 @@ pub struct FastOptions {
 /// Options of the ray distribution buffer (DESIGN §5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RdbOptions {
-    /// N: N×N lens bins per pixel, in [`RDB_BINS`].
+    /// N: N×N lens bins per pixel, 2 to 16 ([`check_rdb_bins`]).
     pub bins: u32,
     pub mode: RdbMode,
     /// Memory for the bins, bytes; above it the frame is processed in

@@ -1,6 +1,6 @@
 //! The frame, as one readable chain (docs/ARCHITECTURE.md, "The frame"):
 //! view → G-buffer (K×K raster samples, resolved) → depth-of-field method →
-//! readback, in [`Renderer::render_frame`].
+//! readback, in `Renderer::render_frame`.
 
 use std::sync::{Arc, Mutex};
 use std::time::Instant;

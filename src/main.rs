@@ -184,22 +184,8 @@ struct BenchArgs {
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
     ssaa: u32,
-    /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
-    /// (default: all K² in one pass into a target K times larger where the
-    /// device holds it, else multisampled passes where its sample counts
-    /// tile the K×K grid; 1 = one pass per sample, the reference form).
-    #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
-    samples_per_pass: Option<u32>,
-    /// How the G-buffer's splats are rasterised: sprites (hardware point
-    /// sprites, the reference), compute (compute shaders into a 64-bit
-    /// visibility buffer, every sample of a pixel in one pass), or auto:
-    /// compute where the device has 64-bit buffer atomics and no
-    /// --samples-per-pass is given, else sprites.
-    #[arg(long, value_enum, default_value_t)]
-    raster: Raster,
-    /// The shape of the splats: square (the default) or disc.
-    #[arg(long, value_enum, default_value_t, value_name = "SHAPE")]
-    splat_shape: SplatShape,
+    #[command(flatten)]
+    gbuffer: GBufferArgs,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
     /// (of every point: `--lod-px 0`).
     #[arg(long)]
@@ -231,7 +217,7 @@ struct BenchArgs {
     /// machine) and print its table, CSV and chart.
     #[arg(long, value_name = "FILE", conflicts_with_all = [
         "width", "height", "methods", "models", "points", "runs", "warmup", "samples_per_pass",
-        "ssaa", "quality", "data", "device", "validate",
+        "ssaa", "quality", "data", "device", "validate", "raster", "splat_shape",
     ])]
     from_json: Option<PathBuf>,
 }
@@ -294,19 +280,8 @@ struct RenderArgs {
     /// centres as trained (default 1); K > 1 averages K×K cell centres.
     #[arg(long, value_parser = checked(check_ssaa))]
     ssaa: Option<u32>,
-    /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
-    /// (default: all K² in one pass into a target K times larger where the
-    /// device holds it, else multisampled passes where its sample counts
-    /// tile the K×K grid; 1 = one pass per sample, the reference form).
-    #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
-    samples_per_pass: Option<u32>,
-    /// How the G-buffer's splats are rasterised: sprites (hardware point
-    /// sprites, the reference), compute (compute shaders into a 64-bit
-    /// visibility buffer, every sample of a pixel in one pass), or auto:
-    /// compute where the device has 64-bit buffer atomics and no
-    /// --samples-per-pass is given, else sprites.
-    #[arg(long, value_enum, default_value_t)]
-    raster: Raster,
+    #[command(flatten)]
+    gbuffer: GBufferArgs,
     /// Vertical field of view, degrees.
     #[arg(long, allow_negative_numbers = true)]
     fovy_deg: Option<f32>,
@@ -379,11 +354,6 @@ struct RenderArgs {
         allow_negative_numbers = true
     )]
     aperture_to: Option<f32>,
-    /// The shape of a splat: square (the default) or disc (the circle of
-    /// the same diameter, anti-aliased through the G-buffer's samples
-    /// alike).
-    #[arg(long, value_enum, default_value_t, value_name = "SHAPE")]
-    splat_shape: SplatShape,
     /// Eye-dome lighting: shading from depth alone (as Potree and
     /// CloudCompare), applied before the blur; STRENGTH 1 is Potree's
     /// default, RADIUS_PX the neighbours' distance (default 1.4). Not with
@@ -833,9 +803,9 @@ fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
         runs: args.runs.unwrap_or(default.runs),
         warmup: args.warmup.unwrap_or(default.warmup),
         ssaa: args.ssaa,
-        samples_per_pass: args.samples_per_pass,
-        raster: args.raster,
-        splat_shape: args.splat_shape,
+        samples_per_pass: args.gbuffer.samples_per_pass,
+        raster: args.gbuffer.raster.unwrap_or_default(),
+        splat_shape: args.gbuffer.splat_shape.unwrap_or_default(),
         quality: args.quality,
         lod_px: args
             .lod_px
@@ -1098,10 +1068,10 @@ fn render(args: RenderArgs, quiet: bool) -> Result<()> {
     }
     let ctx = render_device(&args)?;
     let mut renderer = Renderer::new(&ctx)?;
-    renderer.set_raster(args.raster);
+    renderer.set_raster(args.gbuffer.raster.unwrap_or_default());
     renderer.set_edl(args.edl);
     renderer.set_tile_px(args.tile_px);
-    renderer.set_splat_shape(args.splat_shape)?;
+    renderer.set_splat_shape(args.gbuffer.splat_shape.unwrap_or_default())?;
     let frames = FramesArgs {
         print_camera: args.print_camera,
         timings: args.timings,
@@ -1166,7 +1136,12 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
         ("--lod-blur", args.lod_blur.is_some()),
         ("--tile-px", args.tile_px.is_some()),
         ("--origin", args.origin.is_some()),
-        ("--samples-per-pass", args.samples_per_pass.is_some()),
+        (
+            "--samples-per-pass",
+            args.gbuffer.samples_per_pass.is_some(),
+        ),
+        ("--raster", args.gbuffer.raster.is_some()),
+        ("--splat-shape", args.gbuffer.splat_shape.is_some()),
         ("--layers", args.layers.is_some()),
     ];
     if let Some((flag, _)) = point_flags.iter().find(|(_, given)| *given) {
@@ -1260,6 +1235,29 @@ fn open_input(
             .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
     }
     Ok((copc, cloud, ranges))
+}
+
+/// How the G-buffer is rasterised: flags of `render` and `bench`.
+#[derive(clap::Args, Debug, Clone, Copy)]
+struct GBufferArgs {
+    /// The most samples of a pixel one G-buffer raster pass takes, 1 to 64
+    /// (default: all K² in one pass into a target K times larger where the
+    /// device holds it, else multisampled passes where its sample counts
+    /// tile the K×K grid; 1 = one pass per sample, the reference form).
+    #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
+    samples_per_pass: Option<u32>,
+    /// How the G-buffer's splats are rasterised: sprites (hardware point
+    /// sprites, the reference), compute (compute shaders into a 64-bit
+    /// visibility buffer, every sample of a pixel in one pass), or auto
+    /// (the default): compute where the device has 64-bit buffer atomics
+    /// and no --samples-per-pass is given, else sprites.
+    #[arg(long, value_enum)]
+    raster: Option<Raster>,
+    /// The shape of a splat: square (the default) or disc (the circle of
+    /// the same diameter, anti-aliased through the G-buffer's samples
+    /// alike).
+    #[arg(long, value_enum, value_name = "SHAPE")]
+    splat_shape: Option<SplatShape>,
 }
 
 /// `--memory-mb`, of `render` and `info`.
@@ -1455,7 +1453,7 @@ fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
         focus_pixel: args.focus_pixel,
         method: method_of(args),
         ssaa: args.ssaa.unwrap_or(pointlens::options::DEFAULT_SSAA),
-        samples_per_pass: args.samples_per_pass,
+        samples_per_pass: args.gbuffer.samples_per_pass,
         background: background_of(args)?,
         lod: Lod {
             px: args.lod_px,

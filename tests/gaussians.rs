@@ -230,6 +230,11 @@ fn the_command_line_knows_a_gaussian_scene() {
             "--splat-px is about points",
         ),
         (vec!["--layers", "3"], "--layers is about points"),
+        (vec!["--raster", "compute"], "--raster is about points"),
+        (
+            vec!["--splat-shape", "disc"],
+            "--splat-shape is about points",
+        ),
         (
             vec!["--method", "pinhole", "--focus-pixel", "3,3"],
             "without --focus-pixel",

@@ -1226,7 +1226,7 @@ fn convert_source(
                 };
                 let mut nodes = Vec::new();
                 let all: Vec<u32> = (0..part.len() as u32).collect();
-                build_node(&part, key, node_cube(cube, key), all, 1, &mut nodes);
+                build_node(&part, key, key.cube_in(cube), all, 1, &mut nodes);
                 let own = nodes
                     .iter()
                     .position(|n| n.key == key)
@@ -1351,7 +1351,7 @@ impl Top<'_, '_> {
             }
         }
         let all: Vec<u32> = (0..pooled.len() as u32).collect();
-        let (min, width) = node_cube(self.root, key);
+        let (min, width) = key.cube_in(self.root);
         let (mut kept, _) = sample(&pooled, &all, min, width);
         drop(all);
         // What each child keeps: its points the sample did not take.
@@ -1395,15 +1395,6 @@ impl Top<'_, '_> {
         }
         Ok(())
     }
-}
-
-/// The cube of node `key` in the octree whose root is `root`.
-fn node_cube((min, width): (DVec3, f64), key: NodeKey) -> (DVec3, f64) {
-    let w = width / f64::from(1u32 << key.level);
-    (
-        min + w * DVec3::new(f64::from(key.x), f64::from(key.y), f64::from(key.z)),
-        w,
-    )
 }
 
 /// The cell at `level` of the octree `root` that holds `p`.

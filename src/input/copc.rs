@@ -110,10 +110,10 @@ impl CopcInfo {
 
     /// The cube of node `key`, file coordinates: (min corner, width).
     pub fn cube(&self, key: NodeKey) -> (DVec3, f64) {
-        let width = 2.0 * self.halfsize / f64::from(1u32 << key.level);
-        let min = self.centre - DVec3::splat(self.halfsize)
-            + width * DVec3::new(f64::from(key.x), f64::from(key.y), f64::from(key.z));
-        (min, width)
+        key.cube_in((
+            self.centre - DVec3::splat(self.halfsize),
+            2.0 * self.halfsize,
+        ))
     }
 
     /// The spacing of node `key`'s points: the root's, halved per level.
@@ -132,6 +132,17 @@ pub struct NodeKey {
 }
 
 impl NodeKey {
+    /// The node's cube in the octree whose root cube is `root` (min corner,
+    /// width): (min corner, width). The one formula of the reader and of
+    /// `convert`.
+    pub fn cube_in(self, (min, width): (DVec3, f64)) -> (DVec3, f64) {
+        let w = width / f64::from(1u32 << self.level);
+        (
+            min + w * DVec3::new(f64::from(self.x), f64::from(self.y), f64::from(self.z)),
+            w,
+        )
+    }
+
     /// The root node.
     pub const ROOT: NodeKey = NodeKey {
         level: 0,

@@ -1330,6 +1330,17 @@ fn show_frames(
             } => {
                 bar.set_message(format!("{seconds:.2} s/frame"));
                 bar.inc(1);
+                if report.drew_nothing() {
+                    let what = match report.gaussians {
+                        true => "no Gaussian",
+                        false => "no point",
+                    };
+                    log::warn!(
+                        "frame {number}: {what} of the scene is in view, only the background: \
+                         check the camera (a camera file's \"origin\" places it in the \
+                         coordinates of the cloud it was made for)"
+                    );
+                }
                 if how.timings {
                     if sequence {
                         eprintln!("frame {number}:");

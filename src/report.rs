@@ -157,6 +157,18 @@ impl FrameReport {
         }
     }
 
+    /// Whether the frame drew nothing of the scene (the background alone):
+    /// no splat in view, or no Gaussian on any tile.
+    pub fn drew_nothing(&self) -> bool {
+        match self.gaussians {
+            true => self
+                .counts
+                .iter()
+                .any(|(name, n)| name == "gaussians.tile_entries" && *n == 0),
+            false => self.lod.splats_emitted == 0 && self.lod.veiled == 0,
+        }
+    }
+
     /// The report as `--timings` prints it: a table of passes, then the
     /// totals and the work outside the frame.
     pub fn text(&self) -> String {

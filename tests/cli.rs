@@ -43,6 +43,10 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("validation"), "{err}");
+    assert!(
+        !err.contains("in view"),
+        "a warning of an empty frame: {err}"
+    );
     for pass in ["gbuffer.raster", "gbuffer.resolve", "output", "frame wall"] {
         assert!(err.contains(pass), "timings lack {pass}: {err}");
     }
@@ -79,6 +83,34 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
     // Linear, not sRGB-encoded: some mid-grey values exist whose sRGB
     // encoding is well above the stored value.
     assert!(b.pixels.iter().any(|p| p[0] > 0.05 && p[0] < 0.2));
+}
+
+/// A camera that sees nothing of the cloud (looking away from it, as a
+/// camera file made for a cloud re-centred elsewhere does) renders the
+/// background and says so in one warning; -q silences it.
+#[test]
+fn a_frame_without_the_scene_warns() {
+    let dir = scratch("cli-empty-frame");
+    let png = dir.join("away.png");
+    let png_s = png.display().to_string();
+    let bunny = bunny();
+    let away = [
+        "render", &bunny, "-o", &png_s, "--width", "48", "--height", "36", "--device", "llvmpipe",
+        "--eye", "0,0,5", "--target", "0,0,10",
+    ];
+    let o = pointlens(&away);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("frame 1: no point of the scene is in view, only the background"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(png.is_file());
+    let quiet: Vec<&str> = away.iter().copied().chain(["-q"]).collect();
+    let o = pointlens(&quiet);
+    assert!(o.status.success());
+    assert_eq!(stderr(&o), "");
 }
 
 #[test]

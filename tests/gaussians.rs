@@ -260,11 +260,24 @@ fn the_command_line_knows_a_gaussian_scene() {
         // The report counts Gaussians and names their chain's passes.
         let report = String::from_utf8_lossy(&run.stderr);
         assert!(report.contains("gaussians 30 guard"), "{report}");
+        assert!(!report.contains("in view"), "{report}");
         assert!(report.contains("gaussians: tile sort"), "{report}");
         let image = pointlens::image_io::read_image(&png).unwrap();
         assert_eq!((image.width, image.height), (40, 30));
         std::fs::remove_file(&png).unwrap();
     }
+    // A camera looking away from the scene: the background, and a warning.
+    let mut args = vec![
+        "render", p, "-o", o, "--eye", "0,0,10", "--target", "0,0,20",
+    ];
+    args.extend(small);
+    let run = assert_runs(&args);
+    let warning = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        warning.contains("no Gaussian of the scene is in view"),
+        "{warning}"
+    );
+    std::fs::remove_file(&png).unwrap();
     // A scene that would not fit --memory-mb: one line, no file.
     let large = dir.path().join("large.ply");
     write(&large, "binary_little_endian", &scene(4000, 3), &[]);

@@ -1316,6 +1316,9 @@ fn show_frames(
         ),
         false => ProgressBar::hidden(),
     };
+    // Frames that drew nothing of the scene: the first is named, the
+    // count told at the end.
+    let mut empty_frames = 0usize;
     let outcome = render(&mut |event| {
         match event {
             JobEvent::Camera { spec, .. } if how.print_camera && !sequence => {
@@ -1331,15 +1334,20 @@ fn show_frames(
                 bar.set_message(format!("{seconds:.2} s/frame"));
                 bar.inc(1);
                 if report.drew_nothing() {
+                    empty_frames += 1;
                     let what = match report.gaussians {
                         true => "no Gaussian",
                         false => "no point",
                     };
-                    log::warn!(
-                        "frame {number}: {what} of the scene is in view, only the background: \
-                         check the camera (a camera file's \"origin\" places it in the \
-                         coordinates of the cloud it was made for)"
-                    );
+                    if empty_frames == 1 {
+                        bar.suspend(|| {
+                            log::warn!(
+                                "frame {number}: {what} of the scene is in view, only the \
+                                 background: check the camera (a camera file's \"origin\" \
+                                 places it in the coordinates of the cloud it was made for)"
+                            )
+                        });
+                    }
                 }
                 if how.timings {
                     if sequence {
@@ -1354,6 +1362,12 @@ fn show_frames(
     match &outcome {
         Err(pointlens::Error::Interrupted { .. }) => bar.abandon(),
         _ => bar.finish_and_clear(),
+    }
+    if empty_frames > 1 {
+        log::warn!(
+            "{empty_frames} of {} frames showed nothing of the scene",
+            plan.frames.len()
+        );
     }
     Ok(outcome?)
 }

@@ -87,7 +87,8 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
 
 /// A camera that sees nothing of the cloud (looking away from it, as a
 /// camera file made for a cloud re-centred elsewhere does) renders the
-/// background and says so in one warning; -q silences it.
+/// background and says so in one warning (a sequence: the first empty
+/// frame and their count); -q silences it.
 #[test]
 fn a_frame_without_the_scene_warns() {
     let dir = scratch("cli-empty-frame");
@@ -111,6 +112,20 @@ fn a_frame_without_the_scene_warns() {
     let o = pointlens(&quiet);
     assert!(o.status.success());
     assert_eq!(stderr(&o), "");
+    // A sequence names its first empty frame and counts them at the end.
+    let seq = dir.join("away_%04d.png").display().to_string();
+    let mut frames = away.to_vec();
+    frames[3] = &seq;
+    frames.extend(["--frames", "3"]);
+    let o = pointlens(&frames);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.lines().count(), 2, "{err}");
+    assert!(err.contains("frame 1: no point"), "{err}");
+    assert!(
+        err.contains("3 of 3 frames showed nothing of the scene"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -505,7 +505,7 @@ fn layers_without_blur_give_the_pinhole_image() {
     });
 }
 
-/// The bundled trained scene (`data/autzen_gaussians.ply`: 24,000
+/// The bundled trained scene (`data/autzen_gaussians.ply`: 23,998
 /// Gaussians of SH degree 3 fitted to views of the LiDAR tile; data/README.md)
 /// in the tilt-shift view of docs/BENCHMARKS.md at 96 × 72, focused at
 /// 600.74 ft: the device's pinhole image is the CPU reference's (the

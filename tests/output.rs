@@ -96,7 +96,19 @@ fn staged_output_equals_the_direct_output() {
             renderer.set_tile_px(tile_px);
             let mut linear = Vec::new();
             let mut srgb = Vec::new();
+            // Between the two, frames over another background go through
+            // the pooled host buffers: a staged frame whose copy did not
+            // land would read those, not the direct frame's bytes.
+            let poison = RenderOptions {
+                background: Vec3::new(0.1, 0.8, 0.5),
+                ..options
+            };
             for staged in [false, true] {
+                if staged {
+                    renderer.set_staged_output(Some(false));
+                    renderer.render(&scene, &poison).unwrap();
+                    renderer.render_srgb8(&scene, &poison).unwrap();
+                }
                 renderer.set_staged_output(Some(staged));
                 linear.push(renderer.render(&scene, &options).unwrap().image);
                 srgb.push(renderer.render_srgb8(&scene, &options).unwrap().image);

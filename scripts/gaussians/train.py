@@ -11,8 +11,10 @@ covers (a Gaussian adds only in those tiles); the colour from SH of degree
 3 at the direction camera → centre, + 0.5, clamped at 0; α = min(0.99,
 o·e^power), none where power > 0 or α < 1/255; front to back by eye depth
 over the background. The values are sRGB-encoded, as the views (pointlens
-PNGs) are. The stop at transmittance 10⁻⁴ is left out of the fit (it
-changes a pixel by less than 10⁻⁴).
+PNGs) are. The stop at transmittance 10⁻⁴ is left out of the fit: where a
+pixel's Gaussians bring it that low, what the reference leaves out (the
+stopping Gaussian and all behind it, at most T·|c − background| with T
+up to 10⁻²) is kept here.
 
 Training is plain: a fixed set of Gaussians initialised from the cloud's
 splats (examples/export_splats: centres, world diameters, linear colours),
@@ -190,7 +192,7 @@ def make_render(width, height, chunk):
     return render
 
 
-def init_params(splats, count, sh_degree_rest, seed):
+def init_params(splats, count, seed):
     positions, diameters, colors = splats
     rng = np.random.default_rng(seed)
     pick = rng.choice(len(positions), size=min(count, len(positions)), replace=False)
@@ -252,6 +254,8 @@ def main(argv):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--hold-out", type=int, default=4, help="every Nth view is not trained on (0: none)")
     a = ap.parse_args(argv)
+    if a.max_seconds <= 0 or a.steps < 1 or a.gaussians < 1 or a.chunk < 1:
+        raise SystemExit("--max-seconds, --steps, --gaussians and --chunk must be positive")
     background = jnp.asarray([float(v) for v in a.background.split(",")], jnp.float32)
 
     views = load_views(a.views)
@@ -263,7 +267,7 @@ def main(argv):
         splats = splat_scene.read_splats(a.splats)
     except ValueError as e:
         raise SystemExit(str(e))
-    p = init_params(splats, a.gaussians, 45, a.seed)
+    p = init_params(splats, a.gaussians, a.seed)
     extent = float(np.linalg.norm(np.ptp(splats[0], axis=0)))
     log(f"{len(train)} training views, {len(test)} held out, {width}x{height}; "
         f"{p['means'].shape[0]} Gaussians; extent {extent:.1f}; {jax.devices()[0]}")

@@ -22,7 +22,10 @@ use pointlens::PointCloud;
 /// `POINTLENS_TEST_DEVICE` names another device (as `--device` does) for
 /// checks on a lent GPU; the suite and CI run on lavapipe.
 pub fn with_gpu<R>(test: impl FnOnce(&Arc<Context>) -> R) -> R {
-    let device = std::env::var("POINTLENS_TEST_DEVICE").unwrap_or_else(|_| "llvmpipe".into());
+    let device = std::env::var("POINTLENS_TEST_DEVICE")
+        .ok()
+        .filter(|d| !d.is_empty())
+        .unwrap_or_else(|| "llvmpipe".into());
     let ctx = match Context::new(&ContextOptions {
         validation: true,
         device: Some(device),

@@ -361,10 +361,10 @@ struct RenderArgs {
     #[arg(long, value_name = "STRENGTH[,RADIUS_PX]", value_parser = EdlOptions::parse)]
     edl: Option<EdlOptions>,
     /// A COPC file is rendered by node: the most points one frame takes
-    /// (the nodes whose spacing is widest on screen first).
-    #[arg(long, value_name = "N", default_value_t = pointlens::input::copc::DEFAULT_POINT_BUDGET,
-          value_parser = clap::value_parser!(u64).range(1..))]
-    point_budget: u64,
+    /// (the nodes whose spacing is widest on screen first; default
+    /// 10,000,000).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    point_budget: Option<u64>,
     #[command(flatten)]
     memory: MemoryArgs,
     /// Render each frame in tiles of at most N×N pixels, each with the
@@ -425,10 +425,11 @@ struct RenderArgs {
     #[arg(long, value_name = "z,coc", value_parser = parse_passes)]
     passes: Option<Passes>,
     /// Level of detail: draw a node of the splat hierarchy as one splat
-    /// when it projects to at most P pixels (0: every point, no culling).
-    #[arg(long, value_name = "P", default_value_t = 1.0, allow_negative_numbers = true,
+    /// when it projects to at most P pixels (0: every point, no culling;
+    /// default 1).
+    #[arg(long, value_name = "P", allow_negative_numbers = true,
           value_parser = checked_f32(check_lod_px))]
-    lod_px: f32,
+    lod_px: Option<f32>,
     /// Blur-aware detail: a node may also stop where it projects to at most
     /// F times its circle of confusion (detail finer than the blur).
     #[arg(long, value_name = "F", allow_negative_numbers = true,
@@ -1141,6 +1142,8 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
             args.gbuffer.samples_per_pass.is_some(),
         ),
         ("--raster", args.gbuffer.raster.is_some()),
+        ("--lod-px", args.lod_px.is_some()),
+        ("--point-budget", args.point_budget.is_some()),
         ("--splat-shape", args.gbuffer.splat_shape.is_some()),
         ("--layers", args.layers.is_some()),
     ];
@@ -1212,7 +1215,8 @@ fn open_input(
         true => Some(CopcClouds::open(
             &args.input,
             args.origin.map(DVec3::from_array),
-            args.point_budget,
+            args.point_budget
+                .unwrap_or(pointlens::input::copc::DEFAULT_POINT_BUDGET),
             args.memory.memory_mb,
         )?),
         false => None,
@@ -1481,7 +1485,7 @@ fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
         samples_per_pass: args.gbuffer.samples_per_pass,
         background: background_of(args)?,
         lod: Lod {
-            px: args.lod_px,
+            px: args.lod_px.unwrap_or(pointlens::options::DEFAULT_LOD_PX),
             blur: args.lod_blur,
         },
         written: Written {

@@ -502,10 +502,14 @@ pub struct Lod {
     pub blur: Option<f32>,
 }
 
+/// `--lod-px`'s default: a node of the hierarchy drawn as one splat where
+/// it projects to at most a pixel.
+pub const DEFAULT_LOD_PX: f32 = 1.0;
+
 impl Default for Lod {
     fn default() -> Lod {
         Lod {
-            px: 1.0,
+            px: DEFAULT_LOD_PX,
             blur: None,
         }
     }

@@ -231,6 +231,11 @@ fn the_command_line_knows_a_gaussian_scene() {
         ),
         (vec!["--layers", "3"], "--layers is about points"),
         (vec!["--raster", "compute"], "--raster is about points"),
+        (vec!["--lod-px", "2"], "--lod-px is about points"),
+        (
+            vec!["--point-budget", "1000"],
+            "--point-budget is about points",
+        ),
         (
             vec!["--splat-shape", "disc"],
             "--splat-shape is about points",

@@ -35,6 +35,9 @@ import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "mitsuba"))
+import splat_scene  # noqa: E402
+
 # --------------------------------------------------------------------------
 # Small helpers
 
@@ -534,22 +537,9 @@ def print_camera(args, scene_path, aperture):
 
 
 def mitsuba_scene(mi, ply, cam, srgb_primitives=True):
-    sensor = {
-        "fov": float(cam["fovy_deg"]),
-        "fov_axis": "y",
-        "to_world": mi.ScalarTransform4f().look_at(
-            origin=[float(v) for v in cam["eye"]], target=[float(v) for v in cam["target"]],
-            up=[float(v) for v in cam["up"]]),
-        "film": {"type": "hdrfilm", "width": int(cam["width"]), "height": int(cam["height"]),
-                 "rfilter": {"type": "box"}, "pixel_format": "rgb", "component_format": "float32"},
-        "sampler": {"type": "independent", "sample_count": 1},
-    }
-    if cam["aperture_radius"] > 0:
-        sensor["type"] = "thinlens"
-        sensor["aperture_radius"] = float(cam["aperture_radius"])
-        sensor["focus_distance"] = float(cam["focus_distance"])
-    else:
-        sensor["type"] = "perspective"
+    # The sensor as the splat comparison builds it (perspective or
+    # thinlens, box-filtered float film).
+    sensor = splat_scene.sensor_dict(mi, cam)
     return mi.load_dict({
         "type": "scene",
         # max_depth -1: no cap on the Gaussians a ray composites (the

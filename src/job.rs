@@ -531,7 +531,10 @@ impl RenderJob {
                 load_ms,
                 encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
                 counts: vec![
-                    ("gaussians.tile_entries".into(), frame.entries as u64),
+                    (
+                        crate::report::GAUSSIAN_TILE_ENTRIES.into(),
+                        frame.entries as u64,
+                    ),
                     ("gaussians.retries".into(), frame.retries as u64),
                 ],
                 gaussians: true,

@@ -85,6 +85,10 @@ pub struct LodReport {
     pub veiled: u64,
 }
 
+/// The count a frame of 3D Gaussians reports its tile entries under (the
+/// most of any lens point).
+pub const GAUSSIAN_TILE_ENTRIES: &str = "gaussians.tile_entries";
+
 /// One rendered frame: what was rendered, each pass's GPU time, the frame's
 /// wall time, and the work around the frame measured apart.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -164,7 +168,7 @@ impl FrameReport {
             true => self
                 .counts
                 .iter()
-                .any(|(name, n)| name == "gaussians.tile_entries" && *n == 0),
+                .any(|(name, n)| name == GAUSSIAN_TILE_ENTRIES && *n == 0),
             false => self.lod.splats_emitted == 0 && self.lod.veiled == 0,
         }
     }

@@ -28,9 +28,9 @@ use pointlens::job::{
 use pointlens::metrics;
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
-    check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastOptions, FastWeights,
-    GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics, RdbMode, RdbOptions,
-    SplatShape,
+    check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastGather, FastOptions,
+    FastWeights, GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics,
+    RdbMode, RdbOptions, SplatShape,
 };
 use pointlens::render::{Renderer, SplatSize};
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
@@ -250,6 +250,11 @@ struct RenderArgs {
     /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
     #[arg(long, value_enum, default_value_t)]
     fast_window: GatherWindow,
+    /// How the fast method sums its window: tree (by blocks of a tree,
+    /// opened only where the gather's tests differ within a block) or
+    /// pixels (pixel by pixel, the paper's loop); the same contributors.
+    #[arg(long, value_enum, default_value_t)]
+    fast_gather: FastGather,
     /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.
     #[arg(long, default_value_t = pointlens::options::DEFAULT_RDB_BINS, value_parser = checked(check_rdb_bins))]
     rdb_bins: u32,
@@ -1432,6 +1437,7 @@ fn method_of(args: &RenderArgs) -> Method {
         FastOptions {
             weights: args.fast_weights,
             window: args.fast_window,
+            gather: args.fast_gather,
         },
         RdbOptions {
             bins: args.rdb_bins,

@@ -31,6 +31,20 @@ pub enum GatherWindow {
     Fixed,
 }
 
+/// How the fast gather forms its sums over a window (`--fast-gather`);
+/// the same pixels contribute either way, the float sums round differently.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum FastGather {
+    /// By blocks of a tree of 2^l-pixel blocks, each taken whole where
+    /// every pixel of it passes the gather's tests and opened where only
+    /// some may: the cost follows the disk's rim, not its area
+    /// (docs/BENCHMARKS.md).
+    #[default]
+    Tree,
+    /// Pixel by pixel over the window: the paper's loop.
+    Pixels,
+}
+
 /// How the G-buffer's splats are rasterised (`--raster`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum Raster {
@@ -88,6 +102,7 @@ pub enum RdbAtomics {
 pub struct FastOptions {
     pub weights: FastWeights,
     pub window: GatherWindow,
+    pub gather: FastGather,
 }
 
 /// Options of the ray distribution buffer (DESIGN §5).
@@ -271,9 +286,14 @@ impl MethodKind {
 }
 
 impl Method {
-    /// The fast gather with these options.
+    /// The fast gather with these options, by the block tree (the default
+    /// `--fast-gather`).
     pub const fn fast(weights: FastWeights, window: GatherWindow) -> Method {
-        Method::Fast(FastOptions { weights, window })
+        Method::Fast(FastOptions {
+            weights,
+            window,
+            gather: FastGather::Tree,
+        })
     }
 
     /// The RDB with N×N bins in `mode`, the default memory budget.
@@ -300,10 +320,11 @@ impl Method {
     }
 
     /// Syntax of [`Method::parse_short`], for error messages and help.
-    pub const SHORT_SYNTAX: &'static str = "pinhole, fast, fast-uniform, fast-fixed, rdbN or rdbN-pairs (N in 2..=16), layeredK (K in 1..=8), accumS (S ≥ 1)";
+    pub const SHORT_SYNTAX: &'static str = "pinhole, fast, fast-uniform, fast-fixed, fast-pixels (and their combinations), rdbN or rdbN-pairs (N in 2..=16), layeredK (K in 1..=8), accumS (S ≥ 1)";
 
     /// Parses a method with its options in one word, as `bench --methods`
-    /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`, `rdbN`,
+    /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`,
+    /// `fast-pixels` (and their combinations, in that order), `rdbN`,
     /// `rdbN-pairs`, `layeredK`, `accumS`. N and S are required and go through the same
     /// range checks as `--rdb-bins` and `--samples`. [`Method::short_name`]
     /// is the inverse.
@@ -347,6 +368,8 @@ impl Method {
                         fast.weights = w;
                     } else if let Ok(w) = GatherWindow::from_str(o, false) {
                         fast.window = w;
+                    } else if let Ok(g) = FastGather::from_str(o, false) {
+                        fast.gather = g;
                     } else {
                         return Err(bad());
                     }
@@ -386,12 +409,19 @@ impl Method {
     pub fn short_name(&self) -> String {
         match self {
             Method::Pinhole => "pinhole".into(),
-            Method::Fast(o) => match (o.weights, o.window) {
-                (FastWeights::Area, GatherWindow::Tiles) => "fast".into(),
-                (FastWeights::Uniform, GatherWindow::Tiles) => "fast-uniform".into(),
-                (FastWeights::Area, GatherWindow::Fixed) => "fast-fixed".into(),
-                (FastWeights::Uniform, GatherWindow::Fixed) => "fast-uniform-fixed".into(),
-            },
+            Method::Fast(o) => {
+                let mut name = String::from("fast");
+                if o.weights == FastWeights::Uniform {
+                    name += "-uniform";
+                }
+                if o.window == GatherWindow::Fixed {
+                    name += "-fixed";
+                }
+                if o.gather == FastGather::Pixels {
+                    name += "-pixels";
+                }
+                name
+            }
             Method::Rdb(o) => match o.mode {
                 RdbMode::Centre => format!("rdb{}", o.bins),
                 RdbMode::Pairs => format!("rdb{}-pairs", o.bins),

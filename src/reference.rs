@@ -28,6 +28,26 @@ pub fn disk_pixel_count(c: f32) -> u32 {
 /// output averages, over all G-buffer pixels P with |p − q| ≤ c_P/2 and
 /// z_P ≤ z_Q, P's color weighted by `weights`. No tiles, no window bound.
 pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> LinearImage {
+    let mut out = LinearImage::new(camera.width, camera.height, [0.0; 4]);
+    let pixels: Vec<(u32, u32)> = (0..camera.height)
+        .flat_map(|y| (0..camera.width).map(move |x| (x, y)))
+        .collect();
+    for ((x, y), value) in pixels
+        .iter()
+        .zip(fast_at(gbuffer, camera, weights, &pixels))
+    {
+        out.set(*x, *y, value);
+    }
+    out
+}
+
+/// [`fast`] at the given output pixels only (x, y), in their order.
+pub fn fast_at(
+    gbuffer: &HostGBuffer,
+    camera: &Camera,
+    weights: FastWeights,
+    pixels: &[(u32, u32)],
+) -> Vec<[f32; 4]> {
     let (w, h) = (gbuffer.width as i64, gbuffer.height as i64);
     let g = gbuffer.guard as i64;
     let coc: Vec<f32> = gbuffer.eye.iter().map(|e| camera.coc_px(e[2])).collect();
@@ -38,10 +58,10 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
             FastWeights::Uniform => 1.0,
         })
         .collect();
-    let mut out = LinearImage::new(camera.width, camera.height, [0.0; 4]);
-    for y in 0..camera.height as i64 {
-        for x in 0..camera.width as i64 {
-            let (qx, qy) = (x + g, y + g);
+    pixels
+        .iter()
+        .map(|&(x, y)| {
+            let (qx, qy) = (x as i64 + g, y as i64 + g);
             let zq = gbuffer.eye[(qy * w + qx) as usize][2];
             let mut sum = [0.0f64; 4];
             let mut total = 0.0f64;
@@ -60,10 +80,9 @@ pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> Lin
                 }
             }
             // Alpha: the contributors' coverage, weighted as the color.
-            out.set(x as u32, y as u32, sum.map(|s| (s / total) as f32));
-        }
-    }
-    out
+            sum.map(|s| (s / total) as f32)
+        })
+        .collect()
 }
 
 /// The bins of a ray distribution buffer: per output pixel and lens bin the

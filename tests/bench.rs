@@ -7,8 +7,8 @@ use common::{assert_fails, pointlens, scratch};
 use glam::Vec3;
 use pointlens::bench::{self, synthetic_cloud, BenchMethod, BenchModel, BenchOptions, Stats};
 use pointlens::image_io::read_image;
-use pointlens::options::Method;
 use pointlens::options::RdbMode;
+use pointlens::options::{FastGather, FastOptions, Method};
 use pointlens::vk::{Context, ContextOptions};
 use serde_json::Value;
 
@@ -318,7 +318,36 @@ fn method_names_and_statistics() {
         err.contains("'rdb17' is out of range") && err.contains("16"),
         "{err}"
     );
-    for bad in ["rdb1", "rdb", "accum0", "accum", "rdbx", "fastest"] {
+    // The fast gather's options, in any combination, round trip.
+    for name in [
+        "fast",
+        "fast-uniform",
+        "fast-fixed",
+        "fast-pixels",
+        "fast-uniform-fixed",
+        "fast-uniform-pixels",
+        "fast-fixed-pixels",
+        "fast-uniform-fixed-pixels",
+    ] {
+        let m = Method::parse_short(name).unwrap();
+        assert_eq!(m.short_name(), name);
+    }
+    assert_eq!(
+        Method::parse_short("fast-pixels").unwrap(),
+        Method::Fast(FastOptions {
+            gather: FastGather::Pixels,
+            ..FastOptions::default()
+        })
+    );
+    for bad in [
+        "rdb1",
+        "rdb",
+        "accum0",
+        "accum",
+        "rdbx",
+        "fastest",
+        "fast-tiles-trees",
+    ] {
         assert!(BenchMethod::parse(bad).is_err(), "{bad}");
     }
     // layeredK: K depth-peeled layers in 1..=8, through one lens position.

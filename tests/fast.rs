@@ -2,15 +2,15 @@
 
 mod common;
 
-use common::{camera, cloud, options, root, with_gpu};
+use common::{camera, cloud, differing, options, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
 use pointlens::input::ply::load_ply;
 use pointlens::options::Method;
-use pointlens::options::{FastWeights, GatherWindow};
+use pointlens::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use pointlens::reference;
-use pointlens::render::{RenderOptions, Renderer, SplatSize};
+use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
 use pointlens::PointCloud;
 
 fn render(
@@ -28,6 +28,59 @@ fn render(
 }
 
 const FAST: Method = Method::fast(FastWeights::Area, GatherWindow::Tiles);
+
+/// The largest difference between two images' pixels, color and alpha,
+/// relative to `b` (at least 0.05). The GPU stores rgba16f: a step is
+/// 2^-11 relative, so sums of the same values in another order, or in
+/// float64 on the CPU, are within 2e-3.
+fn worst_relative<'a>(pairs: impl IntoIterator<Item = (&'a [f32; 4], &'a [f32; 4])>) -> f32 {
+    pairs
+        .into_iter()
+        .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
+        .fold(0.0f32, f32::max)
+}
+
+/// Asserts that `image`, rendered with `rendered`, differs from the
+/// pinhole image of the same frame in most of its pixels.
+fn assert_blurs(renderer: &Renderer, scene: &Scene, rendered: &RenderOptions, image: &LinearImage) {
+    let pinhole = RenderOptions {
+        method: Method::Pinhole,
+        ..*rendered
+    };
+    let pinhole = renderer.render(scene, &pinhole).unwrap();
+    let blurred = differing(image, &pinhole.image);
+    assert!(
+        blurred * 2 > image.pixels.len(),
+        "the frame must blur: {blurred} of {} pixels differ from the pinhole's",
+        image.pixels.len()
+    );
+}
+
+/// The bundled bunny uploaded, and a camera of `size` at `offset` from its
+/// centre looking at it, 40° vertical field of view, with this lens.
+fn bunny_view(
+    renderer: &Renderer,
+    (width, height): (u32, u32),
+    offset: Vec3,
+    aperture_radius: f32,
+    focus_distance: f32,
+) -> (Scene, Camera) {
+    let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
+    let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
+    let (lo, hi) = bunny.bounds();
+    let centre = (lo + hi) / 2.0;
+    let cam = Camera {
+        width,
+        height,
+        eye: centre + offset,
+        target: centre,
+        up: Vec3::Y,
+        fovy_deg: 40.0,
+        aperture_radius,
+        focus_distance,
+    };
+    (scene, cam)
+}
 
 #[test]
 fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
@@ -70,15 +123,8 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                     gpu.image, fixed.image,
                     "{weights:?}: tiles and fixed window differ"
                 );
-                let mut worst = 0.0f32;
-                for (a, b) in gpu.image.pixels.iter().zip(&cpu.pixels) {
-                    // Color and alpha (the coverage, weighted as the color).
-                    for c in 0..4 {
-                        // The GPU stores rgba16f: a relative error of 2^-11.
-                        let err = (a[c] - b[c]).abs() / b[c].abs().max(0.05);
-                        worst = worst.max(err);
-                    }
-                }
+                // Color and alpha (the coverage, weighted as the color).
+                let worst = worst_relative(gpu.image.pixels.iter().zip(&cpu.pixels));
                 assert!(
                     worst < 2e-3,
                     "{weights:?}, S = {focus}: GPU and CPU differ by {worst} (relative)"
@@ -217,20 +263,7 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
     // with the CPU reference.
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
-        let bunny = load_ply(&root().join("data/bunny_colored.ply")).unwrap();
-        let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
-        let (lo, hi) = bunny.bounds();
-        let centre = (lo + hi) / 2.0;
-        let cam = Camera {
-            width: 128,
-            height: 96,
-            eye: centre + Vec3::new(0.0, 0.0, 0.6),
-            target: centre,
-            up: Vec3::Y,
-            fovy_deg: 40.0,
-            aperture_radius: 0.004,
-            focus_distance: 0.6,
-        };
+        let (scene, cam) = bunny_view(&renderer, (128, 96), Vec3::new(0.0, 0.0, 0.6), 0.004, 0.6);
         // A colored background takes the short loop; a black one skips it.
         for (weights, background) in [
             (FastWeights::Area, Vec3::new(0.2, 0.45, 0.7)),
@@ -259,13 +292,7 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
                 "{weights:?}: {differ} pixels differ between the paths"
             );
             let cpu = reference::fast(&gbuffer, &cam, weights);
-            let worst = tiles
-                .image
-                .pixels
-                .iter()
-                .zip(&cpu.pixels)
-                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
-                .fold(0.0f32, f32::max);
+            let worst = worst_relative(tiles.image.pixels.iter().zip(&cpu.pixels));
             assert!(worst < 2e-3, "{weights:?}: GPU and CPU differ by {worst}");
             // Tiles (16 px) whose square 16 px apron holds no point: the
             // gather window is at most the largest CoC / 2 < 16 px, so these
@@ -295,5 +322,243 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
                 "the bunny must be in view"
             );
         }
+    });
+}
+
+#[test]
+fn the_block_tree_gathers_what_the_pixel_loop_gathers() {
+    // `--fast-gather tree` takes a block's sums whole where its bounds show
+    // that every pixel passes the z and reach tests, and leaves it where
+    // none can: the same contributors as the pixel loop, summed in another
+    // order. The bunny near the lens with a wide aperture: CoCs of 0 to
+    // 30 px on it and 72 px for the background, so that the windows of
+    // 16 px or more (the tree's threshold) are taken by blocks, over
+    // silhouettes and the z test's boundary.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let (scene, cam) = bunny_view(&renderer, (96, 72), Vec3::new(0.03, 0.01, 0.17), 0.05, 0.15);
+        for (weights, window, background) in [
+            (
+                FastWeights::Area,
+                GatherWindow::Tiles,
+                Vec3::new(0.2, 0.45, 0.7),
+            ),
+            (FastWeights::Uniform, GatherWindow::Tiles, Vec3::ZERO),
+            (
+                FastWeights::Area,
+                GatherWindow::Fixed,
+                Vec3::new(0.6, 0.3, 0.1),
+            ),
+        ] {
+            let fast = |gather| RenderOptions {
+                background,
+                ..options(
+                    cam,
+                    Method::Fast(FastOptions {
+                        weights,
+                        window,
+                        gather,
+                    }),
+                )
+            };
+            let (tree, gbuffer) = renderer
+                .render_with_gbuffer(&scene, &fast(FastGather::Tree))
+                .unwrap();
+            let pixels = renderer.render(&scene, &fast(FastGather::Pixels)).unwrap();
+            let blocks = |r: &pointlens::render::Rendered| {
+                r.counts
+                    .iter()
+                    .find(|(name, _)| name == "fast.tree_blocks")
+                    .map(|c| c.1)
+            };
+            assert!(blocks(&tree).unwrap() > 0, "the tree was not built");
+            assert_eq!(blocks(&pixels), Some(0));
+            // The sums of rgba16f-rounded colors in another order: each
+            // output is rounded to rgba16f again (a relative step of
+            // 2^-11), so the two differ by a step or two.
+            let cpu = reference::fast(&gbuffer, &cam, weights);
+            for (other, name) in [
+                (&pixels.image, "the pixel loop"),
+                (&cpu, "the CPU reference"),
+            ] {
+                let worst = worst_relative(tree.image.pixels.iter().zip(&other.pixels));
+                assert!(
+                    worst < 2e-3,
+                    "{weights:?}, {window:?}: the tree and {name} differ by {worst} (relative)"
+                );
+            }
+            // Most of the frame gathers over windows the tree takes: CoCs
+            // of 32 px and more (radius 16), the bunny's and the
+            // background's, and the bunny covers a good part of it.
+            let coc = |e: &[f32; 4]| cam.coc_px(e[2]);
+            let wide = gbuffer.eye.iter().filter(|e| coc(e) >= 32.0).count();
+            let bunny_px = gbuffer.eye.iter().filter(|e| e[2].is_finite()).count();
+            assert!(
+                wide * 2 > gbuffer.eye.len() && bunny_px * 5 > gbuffer.eye.len(),
+                "{wide} wide, {bunny_px} bunny of {} pixels",
+                gbuffer.eye.len()
+            );
+            assert_blurs(&renderer, &scene, &fast(FastGather::Tree), &tree.image);
+        }
+    });
+}
+
+#[test]
+fn the_block_tree_and_the_pixel_loop_agree_bit_for_bit_where_sums_are_exact() {
+    // With uniform weights (w = 1) and colors of 0 and 1 only, every
+    // G-buffer channel is a multiple of 1/4 (SSAA 2), and every sum of the
+    // gather is exact in float32 whatever its order: the two ways must give
+    // the same bits, so a single pixel gathered by one and not the other
+    // shows. Three planes at CoCs of 20 to 45 px (background 59 px), with
+    // checkers and stripes, so that blocks are taken whole, left, and
+    // opened at silhouettes and at the z test's boundary.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let mut cam = camera(96, 72);
+        cam.focus_distance = 1.0;
+        cam.aperture_radius = 0.3;
+        let mut points = Vec::new();
+        let white = Vec3::ONE;
+        let grid = |lo: (f32, f32),
+                    hi: (f32, f32),
+                    step: f32,
+                    z: f32,
+                    color: &dyn Fn(i32, i32) -> Vec3,
+                    out: &mut Vec<(Vec3, Vec3)>| {
+            let (nx, ny) = (((hi.0 - lo.0) / step) as i32, ((hi.1 - lo.1) / step) as i32);
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    let p = Vec3::new(lo.0 + i as f32 * step, lo.1 + j as f32 * step, z);
+                    out.push((p, color(i, j)));
+                }
+            }
+        };
+        // Far: an 8-px checker at z = -4 (CoC 44.5 px).
+        grid(
+            (-3.0, -3.0),
+            (3.0, 3.0),
+            0.04,
+            -4.0,
+            &|i, j| {
+                if (i / 8 + j / 8) % 2 == 0 {
+                    white
+                } else {
+                    Vec3::ZERO
+                }
+            },
+            &mut points,
+        );
+        // Middle: stripes at z = -1.5 (19.8 px).
+        grid(
+            (-0.3, -0.5),
+            (0.3, 0.1),
+            0.015,
+            -1.5,
+            &|_, j| {
+                if (j / 4) % 2 == 0 {
+                    white
+                } else {
+                    Vec3::ZERO
+                }
+            },
+            &mut points,
+        );
+        // Near: a white square at z = -0.6 (39.5 px).
+        grid(
+            (0.0, 0.0),
+            (0.2, 0.15),
+            0.006,
+            -0.6,
+            &|_, _| white,
+            &mut points,
+        );
+        let scene = renderer
+            .upload(&cloud(&points), SplatSize::World(0.05))
+            .unwrap();
+        assert!((cam.coc_px(f32::INFINITY) - 59.3).abs() < 0.1);
+        for window in [GatherWindow::Tiles, GatherWindow::Fixed] {
+            let fast = |gather| {
+                options(
+                    cam,
+                    Method::Fast(FastOptions {
+                        weights: FastWeights::Uniform,
+                        window,
+                        gather,
+                    }),
+                )
+            };
+            let (tree, gbuffer) = renderer
+                .render_with_gbuffer(&scene, &fast(FastGather::Tree))
+                .unwrap();
+            let pixels = renderer.render(&scene, &fast(FastGather::Pixels)).unwrap();
+            // The premise: channels in quarters.
+            assert!(gbuffer
+                .color
+                .iter()
+                .flatten()
+                .all(|&c| (c * 4.0).fract() == 0.0));
+            let blocks = tree.counts.iter().find(|(n, _)| n == "fast.tree_blocks");
+            assert!(blocks.is_some_and(|b| b.1 > 0), "the tree was not built");
+            assert_eq!(
+                differing(&tree.image, &pixels.image),
+                0,
+                "{window:?}: the tree and the pixel loop differ"
+            );
+            assert_blurs(&renderer, &scene, &fast(FastGather::Tree), &tree.image);
+        }
+    });
+}
+
+#[test]
+fn windows_past_llvmpipes_loop_limit_gather_what_the_cpu_reference_does() {
+    // llvmpipe ends every loop of a shader invocation after 65,535
+    // iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS, one count shared by
+    // every loop), silently. The pixel loop over a window of 2r + 1 squared
+    // pixels passes that from r = 128, and the paper's loop then drops the
+    // rest of its window (it fails this test on lavapipe: checked); the
+    // tree visits a few thousand blocks there. A checkered floor from 3 cm
+    // to 40 cm below a camera 0.2 mm above it, focused at 10 cm through a
+    // 2 cm lens: CoCs of 130 to 6,000 px, windows as wide as the G-buffer
+    // (560×490). The CPU reference at every 7th pixel of every 5th row.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let mut points = Vec::new();
+        for i in 0..=200 {
+            for j in 15..=200 {
+                let (x, z) = (-0.2 + i as f32 * 0.002, -(j as f32) * 0.002);
+                let odd = ((x / 0.02).floor() + (z / 0.02).floor()) as i32 & 1 == 1;
+                let color = match odd {
+                    true => Vec3::new(0.9, 0.8, 0.2),
+                    false => Vec3::new(0.1, 0.5, 0.1),
+                };
+                points.push((Vec3::new(x, -0.0002, z), color));
+            }
+        }
+        let scene = renderer
+            .upload(&cloud(&points), SplatSize::Spacing)
+            .unwrap();
+        let cam = Camera {
+            aperture_radius: 0.02,
+            focus_distance: 0.1,
+            ..camera(280, 210)
+        };
+        let (tree, gbuffer) = renderer
+            .render_with_gbuffer(&scene, &options(cam, FAST))
+            .unwrap();
+        let (w, h) = (gbuffer.width, gbuffer.height);
+        assert!(w.min(h) > 2 * 128 + 1, "the G-buffer is {w}×{h}");
+        let pixels: Vec<(u32, u32)> = (0..cam.height)
+            .step_by(5)
+            .flat_map(|y| (y % 7..cam.width).step_by(7).map(move |x| (x, y)))
+            .collect();
+        let cpu = reference::fast_at(&gbuffer, &cam, FastWeights::Area, &pixels);
+        let gpu: Vec<[f32; 4]> = pixels.iter().map(|&(x, y)| tree.image.get(x, y)).collect();
+        let worst = worst_relative(gpu.iter().zip(&cpu));
+        assert!(
+            worst < 2e-3,
+            "the tree and the CPU reference differ by {worst}"
+        );
+        let lit = tree.image.pixels.iter().filter(|p| p[3] > 0.05).count();
+        assert!(lit * 2 > tree.image.pixels.len(), "{lit} pixels lit");
     });
 }

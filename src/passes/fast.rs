@@ -1,7 +1,10 @@
-//! Zhao's fast approximation (DESIGN §4) as four compute passes, each beside
+//! Zhao's fast approximation (DESIGN §4) as compute passes, each beside
 //! its GLSL file: `fast_coc` (CoC and weight per pixel), `fast_tile_max`
-//! (largest CoC per tile), `fast_tile_dilate` (each tile's gather radius)
-//! and `fast_gather` (the z-tested, weighted gather).
+//! (largest CoC per tile), `fast_tile_dilate` (each tile's gather radius),
+//! with `--fast-gather tree` (the default) `fast_tree` (the block tree, one
+//! dispatch per level), and `fast_gather` / `fast_gather_tree` (the
+//! z-tested, weighted gather, pixel by pixel or by blocks: the same
+//! contributors, docs/ARCHITECTURE.md).
 
 use std::sync::Arc;
 
@@ -9,17 +12,33 @@ use ash::vk;
 
 use super::{Configured, DofFrame, DofInput, DofMethod, FrameView};
 use crate::error::Result;
-use crate::options::{FastOptions, FastWeights, GatherWindow};
+use gpu_allocator::MemoryLocation;
+
+use crate::error::Error;
+use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use crate::push_constants;
-use crate::vk::{groups, Access, Bind, Binding, ComputePipeline, Context, Frame, Image};
+use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
 
 /// Tile edge in pixels for the CoC bound.
 pub const TILE: u32 = 16;
+/// The most levels of the gather's block tree (mirrors
+/// `glsl/fast_tree.glsl`): blocks of up to 2^14 px.
+pub const TREE_LEVELS_MAX: u32 = 14;
+/// The smallest gather radius (px) the tree takes by blocks (mirrors
+/// `glsl/fast_tree.glsl`); smaller windows go pixel by pixel, which is
+/// faster there (docs/BENCHMARKS.md).
+pub const TREE_MIN_RADIUS_PX: u32 = 16;
+/// The lowest level of the tree (mirrors `glsl/fast_tree.glsl`): blocks of
+/// 4×4 px; one the gather can neither take nor leave whole it gathers pixel
+/// by pixel (cheaper on llvmpipe than opening 2×2 blocks, docs/BENCHMARKS.md).
+pub const TREE_LEAF_LEVEL: u32 = 2;
 
 static COC: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_coc.comp.spv"));
 static TILE_MAX: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_tile_max.comp.spv"));
 static TILE_DILATE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_tile_dilate.comp.spv"));
 static GATHER: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_gather.comp.spv"));
+static GATHER_TREE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_gather_tree.comp.spv"));
+static TREE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fast_tree.comp.spv"));
 
 push_constants! {
     struct CocPush {
@@ -54,27 +73,86 @@ push_constants! {
         origin: [i32; 2],
         size: [i32; 2],
         tile: i32,
+        levels: i32,
+        padded: [i32; 2],
     }
 }
 
-/// The four pipelines of the method.
+push_constants! {
+    struct TreePush {
+        extent: [i32; 2],
+        padded: [i32; 2],
+        level: i32,
+    }
+}
+
+/// The pipelines of the method.
 pub struct Fast {
     coc: ComputePipeline<CocPush>,
     tile_max: ComputePipeline<TileMaxPush>,
     tile_dilate: ComputePipeline<DilatePush>,
     gather: ComputePipeline<GatherPush>,
+    tree: ComputePipeline<TreePush>,
+    gather_tree: ComputePipeline<GatherPush>,
 }
 
 impl Fast {
     pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
-        let img = Binding::StorageImage;
+        use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {
-            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[img; 2])?,
-            tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[img; 3])?,
-            tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[img; 2])?,
-            gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[img; 5])?,
+            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I; 2])?,
+            tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
+            tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
+            gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[I; 5])?,
+            tree: ComputePipeline::new(ctx, "fast_tree", TREE, &[I, I, I, B, B, B])?,
+            gather_tree: ComputePipeline::new(
+                ctx,
+                "fast_gather_tree",
+                GATHER_TREE,
+                &[I, I, I, I, I, B, B, B],
+            )?,
         })
     }
+}
+
+/// The levels of the block tree for gather radii up to `max_radius_px` in a
+/// `width`×`height` G-buffer: the gather's largest blocks are no wider than
+/// its radius, and no wider than the G-buffer (0: no tree; every window is
+/// under [`TREE_MIN_RADIUS_PX`] and gathered pixel by pixel).
+pub fn tree_levels(max_radius_px: f32, width: u32, height: u32) -> u32 {
+    let radius = max_radius_px.floor().min(width.max(height) as f32);
+    if radius < TREE_MIN_RADIUS_PX as f32 {
+        return 0;
+    }
+    (radius as u32).ilog2().min(TREE_LEVELS_MAX)
+}
+
+/// The G-buffer size the tree's levels are laid out for: `width`×`height`
+/// rounded up to a multiple of 2^levels (`glsl/fast_tree.glsl`).
+pub fn tree_padded(levels: u32, width: u32, height: u32) -> [u32; 2] {
+    let block = 1 << levels;
+    [
+        width.next_multiple_of(block),
+        height.next_multiple_of(block),
+    ]
+}
+
+/// Blocks of the tree's levels together (`TREE_LEAF_LEVEL` to `levels`),
+/// in its padded layout.
+pub fn tree_blocks(levels: u32, width: u32, height: u32) -> u64 {
+    let [pw, ph] = tree_padded(levels, width, height);
+    (TREE_LEAF_LEVEL..=levels)
+        .map(|l| (pw >> l) as u64 * (ph >> l) as u64)
+        .sum()
+}
+
+/// The index of block (x, y) of level `level` in the padded layout (mirrors
+/// `tree_index` in `glsl/fast_tree.glsl`, which sums the levels before it
+/// as a geometric series).
+pub fn tree_index(padded: [u32; 2], level: u32, x: u32, y: u32) -> u64 {
+    let pixels = padded[0] as u64 * padded[1] as u64;
+    let before = ((pixels >> (2 * (TREE_LEAF_LEVEL - 1))) - (pixels >> (2 * (level - 1)))) / 3;
+    before + y as u64 * (padded[0] >> level) as u64 + x as u64
 }
 
 /// Every pixel blurs, the background too: the default guard band.
@@ -86,7 +164,7 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
     ) -> Result<Box<dyn DofFrame + 'm>> {
         Ok(Box::new(FastFrame {
             method: self,
-            images: FastImages::new(ctx, view)?,
+            images: FastImages::new(ctx, view, self.options)?,
         }))
     }
 }
@@ -98,11 +176,68 @@ struct FastImages {
     tile_radius: Image,
     /// The result: G-buffer sized, written inside the guard band only.
     result: Image,
+    /// The block tree (`--fast-gather tree`; none where no window is wide
+    /// enough for a block).
+    tree: Option<FastTree>,
+}
+
+/// The gather's block tree (`glsl/fast_tree.glsl`): per block of levels
+/// `TREE_LEAF_LEVEL` to `levels`, its pixels' weighted colors and weights
+/// summed, and the bounds of their depths and CoCs.
+struct FastTree {
+    levels: u32,
+    /// Blocks of all levels, the padding's included.
+    blocks: u64,
+    padded: [u32; 2],
+    /// Σ w · rgba per block (4 floats).
+    sums: Buffer,
+    /// Σ w per block.
+    weights: Buffer,
+    /// z min, z max, c min, c max per block.
+    bounds: Buffer,
+}
+
+impl FastTree {
+    fn new(ctx: &Arc<Context>, levels: u32, w: u32, h: u32) -> Result<FastTree> {
+        let blocks = tree_blocks(levels, w, h);
+        let info = &ctx.info;
+        let limit = info
+            .max_storage_buffer_range
+            .min(info.max_memory_allocation_bytes);
+        // The shader's indices are 32-bit.
+        if 16 * blocks > limit || blocks > u32::MAX as u64 {
+            return Err(Error::InvalidArgument(format!(
+                "the fast gather's block tree for a {w}×{h} G-buffer ({} bytes) exceeds the device's {limit}-byte buffer limit; use --fast-gather pixels",
+                16 * blocks
+            )));
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let buffer = |name, bytes| Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuOnly);
+        Ok(FastTree {
+            levels,
+            blocks,
+            padded: tree_padded(levels, w, h),
+            sums: buffer("fast tree sums", 16 * blocks)?,
+            weights: buffer("fast tree weights", 4 * blocks)?,
+            bounds: buffer("fast tree bounds", 16 * blocks)?,
+        })
+    }
 }
 
 impl FastImages {
-    fn new(ctx: &Arc<Context>, view: &FrameView) -> Result<FastImages> {
+    fn new(ctx: &Arc<Context>, view: &FrameView, options: FastOptions) -> Result<FastImages> {
         let (w, h) = (view.full_width(), view.full_height());
+        // The widest window a tile can get (tile_dilate's radius, at most
+        // the frame's largest CoC / 2; the fixed window's at least 0.5).
+        let max_radius_px = (view.max_coc_px / 2.0).max(0.5);
+        let levels = match options.gather {
+            FastGather::Tree => tree_levels(max_radius_px, w, h),
+            FastGather::Pixels => 0,
+        };
+        let tree = match levels {
+            0 => None,
+            _ => Some(FastTree::new(ctx, levels, w, h)?),
+        };
         let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
         let storage = vk::ImageUsageFlags::STORAGE;
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
@@ -123,6 +258,7 @@ impl FastImages {
                 h,
                 storage | vk::ImageUsageFlags::TRANSFER_SRC,
             )?,
+            tree,
         })
     }
 }
@@ -133,7 +269,7 @@ struct FastFrame<'m> {
 }
 
 impl DofFrame for FastFrame<'_> {
-    /// The four passes. `view.max_coc_px` bounds every pixel's CoC, the
+    /// The passes. `view.max_coc_px` bounds every pixel's CoC, the
     /// background's included.
     fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
         let p = self.method.pipelines;
@@ -222,6 +358,46 @@ impl DofFrame for FastFrame<'_> {
                 [groups(tiles[0] as u32, 8), groups(tiles[1] as u32, 8), 1],
             );
         });
+        if let Some(tree) = &images.tree {
+            frame.pass("fast.tree", |rec| {
+                rec.barriers(&[
+                    (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
+                    (
+                        &images.coc_weight,
+                        Access::COMPUTE_WRITE,
+                        Access::COMPUTE_READ,
+                    ),
+                ]);
+                // The previous frame's gather read the buffers.
+                rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
+                for level in TREE_LEAF_LEVEL..=tree.levels {
+                    if level > TREE_LEAF_LEVEL {
+                        rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ_WRITE);
+                    }
+                    let (bw, bh) = (
+                        (w as u32).div_ceil(1 << level),
+                        (h as u32).div_ceil(1 << level),
+                    );
+                    rec.dispatch(
+                        &p.tree,
+                        &[
+                            Bind::StorageImage(input.color),
+                            Bind::StorageImage(input.eye),
+                            Bind::StorageImage(&images.coc_weight),
+                            Bind::StorageBuffer(&tree.sums),
+                            Bind::StorageBuffer(&tree.weights),
+                            Bind::StorageBuffer(&tree.bounds),
+                        ],
+                        &TreePush {
+                            extent: [w, h],
+                            padded: tree.padded.map(|v| v as i32),
+                            level: level as i32,
+                        },
+                        [groups(bw, 8), groups(bh, 8), 1],
+                    );
+                }
+            });
+        }
         frame.pass("fast.gather", |rec| {
             rec.barriers(&[
                 (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
@@ -233,25 +409,50 @@ impl DofFrame for FastFrame<'_> {
                 (&images.result, Access::NONE, Access::COMPUTE_WRITE),
             ]);
             let (ow, oh) = (view.window.width, view.window.height);
+            let mut binds = vec![
+                Bind::StorageImage(input.color),
+                Bind::StorageImage(input.eye),
+                Bind::StorageImage(&images.coc_weight),
+                Bind::StorageImage(&images.tile_radius),
+                Bind::StorageImage(&images.result),
+            ];
+            let pipeline = match &images.tree {
+                Some(tree) => {
+                    rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
+                    binds.extend([
+                        Bind::StorageBuffer(&tree.sums),
+                        Bind::StorageBuffer(&tree.weights),
+                        Bind::StorageBuffer(&tree.bounds),
+                    ]);
+                    &p.gather_tree
+                }
+                None => &p.gather,
+            };
             rec.dispatch(
-                &p.gather,
-                &[
-                    Bind::StorageImage(input.color),
-                    Bind::StorageImage(input.eye),
-                    Bind::StorageImage(&images.coc_weight),
-                    Bind::StorageImage(&images.tile_radius),
-                    Bind::StorageImage(&images.result),
-                ],
+                pipeline,
+                &binds,
                 &GatherPush {
                     extent: [w, h],
                     origin: [g, g],
                     size: [ow as i32, oh as i32],
                     tile: TILE as i32,
+                    levels: images.tree.as_ref().map_or(0, |t| t.levels as i32),
+                    padded: images
+                        .tree
+                        .as_ref()
+                        .map_or([w, h], |t| t.padded.map(|v| v as i32)),
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );
         });
         &images.result
+    }
+
+    /// The blocks of the gather's tree, all levels (0: every window pixel
+    /// by pixel).
+    fn counts(&self) -> Vec<(String, u64)> {
+        let blocks = self.images.tree.as_ref().map_or(0, |t| t.blocks);
+        vec![("fast.tree_blocks".to_string(), blocks)]
     }
 }
 
@@ -266,5 +467,55 @@ mod tests {
         check_push_layout::<TileMaxPush>("fast_tile_max", TILE_MAX).unwrap();
         check_push_layout::<DilatePush>("fast_tile_dilate", TILE_DILATE).unwrap();
         check_push_layout::<GatherPush>("fast_gather", GATHER).unwrap();
+        check_push_layout::<GatherPush>("fast_gather_tree", GATHER_TREE).unwrap();
+        check_push_layout::<TreePush>("fast_tree", TREE).unwrap();
+    }
+
+    #[test]
+    fn tree_constants_match_the_glsl() {
+        let glsl = include_str!("../../glsl/fast_tree.glsl");
+        assert!(glsl.contains(&format!("const int TREE_LEVELS_MAX = {TREE_LEVELS_MAX};")));
+        assert!(glsl.contains(&format!(
+            "const int TREE_MIN_RADIUS = {TREE_MIN_RADIUS_PX};"
+        )));
+        assert!(glsl.contains(&format!("const int TREE_LEAF_LEVEL = {TREE_LEAF_LEVEL};")));
+    }
+
+    #[test]
+    fn tree_levels_keep_blocks_within_the_radius_and_the_frame() {
+        assert_eq!(tree_levels(15.9, 100, 100), 0);
+        assert_eq!(tree_levels(16.0, 100, 100), 4);
+        assert_eq!(tree_levels(35.5, 640, 480), 5);
+        assert_eq!(tree_levels(300.0, 64, 40), 6);
+        assert_eq!(tree_levels(300.0, 12, 12), 0);
+        assert_eq!(tree_levels(1e9, 1 << 20, 4), TREE_LEVELS_MAX);
+        // The smallest tree has levels above its leaves.
+        assert!(tree_levels(TREE_MIN_RADIUS_PX as f32, 1000, 1000) > TREE_LEAF_LEVEL);
+        // 17×3 padded to 32×16: 8×4 blocks of 4 px (level 2), 4×2 of 8 px,
+        // 2×1 of 16 px.
+        assert_eq!(tree_padded(3, 5, 3), [8, 8]);
+        assert_eq!(tree_padded(4, 17, 3), [32, 16]);
+        assert_eq!(tree_blocks(4, 17, 3), 8 * 4 + 4 * 2 + 2);
+    }
+
+    #[test]
+    fn tree_index_is_the_levels_laid_one_after_another() {
+        for (levels, w, h) in [(2, 7, 5), (4, 33, 17), (5, 640, 480), (7, 1000, 3)] {
+            let padded = tree_padded(levels, w, h);
+            let mut next = 0;
+            for l in TREE_LEAF_LEVEL..=levels {
+                for y in 0..padded[1] >> l {
+                    for x in 0..padded[0] >> l {
+                        assert_eq!(tree_index(padded, l, x, y), next, "{levels} {w}×{h} {l}");
+                        next += 1;
+                    }
+                }
+            }
+            assert_eq!(next, tree_blocks(levels, w, h));
+        }
+        let glsl = include_str!("../../glsl/fast_tree.glsl");
+        assert!(glsl.contains(
+            "uint before = ((pixels >> (2 * (TREE_LEAF_LEVEL - 1))) - (pixels >> (2 * (l - 1)))) / 3u;"
+        ));
     }
 }

@@ -1,0 +1,190 @@
+// Fast DOF, pass 4 (Zhao §3.3, DESIGN §4): each output pixel Q averages the
+// colors (and, as alpha, the coverage) of the pixels P with |p − q| <= c_P / 2 and z_P <= z_Q, weighted
+// by P's weight, gathering only as far as its tile's dilated radius. Where
+// that window holds only background (the tile's flag), every P has Q's own
+// CoC, weight and color: the same sums are formed from those, in the same
+// order, without loading each P — bitwise the plain gather's result; for a
+// black background (coverage 0) every product and sum is +0 and the mean
+// is +0, so there is no loop at all.
+//
+// Two ways to form the sums over the window (fast_gather.comp and
+// fast_gather_tree.comp include this file): pixel by pixel, or (TREE) by
+// the blocks of fast_tree.glsl, taking a block's sums whole where its
+// bounds show that every one of its pixels passes both tests, leaving it
+// where none can, and opening it into its four children otherwise. The
+// same pixels contribute either way; only the order of the additions
+// differs (the float sums round differently). The cost follows where the
+// tests change within the disk (its rim, and the line where z_P crosses
+// z_Q), not its area.
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
+layout(binding = 1, rgba32f) uniform readonly image2D gbuffer_eye;
+layout(binding = 2, rg32f) uniform readonly image2D coc_weight;
+layout(binding = 3, rg32f) uniform readonly image2D tile_radius;
+layout(binding = 4, rgba16f) uniform writeonly image2D result;
+#ifdef TREE
+#include "fast_tree.glsl"
+layout(binding = 5, std430) readonly buffer Sums { vec4 sums[]; };
+layout(binding = 6, std430) readonly buffer Weights { float weights[]; };
+layout(binding = 7, std430) readonly buffer Bounds { vec4 bounds[]; };
+#endif
+
+layout(push_constant, std430) uniform Push {
+    ivec2 extent;   // G-buffer size
+    ivec2 origin;   // first output pixel (the guard band)
+    ivec2 size;     // output size
+    int tile;
+    int levels;     // levels of the block tree (TREE; 0: none)
+    ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
+} pc;
+
+void main() {
+    ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(gl_GlobalInvocationID.xy, uvec2(pc.size)))) {
+        return;
+    }
+    float zq = imageLoad(gbuffer_eye, q).z;
+    vec2 tile = imageLoad(tile_radius, q / pc.tile).xy;
+    int r = int(min(floor(tile.x), float(max(pc.extent.x, pc.extent.y))));
+    // precise: no contraction into fused multiply-adds and no hoisting of
+    // the products, so that both paths round alike on every compiler.
+    precise vec4 sum = vec4(0.0);
+    precise float weight = 0.0;
+    if (tile.y == 0.0) {
+        // Only background around: z_P = z_Q = +inf passes the z test, and
+        // c_P, w_P and the color are Q's.
+        vec2 cw = imageLoad(coc_weight, q).xy;
+        vec4 color = imageLoad(gbuffer_color, q);
+        if (all(equal(color, vec4(0.0)))) {
+            imageStore(result, q, vec4(0.0));
+            return;
+        }
+        for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
+            for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
+                float d2 = float(dx * dx + dy * dy);
+                if (d2 > 0.25 * cw.x * cw.x) {
+                    continue;
+                }
+                sum += cw.y * color;
+                weight += cw.y;
+            }
+        }
+        imageStore(result, q, sum / weight);
+        return;
+    }
+    // The window clipped to the G-buffer (a radius may exceed it: the
+    // guard band is bounded, docs/ARCHITECTURE.md).
+    ivec2 lo = max(q - r, ivec2(0));
+    ivec2 hi = min(q + r, pc.extent - 1);
+#ifdef TREE
+    // The largest blocks no wider than the radius: at most 6 per axis
+    // cover the window.
+    int top = r >= TREE_MIN_RADIUS ? min(findMSB(r), pc.levels) : 0;
+    if (top > 0) {
+        ivec2 b_lo = lo >> top, b_hi = hi >> top;
+        for (int by = b_lo.y; by <= b_hi.y; ++by) {
+            for (int bx = b_lo.x; bx <= b_hi.x; ++bx) {
+                // Depth first through the quadtree under this top block,
+                // without a stack: from a block either down to its first
+                // child, or on to the next block in depth-first order (up
+                // past the last children, then to the next sibling). The
+                // way up is computed, not looped: Mesa 22.3's llvmpipe lost
+                // blocks of some lanes with a loop nested here.
+                int l = top;
+                ivec2 b = ivec2(bx, by);
+                bool done = false;
+                while (!done) {
+                    bool open = false;
+                    ivec2 x0 = b << l;
+                    ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
+                    if (any(greaterThan(x0, hi)) || any(lessThan(x1, lo))) {
+                        // Outside the window (or the padding beyond the
+                        // extent): nothing.
+                    } else {
+                        uint at = tree_index(pc.padded, l, b);
+                        vec4 bound = bounds[at]; // z min, z max, c min, c max
+                        // The nearest and farthest of the block's pixels
+                        // from Q, per axis (integers: the squares are exact).
+                        ivec2 near = max(max(x0 - q, q - x1), ivec2(0));
+                        ivec2 far = max(abs(x0 - q), abs(x1 - q));
+                        float near2 = float(near.x * near.x + near.y * near.y);
+                        float far2 = float(far.x * far.x + far.y * far.y);
+                        if (bound.x > zq || near2 > 0.25 * bound.w * bound.w) {
+                            // No pixel passes: every one is behind Q, or out
+                            // of its own disk's reach (0.25 c² grows with c,
+                            // so the largest c bounds every pixel's test).
+                        } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
+                                && bound.y <= zq && !(far2 > 0.25 * bound.z * bound.z)) {
+                            // Every pixel passes: inside the window, none
+                            // behind Q, the farthest within the smallest
+                            // disk's reach.
+                            sum += sums[at];
+                            weight += weights[at];
+                        } else if (l > TREE_LEAF_LEVEL) {
+                            open = true;
+                        } else {
+                            // A small block: its pixels (in the window)
+                            // one by one, with the tests of the plain
+                            // gather below. A loop of a fixed count:
+                            // Mesa 22.3's llvmpipe lost pixels of some lanes
+                            // with bounds that differ between lanes here.
+                            ivec2 p0 = max(x0, lo), p1 = min(x1, hi);
+                            for (int y = p0.y; y <= p1.y; ++y) {
+                                for (int i = 0; i < (1 << TREE_LEAF_LEVEL); ++i) {
+                                    ivec2 p = ivec2(x0.x + i, y);
+                                    if (p.x < p0.x || p.x > p1.x) {
+                                        continue;
+                                    }
+                                    ivec2 d = p - q;
+                                    vec2 cw = imageLoad(coc_weight, p).xy;
+                                    float d2 = float(d.x * d.x + d.y * d.y);
+                                    if (!(d2 > 0.25 * cw.x * cw.x) && !(imageLoad(gbuffer_eye, p).z > zq)) {
+                                        sum += cw.y * imageLoad(gbuffer_color, p);
+                                        weight += cw.y;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    if (open) {
+                        l -= 1;
+                        b *= 2;
+                    } else {
+                        // Up past last children (odd x and y: as many
+                        // levels as b.x & b.y has trailing ones), then on
+                        // to the next sibling: (1, y) after (0, y), (0, y + 1)
+                        // after (1, y).
+                        int up = min(findLSB(~(b.x & b.y)), top - l);
+                        l += up;
+                        b >>= up;
+                        done = l == top;
+                        b = (b.x & 1) == 0 ? b + ivec2(1, 0) : b + ivec2(-1, 1);
+                    }
+                }
+            }
+        }
+        imageStore(result, q, sum / weight);
+        return;
+    }
+#endif
+    for (int dy = lo.y - q.y; dy <= hi.y - q.y; ++dy) {
+        for (int dx = lo.x - q.x; dx <= hi.x - q.x; ++dx) {
+            ivec2 p = q + ivec2(dx, dy);
+            vec2 cw = imageLoad(coc_weight, p).xy;
+            float d2 = float(dx * dx + dy * dy);
+            if (d2 > 0.25 * cw.x * cw.x) {
+                continue;
+            }
+            if (imageLoad(gbuffer_eye, p).z > zq) {
+                continue;
+            }
+            sum += cw.y * imageLoad(gbuffer_color, p);
+            weight += cw.y;
+        }
+    }
+    // Q itself always takes part (distance 0, same depth): weight > 0.
+    // Alpha: the contributors' coverage, weighted as their color.
+    imageStore(result, q, sum / weight);
+}

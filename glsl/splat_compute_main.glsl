@@ -16,9 +16,14 @@
 //   0: one invocation per splat; a square of at most LARGE_PIXELS target
 //      pixels is drawn there, a larger one is appended to the large list,
 //      whose first word is the x count of the next stage's dispatch;
-//   1: one workgroup per large splat, its pixels shared out over the
-//      workgroup's invocations (a lavapipe invocation runs its loop alone:
-//      one big square would hold up its whole SIMD group).
+//   1: per large splat, workgroups (y) of CHUNK_PIXELS of its pixels
+//      each, shared out over the workgroup's invocations (a lavapipe
+//      invocation runs its loop alone: one big square would hold up its
+//      whole SIMD group). Chunks keep an invocation's loop at 16,384
+//      iterations at most: llvmpipe ends an invocation's loops after
+//      65,535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS), and a
+//      255 px splat at SSAA 16 covers 16.6 M target pixels, 260,000 each
+//      for 64 invocations (drawn in bands with gaps before the chunks).
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "lens.glsl"
@@ -41,6 +46,9 @@ layout(binding = 2, std430) buffer Large { uint large_dispatch[4]; uint large[];
 // Squares of more target pixels go to the large list (mirrors
 // src/passes/splat_compute.rs, LARGE_PIXELS).
 const uint LARGE_PIXELS = 256u;
+// Target pixels of a large splat per workgroup of stage 1 (mirrors
+// src/passes/splat_compute.rs, CHUNK_PIXELS).
+const uint CHUNK_PIXELS = 1048576u;
 
 vec4 position_size(uint i) {
     return vec4(uintBitsToFloat(splats[6u * i]), uintBitsToFloat(splats[6u * i + 1u]),
@@ -107,7 +115,9 @@ void main() {
             }
         }
     } else {
-        for (uint k = gl_LocalInvocationID.x; k < n; k += gl_WorkGroupSize.x) {
+        uint first = gl_WorkGroupID.y * CHUNK_PIXELS;
+        uint end = min(n, first + CHUNK_PIXELS);
+        for (uint k = first + gl_LocalInvocationID.x; k < end; k += gl_WorkGroupSize.x) {
             uint x = uint(xs.x) + k % w;
             uint y = uint(ys.x) + k / w;
             if (covers(s, int(x), int(y))) {

@@ -156,3 +156,35 @@ fn large_splats_and_bands_of_the_compute_raster() {
         }
     });
 }
+
+#[test]
+fn a_splat_past_llvmpipes_loop_limit_is_drawn_whole() {
+    // The device's largest splat at SSAA 16: on lavapipe 255 px, 4,080
+    // target pixels a side, 16.6 M pixels for one workgroup of 64
+    // invocations: 260,000 loop iterations each, where llvmpipe ends an
+    // invocation's loops after 65,535 in all. The second stage takes it in
+    // chunks of CHUNK_PIXELS per workgroup; before, it was drawn as bands
+    // with gaps. A single white splat over a black background, 150×150,
+    // against the sprite path (multisampled passes, the same samples).
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let px = ctx.info.point_size_max.min(255.0);
+        let cloud = common::cloud(&[(Vec3::new(0.0, 0.0, -1.0), Vec3::ONE)]);
+        let scene = renderer.upload(&cloud, SplatSize::Pixels(px)).unwrap();
+        let options = RenderOptions {
+            camera: common::camera(150, 150),
+            method: Method::Pinhole,
+            ssaa: 16,
+            samples_per_pass: None,
+            background: Vec3::ZERO,
+            lod: Lod::default(),
+        };
+        let sprites = render(&mut renderer, &scene, &options, Raster::Sprites);
+        let compute = render(&mut renderer, &scene, &options, Raster::Compute);
+        // The splat covers the whole frame: every pixel white.
+        let dark = compute.image.pixels.iter().filter(|p| p[0] < 0.999).count();
+        assert_eq!(dark, 0, "{dark} pixels of the splat not drawn");
+        let n = differing(&sprites.image, &compute.image);
+        assert_eq!(n, 0, "{n} pixels differ from the sprites'");
+    });
+}

@@ -28,6 +28,19 @@ const GROUP: u32 = 64;
 /// A splat covering more target pixels is drawn by a workgroup of its own
 /// (mirrors `LARGE_PIXELS` in the shader).
 pub const LARGE_PIXELS: u32 = 256;
+/// Target pixels of a large splat per workgroup of the second stage
+/// (mirrors `CHUNK_PIXELS` in the shader): 16,384 loop iterations per
+/// invocation at most, a quarter of llvmpipe's 65,535 per invocation.
+pub const CHUNK_PIXELS: u32 = 1 << 20;
+
+/// The workgroups (y) of the second stage per large splat: as many chunks
+/// as the largest square of `max_point_size` target pixels holds (its
+/// pixel centres cover at most one more pixel per axis). 1 at SSAA 4 with
+/// a 255 px point size.
+pub fn large_chunks(max_point_size: f32) -> u32 {
+    let side = max_point_size.max(0.0).ceil() as u64 + 1;
+    (side * side).div_ceil(CHUNK_PIXELS as u64).max(1) as u32
+}
 
 /// Bytes of one visibility word: a target pixel.
 pub const WORD_BYTES: u64 = 8;
@@ -132,7 +145,7 @@ impl ComputeRaster {
             rec.memory_barrier(before, Access::FILL);
             rec.memory_barrier(Access::INDIRECT_READ, Access::FILL);
             rec.fill_u32(&target.words, u32::MAX);
-            rec.update_u32(&target.large, &[0, 1, 1, 0]);
+            rec.update_u32(&target.large, &[0, large_chunks(push.max_point_size), 1, 0]);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             let small = SplatComputePush { stage: 0, ..base };
             rec.dispatch(
@@ -156,6 +169,19 @@ mod tests {
     use crate::vk::check_push_layout;
 
     #[test]
+    fn large_splats_take_enough_chunks() {
+        // SSAA 4, 255 px: 1021² = 1,042,441 pixels, one chunk.
+        assert_eq!(large_chunks(255.0 * 4.0), 1);
+        assert_eq!(large_chunks(255.0 * 8.0), 4);
+        assert_eq!(large_chunks(255.0 * 16.0), 16);
+        assert_eq!(large_chunks(0.0), 1);
+        for size in [1.0f32, 100.0, 1023.0, 1024.0, 5000.5] {
+            let side = size.ceil() as u64 + 1;
+            assert!(large_chunks(size) as u64 * CHUNK_PIXELS as u64 >= side * side);
+        }
+    }
+
+    #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatComputePush>("splat_compute", SPIRV).unwrap();
         check_push_layout::<SplatComputePush>("splat_compute_disc", DISC_SPIRV).unwrap();
@@ -163,6 +189,7 @@ mod tests {
         assert!(include_str!("../../glsl/splat_compute_disc.comp").contains("#define SPLAT_DISC"));
         let shader = include_str!("../../glsl/splat_compute_main.glsl");
         assert!(shader.contains(&format!("const uint LARGE_PIXELS = {LARGE_PIXELS}u;")));
+        assert!(shader.contains(&format!("const uint CHUNK_PIXELS = {CHUNK_PIXELS}u;")));
         assert!(shader.contains(&format!("layout(local_size_x = {GROUP}) in;")));
     }
 }

@@ -85,6 +85,35 @@ vec3 decode(vec3 c) {
     return vec3(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b));
 }
 
+// Entries of a batch per turn of the layers' loop (gaussian_blend.comp).
+const uint PER_TURN = 4u;
+
+// Entry j of the batch into its layer's composite: nothing past the
+// batch, for a layer that met the transmittance limit, or below the
+// cut-off (alpha 0). A macro, not a function: it writes main's arrays.
+#define LAYER_ENTRY(J) { \
+    uint j = (J); \
+    if (j < batch) { \
+        float z = s_color_depth[j].w; \
+        uint l = layer_of(z); \
+        float alpha = (stopped & (1u << l)) != 0u ? 0.0 \
+            : gaussian_alpha(s_centre[j] - at, s_conic_opacity[j]); \
+        if (alpha != 0.0) { \
+            float transmittance = transmittances[l]; \
+            float next = transmittance * (1.0 - alpha); \
+            if (next < 0.0001) { \
+                stopped |= 1u << l; \
+            } else { \
+                float weight = alpha * transmittance; \
+                colors[l] += s_color_depth[j].rgb * weight; \
+                wz[l] += weight * z; \
+                w[l] += weight; \
+                transmittances[l] = next; \
+            } \
+        } \
+    } \
+}
+
 void main() {
     bool overflow = counts[pc.entries_index] > pc.capacity;
     uvec2 pixel = gl_GlobalInvocationID.xy;
@@ -119,27 +148,14 @@ void main() {
         }
         barrier();
         uint batch = min(GROUP, range.y - first);
-        for (uint j = 0u; j < batch && inside; j++) {
-            float z = s_color_depth[j].w;
-            uint l = layer_of(z);
-            if ((stopped & (1u << l)) != 0u) {
-                continue; // the layer met the transmittance limit
-            }
-            float transmittance = transmittances[l];
-            float alpha = gaussian_alpha(s_centre[j] - at, s_conic_opacity[j]);
-            if (alpha == 0.0) {
-                continue;
-            }
-            float next = transmittance * (1.0 - alpha);
-            if (next < 0.0001) {
-                stopped |= 1u << l;
-                continue;
-            }
-            float weight = alpha * transmittance;
-            colors[l] += s_color_depth[j].rgb * weight;
-            wz[l] += weight * z;
-            w[l] += weight;
-            transmittances[l] = next;
+        // PER_TURN entries per turn of the loop, written out (LAYER_ENTRY):
+        // llvmpipe ends an invocation's loops after 65,535 turns in all
+        // (LP_MAX_TGSI_LOOP_ITERATIONS), and a tile's list may be longer.
+        for (uint j0 = 0u; j0 < batch && inside; j0 += PER_TURN) {
+            LAYER_ENTRY(j0 + 0u)
+            LAYER_ENTRY(j0 + 1u)
+            LAYER_ENTRY(j0 + 2u)
+            LAYER_ENTRY(j0 + 3u)
         }
     }
     if (!inside) {

@@ -544,3 +544,55 @@ fn the_bundled_trained_scene() {
         assert!(p > 40.0 && p > p_pin + 8.0, "{p} dB, pinhole {p_pin} dB");
     });
 }
+
+/// A tile whose list is longer than llvmpipe's loop limit: 70,000
+/// Gaussians of opacity 0.003 over one 16 × 16 tile, each below the blend's
+/// 1/255 cut-off (skipped, as the reference skips them, but each a turn of
+/// the blend's loop), in front of one opaque coloured Gaussian. llvmpipe
+/// ends an invocation's loops after 65,535 iterations in all
+/// (LP_MAX_TGSI_LOOP_ITERATIONS): a blend that loops once per entry never
+/// reaches the opaque one and leaves the background. The pinhole image is
+/// the CPU reference's: the opaque Gaussian's colour; the layered method's
+/// layers without blur give it too.
+#[test]
+fn a_tile_list_longer_than_llvmpipes_loop_limit_blends_whole() {
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        let n = 70_000;
+        let mut s = Sequence(11);
+        let mut scene = GaussianScene {
+            positions: Vec::new(),
+            scales: Vec::new(),
+            rotations: Vec::new(),
+            opacities: Vec::new(),
+            sh_degree: 0,
+            sh: Vec::new(),
+        };
+        let mut add = |position: Vec3, opacity: f32, dc: [f32; 3]| {
+            scene.positions.push(position);
+            scene.scales.push(Vec3::splat(1.0));
+            scene.rotations.push(Quat::IDENTITY);
+            scene.opacities.push(opacity);
+            scene.sh.extend(dc);
+        };
+        for _ in 0..n {
+            let p = Vec3::new(0.2 * s.next() - 0.1, 0.2 * s.next() - 0.1, 3.0 + s.next());
+            add(p, 0.003, [1.0, 1.0, 1.0]);
+        }
+        add(Vec3::new(0.0, 0.0, 6.0), 0.99, [1.2, -0.5, 0.3]);
+        let mut camera = camera(16, 16);
+        let (frame, cpu) =
+            pinhole_against_reference(&renderer, &scene, &camera, 1, "70,001 on a tile");
+        assert_eq!(frame.entries, n + 1, "every Gaussian on the one tile");
+        // The opaque one shows in the middle (the faint ones are skipped).
+        let middle = cpu[8 * 16 + 8];
+        assert!(middle.x > 0.3 && middle.x > 2.0 * middle.y, "{middle:?}");
+        // The layered method's layers walk the same list: without blur
+        // they give the pinhole image (as `layers_without_blur_give_the_pinhole_image`).
+        camera.aperture_radius = 1e-5;
+        let gpu = renderer.upload(&scene).unwrap();
+        let layered = renderer.render_layered(&gpu, &camera, Vec3::ZERO).unwrap();
+        let p = psnr(&layered.image, &frame.image);
+        assert!(p > 55.0, "layers: {p} dB from the pinhole image");
+    });
+}

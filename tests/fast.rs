@@ -560,5 +560,19 @@ fn windows_past_llvmpipes_loop_limit_gather_what_the_cpu_reference_does() {
         );
         let lit = tree.image.pixels.iter().filter(|p| p[3] > 0.05).count();
         assert!(lit * 2 > tree.image.pixels.len(), "{lit} pixels lit");
+        // The pixel loop would lose part of these windows on a device with
+        // a loop limit (lavapipe): it is refused there, in one line.
+        let pixel_loop = Method::Fast(FastOptions {
+            gather: FastGather::Pixels,
+            ..FastOptions::default()
+        });
+        let refused = renderer.render(&scene, &options(cam, pixel_loop));
+        match ctx.info.loop_iterations_limit() {
+            Some(_) => {
+                let err = refused.err().expect("refused").to_string();
+                assert!(err.contains("use --fast-gather tree"), "{err}");
+            }
+            None => assert!(refused.is_ok()),
+        }
     });
 }

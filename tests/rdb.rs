@@ -472,3 +472,36 @@ fn both_atomics_give_the_same_image_bit_for_bit_across_frames_and_tag_wraps() {
         assert!(fills >= 3, "{fills} fills: made, grown, wrapped");
     });
 }
+
+#[test]
+fn pairs_mode_past_the_devices_loop_limit_is_refused_in_one_line() {
+    // `--rdb-mode pairs` scans a source's whole disk in one invocation:
+    // CoCs of 256 px and more pass llvmpipe's 65,535 loop iterations per
+    // invocation, which would drop part of each disk without a word. A
+    // plane 3 units away, focused at 0.3 through a lens of radius 1: CoCs
+    // of about 400 px (behind the focus, so no veil takes them). Refused on a device with a loop limit (lavapipe), in
+    // one line naming the way out; the default mode renders the frame.
+    with_gpu(|ctx| {
+        let renderer = Renderer::new(ctx).unwrap();
+        let scene = renderer
+            .upload(&textured_plane(3.0, 0.0), SplatSize::Spacing)
+            .unwrap();
+        let mut cam = camera(64, 48);
+        cam.aperture_radius = 1.0;
+        cam.focus_distance = 0.3;
+        assert!(cam.coc_px(3.0) > 256.0, "{}", cam.coc_px(3.0));
+        let pairs = renderer.render(&scene, &options(cam, Method::rdb(9, RdbMode::Pairs)));
+        match ctx.info.loop_iterations_limit() {
+            Some(_) => {
+                let err = pairs.err().expect("refused").to_string();
+                assert!(
+                    !err.contains('\n') && err.contains("use --rdb-mode centre"),
+                    "{err}"
+                );
+            }
+            None => assert!(pairs.is_ok()),
+        }
+        let centre = render(&renderer, &scene, cam, Method::rdb(9, RdbMode::Centre));
+        assert!(centre.pixels.iter().any(|p| p[3] > 0.5));
+    });
+}

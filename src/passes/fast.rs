@@ -9,12 +9,10 @@
 use std::sync::Arc;
 
 use ash::vk;
-
-use super::{Configured, DofFrame, DofInput, DofMethod, FrameView};
-use crate::error::Result;
 use gpu_allocator::MemoryLocation;
 
-use crate::error::Error;
+use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use crate::error::{Error, Result};
 use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use crate::push_constants;
 use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
@@ -127,6 +125,20 @@ pub fn tree_levels(max_radius_px: f32, width: u32, height: u32) -> u32 {
     (radius as u32).ilog2().min(TREE_LEVELS_MAX)
 }
 
+/// The pixel loop over the widest window it can get, against the device's
+/// loop limit (`passes::check_square_loop`): refused where llvmpipe would
+/// drop the rest of the window (the tree is the default and has no such
+/// loop).
+fn check_pixel_loop(ctx: &Context, max_radius_px: f32, width: u32, height: u32) -> Result<()> {
+    let r = max_radius_px.floor().min(width.max(height) as f32) as u64;
+    check_square_loop(
+        ctx,
+        r,
+        "the fast gather's pixel loop over windows",
+        "use --fast-gather tree (the default)",
+    )
+}
+
 /// The G-buffer size the tree's levels are laid out for: `width`×`height`
 /// rounded up to a multiple of 2^levels (`glsl/fast_tree.glsl`).
 pub fn tree_padded(levels: u32, width: u32, height: u32) -> [u32; 2] {
@@ -232,7 +244,10 @@ impl FastImages {
         let max_radius_px = (view.max_coc_px / 2.0).max(0.5);
         let levels = match options.gather {
             FastGather::Tree => tree_levels(max_radius_px, w, h),
-            FastGather::Pixels => 0,
+            FastGather::Pixels => {
+                check_pixel_loop(ctx, max_radius_px, w, h)?;
+                0
+            }
         };
         let tree = match levels {
             0 => None,

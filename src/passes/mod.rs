@@ -13,7 +13,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use crate::camera::Camera;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::options::Method;
 use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
@@ -204,6 +204,27 @@ pub trait DofFrame {
     fn counts(&self) -> Vec<(String, u64)> {
         Vec::new()
     }
+}
+
+/// A pass that loops over a square of side 2r + 1 in one shader invocation
+/// (rows, and per row its columns and one more test: (2r + 1)(2r + 2)
+/// iterations), against the device's loop limit
+/// (`DeviceInfo::loop_iterations_limit`, llvmpipe's 65,535 per
+/// invocation, past which the loops stop without a word): an error in one
+/// line naming `what` loops and the `way_out`, where it would pass it.
+pub fn check_square_loop(ctx: &Context, r: u64, what: &str, way_out: &str) -> Result<()> {
+    let Some(limit) = ctx.info.loop_iterations_limit() else {
+        return Ok(());
+    };
+    let iterations = (2 * r + 1) * (2 * r + 2);
+    if iterations > limit {
+        return Err(Error::InvalidArgument(format!(
+            "{what} up to {} px wide ({iterations} loop iterations) would pass {}'s {limit} per shader invocation and drop part of each; {way_out}",
+            2 * r + 1,
+            ctx.info.name
+        )));
+    }
+    Ok(())
 }
 
 /// The largest CoC a G-buffer pixel can have: a point's in `depths`, or the

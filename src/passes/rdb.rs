@@ -16,7 +16,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::rdb_lens_table;
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
@@ -341,6 +341,7 @@ impl DofMethod for Configured<'_, Rdb, RdbOptions> {
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
         let packed = self.pipelines.packed(self.options.atomics)?;
+        check_pairs_loop(ctx, &self.options, view.max_coc_px)?;
         let images = RdbImages::new(
             ctx,
             view,
@@ -353,6 +354,22 @@ impl DofMethod for Configured<'_, Rdb, RdbOptions> {
             images,
         }))
     }
+}
+
+/// `--rdb-mode pairs` scans the (2r + 1)² offsets of a source's disk, r =
+/// c / 2, in one invocation: past the device's loop limit (llvmpipe) the
+/// rest of the disk would be dropped without a word, so such a frame is
+/// refused (`centre`, the default, loops over its N² bins only).
+fn check_pairs_loop(ctx: &Context, options: &RdbOptions, max_coc_px: f32) -> Result<()> {
+    if options.mode != RdbMode::Pairs {
+        return Ok(());
+    }
+    check_square_loop(
+        ctx,
+        (0.5 * max_coc_px).floor() as u64,
+        "--rdb-mode pairs over disks",
+        "use --rdb-mode centre (the default) or a smaller aperture",
+    )
 }
 
 struct RdbFrame<'m> {

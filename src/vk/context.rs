@@ -104,10 +104,22 @@ pub struct DeviceInfo {
     pub max_storage_buffer_range: u64,
 }
 
+/// The loop iterations a shader invocation runs on llvmpipe, all its loops
+/// together: Mesa's `LP_MAX_TGSI_LOOP_ITERATIONS`. Past it the loops stop
+/// without a word (docs/ARCHITECTURE.md, "llvmpipe's loop limit").
+pub const LLVMPIPE_LOOP_ITERATIONS: u64 = 65_535;
+
 impl DeviceInfo {
     /// `name (driver driver_info)`, for reports.
     pub fn describe(&self) -> String {
         format!("{} ({} {})", self.name, self.driver_name, self.driver_info)
+    }
+
+    /// The most loop iterations a shader invocation runs, where the driver
+    /// has such a limit (llvmpipe); None elsewhere.
+    pub fn loop_iterations_limit(&self) -> Option<u64> {
+        let llvmpipe = self.name.starts_with("llvmpipe") || self.driver_name == "llvmpipe";
+        llvmpipe.then_some(LLVMPIPE_LOOP_ITERATIONS)
     }
 }
 

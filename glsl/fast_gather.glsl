@@ -90,8 +90,8 @@ void main() {
                 // without a stack: from a block either down to its first
                 // child, or on to the next block in depth-first order (up
                 // past the last children, then to the next sibling). The
-                // way up is computed, not looped: Mesa 22.3's llvmpipe lost
-                // blocks of some lanes with a loop nested here.
+                // way up is computed, not looped: each loop turn counts
+                // against llvmpipe's limit of 65,535 per invocation.
                 int l = top;
                 ivec2 b = ivec2(bx, by);
                 bool done = false;
@@ -125,11 +125,13 @@ void main() {
                         } else if (l > TREE_LEAF_LEVEL) {
                             open = true;
                         } else {
-                            // A small block: its pixels (in the window)
-                            // one by one, with the tests of the plain
-                            // gather below. A loop of a fixed count:
-                            // Mesa 22.3's llvmpipe lost pixels of some lanes
-                            // with bounds that differ between lanes here.
+                            // A leaf: its pixels in the window one by one,
+                            // with the two tests of the pixel loop below
+                            // (written out in both: a shared function made
+                            // the pixel loop 10-30 % slower on llvmpipe), as
+                            // a loop over its rows with the columns of a
+                            // fixed count (unrolled), so that leaves add few
+                            // turns to llvmpipe's loop limit.
                             ivec2 p0 = max(x0, lo), p1 = min(x1, hi);
                             for (int y = p0.y; y <= p1.y; ++y) {
                                 for (int i = 0; i < (1 << TREE_LEAF_LEVEL); ++i) {

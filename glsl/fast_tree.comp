@@ -20,6 +20,11 @@ layout(push_constant, std430) uniform Push {
     int level;      // the level this dispatch writes, TREE_LEAF_LEVEL to levels
 } pc;
 
+// The bounds of two sets of pixels together: (z min, z max, c min, c max).
+vec4 merge_bounds(vec4 a, vec4 b) {
+    return vec4(min(a.x, b.x), max(a.y, b.y), min(a.z, b.z), max(a.w, b.w));
+}
+
 void main() {
     ivec2 b = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(b, tree_level_size(pc.extent, pc.level)))) {
@@ -39,7 +44,7 @@ void main() {
                 float z = imageLoad(gbuffer_eye, p).z;
                 sum += cw.y * imageLoad(gbuffer_color, p);
                 weight += cw.y;
-                bound = vec4(min(bound.x, z), max(bound.y, z), min(bound.z, cw.x), max(bound.w, cw.x));
+                bound = merge_bounds(bound, vec4(z, z, cw.x, cw.x));
             }
         }
     } else {
@@ -51,10 +56,9 @@ void main() {
                     continue;
                 }
                 uint at = tree_index(pc.padded, pc.level - 1, c);
-                vec4 cb = bounds[at];
                 sum += sums[at];
                 weight += weights[at];
-                bound = vec4(min(bound.x, cb.x), max(bound.y, cb.y), min(bound.z, cb.z), max(bound.w, cb.w));
+                bound = merge_bounds(bound, bounds[at]);
             }
         }
     }

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{camera, cloud, differing, options, root, with_gpu};
+use common::{camera, checkered_plane, cloud, differing, options, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
@@ -522,21 +522,8 @@ fn windows_past_llvmpipes_loop_limit_gather_what_the_cpu_reference_does() {
     // (560×490). The CPU reference at every 7th pixel of every 5th row.
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
-        let mut points = Vec::new();
-        for i in 0..=200 {
-            for j in 15..=200 {
-                let (x, z) = (-0.2 + i as f32 * 0.002, -(j as f32) * 0.002);
-                let odd = ((x / 0.02).floor() + (z / 0.02).floor()) as i32 & 1 == 1;
-                let color = match odd {
-                    true => Vec3::new(0.9, 0.8, 0.2),
-                    false => Vec3::new(0.1, 0.5, 0.1),
-                };
-                points.push((Vec3::new(x, -0.0002, z), color));
-            }
-        }
-        let scene = renderer
-            .upload(&cloud(&points), SplatSize::Spacing)
-            .unwrap();
+        let floor = checkered_plane(-0.0002, 0.2, 0.03, 0.4, 0.002, 0.02);
+        let scene = renderer.upload(&floor, SplatSize::Spacing).unwrap();
         let cam = Camera {
             aperture_radius: 0.02,
             focus_distance: 0.1,

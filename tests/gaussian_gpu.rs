@@ -560,14 +560,7 @@ fn a_tile_list_longer_than_llvmpipes_loop_limit_blends_whole() {
         let renderer = GaussianRenderer::new(ctx).unwrap();
         let n = 70_000;
         let mut s = Sequence(11);
-        let mut scene = GaussianScene {
-            positions: Vec::new(),
-            scales: Vec::new(),
-            rotations: Vec::new(),
-            opacities: Vec::new(),
-            sh_degree: 0,
-            sh: Vec::new(),
-        };
+        let mut scene = GaussianScene::default();
         let mut add = |position: Vec3, opacity: f32, dc: [f32; 3]| {
             scene.positions.push(position);
             scene.scales.push(Vec3::splat(1.0));

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{cloud, root, with_gpu};
+use common::{checkered_plane, cloud, root, with_gpu};
 use glam::{Vec2, Vec3, Vec4};
 use pointlens::camera::{Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
@@ -78,28 +78,6 @@ fn check_floors(case: &str, measured: &[(&str, f64)], floors: &[(&str, f64)]) {
     }
 }
 
-/// A flat square of points on the plane y = `y`, x in [−half, half], z in
-/// [−depth, 0) (in front of a camera at the origin looking down −z), on a
-/// grid of `step`, in a checker of `check` squares.
-fn plane(y: f32, half: f32, depth: f32, step: f32, check: f32) -> PointCloud {
-    let mut points = Vec::new();
-    let n = (2.0 * half / step) as i32;
-    let m = (depth / step) as i32;
-    for i in 0..=n {
-        for j in 1..=m {
-            let (x, z) = (-half + i as f32 * step, -(j as f32) * step);
-            let odd = ((x / check).floor() + (z / check).floor()) as i32 & 1 == 1;
-            let color = if odd {
-                Vec3::new(0.9, 0.8, 0.2)
-            } else {
-                Vec3::new(0.1, 0.5, 0.1)
-            };
-            points.push((Vec3::new(x, y, z), color));
-        }
-    }
-    cloud(&points)
-}
-
 /// The tests' pinhole camera (common::camera) with a lens.
 fn lens_camera(width: u32, height: u32, aperture_radius: f32, focus_distance: f32) -> Camera {
     Camera {
@@ -117,7 +95,10 @@ fn a_camera_a_fifth_of_a_millimetre_above_a_surface() {
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         let scene = renderer
-            .upload(&plane(-0.0002, 0.2, 0.4, 0.002, 0.02), SplatSize::Spacing)
+            .upload(
+                &checkered_plane(-0.0002, 0.2, 0.002, 0.4, 0.002, 0.02),
+                SplatSize::Spacing,
+            )
             .unwrap();
         let measured = against_accum(&renderer, &scene, lens_camera(96, 72, 0.02, 0.1));
         check_floors(

@@ -118,11 +118,18 @@ impl Fast {
 /// its radius, and no wider than the G-buffer (0: no tree; every window is
 /// under [`TREE_MIN_RADIUS_PX`] and gathered pixel by pixel).
 pub fn tree_levels(max_radius_px: f32, width: u32, height: u32) -> u32 {
-    let radius = max_radius_px.floor().min(width.max(height) as f32);
-    if radius < TREE_MIN_RADIUS_PX as f32 {
+    let radius = widest_window_px(max_radius_px, width, height);
+    if radius < TREE_MIN_RADIUS_PX {
         return 0;
     }
-    (radius as u32).ilog2().min(TREE_LEVELS_MAX)
+    radius.ilog2().min(TREE_LEVELS_MAX)
+}
+
+/// The widest window radius the gather takes for tile radii up to
+/// `max_radius_px` in a `width`×`height` G-buffer: whole pixels, clipped to
+/// the G-buffer as `glsl/fast_gather.glsl` clips it.
+fn widest_window_px(max_radius_px: f32, width: u32, height: u32) -> u32 {
+    max_radius_px.floor().min(width.max(height) as f32) as u32
 }
 
 /// The pixel loop over the widest window it can get, against the device's
@@ -130,7 +137,7 @@ pub fn tree_levels(max_radius_px: f32, width: u32, height: u32) -> u32 {
 /// drop the rest of the window (the tree is the default and has no such
 /// loop).
 fn check_pixel_loop(ctx: &Context, max_radius_px: f32, width: u32, height: u32) -> Result<()> {
-    let r = max_radius_px.floor().min(width.max(height) as f32) as u64;
+    let r = widest_window_px(max_radius_px, width, height) as u64;
     check_square_loop(
         ctx,
         r,
@@ -212,10 +219,7 @@ struct FastTree {
 impl FastTree {
     fn new(ctx: &Arc<Context>, levels: u32, w: u32, h: u32) -> Result<FastTree> {
         let blocks = tree_blocks(levels, w, h);
-        let info = &ctx.info;
-        let limit = info
-            .max_storage_buffer_range
-            .min(info.max_memory_allocation_bytes);
+        let limit = ctx.info.largest_storage_buffer_bytes();
         // The shader's indices are 32-bit.
         if 16 * blocks > limit || blocks > u32::MAX as u64 {
             return Err(Error::InvalidArgument(format!(

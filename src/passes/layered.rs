@@ -276,8 +276,7 @@ impl LayeredImages {
         // the heap hold; a frame of more rows runs in bands.
         let info = &ctx.info;
         let limit = info
-            .max_storage_buffer_range
-            .min(info.max_memory_allocation_bytes)
+            .largest_storage_buffer_bytes()
             .min(info.device_local_heap_bytes / 4);
         let row_bytes = w as u64 * DIFFERENCE_BYTES;
         let band_rows = (limit / row_bytes).min(h as u64) as u32;

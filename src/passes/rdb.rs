@@ -215,7 +215,7 @@ impl<'m> RdbImages<'m> {
         // TilePlan bounds each 32-bit word array; the 64-bit buffer is one
         // array of twice the bytes, within one storage-buffer binding.
         let max_words_bytes = match packed {
-            Some(_) => max_allocation.min(ctx.info.max_storage_buffer_range) / 2,
+            Some(_) => ctx.info.largest_storage_buffer_bytes() / 2,
             None => max_allocation,
         };
         let plan = TilePlan::new(w, h, bins, budget_bytes, max_words_bytes)?;

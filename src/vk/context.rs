@@ -115,6 +115,13 @@ impl DeviceInfo {
         format!("{} ({} {})", self.name, self.driver_name, self.driver_info)
     }
 
+    /// The largest buffer one storage-buffer binding holds and one
+    /// allocation can make.
+    pub fn largest_storage_buffer_bytes(&self) -> u64 {
+        self.max_storage_buffer_range
+            .min(self.max_memory_allocation_bytes)
+    }
+
     /// The most loop iterations a shader invocation runs, where the driver
     /// has such a limit (llvmpipe); None elsewhere.
     pub fn loop_iterations_limit(&self) -> Option<u64> {

@@ -181,6 +181,36 @@ pub fn cloud(points: &[(Vec3, Vec3)]) -> PointCloud {
     }
 }
 
+/// A flat square of points on the plane y = `y`, x in [−half, half], z in
+/// [−depth, −near] (in front of a camera at the origin looking down −z), on
+/// a grid of `step` (rows at multiples of it), in a checker of `check`
+/// squares.
+pub fn checkered_plane(
+    y: f32,
+    half: f32,
+    near: f32,
+    depth: f32,
+    step: f32,
+    check: f32,
+) -> PointCloud {
+    let mut points = Vec::new();
+    let n = (2.0 * half / step) as i32;
+    let (first, m) = ((near / step).round() as i32, (depth / step) as i32);
+    for i in 0..=n {
+        for j in first..=m {
+            let (x, z) = (-half + i as f32 * step, -(j as f32) * step);
+            let odd = ((x / check).floor() + (z / check).floor()) as i32 & 1 == 1;
+            let color = if odd {
+                Vec3::new(0.9, 0.8, 0.2)
+            } else {
+                Vec3::new(0.1, 0.5, 0.1)
+            };
+            points.push((Vec3::new(x, y, z), color));
+        }
+    }
+    cloud(&points)
+}
+
 /// A pinhole camera at the origin looking down −z, 40° vertical field of view.
 pub fn camera(width: u32, height: u32) -> Camera {
     Camera {

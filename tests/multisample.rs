@@ -12,6 +12,7 @@ use pointlens::bench::BenchModel;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::options::{FastWeights, GatherWindow, Method, Raster, RdbMode};
+use pointlens::passes::sample_plan::SamplePlan;
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 
 /// Renders `method` with `samples_per_pass` (None: the device's plan) and
@@ -137,17 +138,31 @@ fn one_sample_per_pass_is_the_device_independent_form() {
             background: Vec3::ZERO,
             lod: pointlens::options::Lod::default(),
         };
-        // A limit below K² leaves the multisampled plan (lavapipe: 4
-        // samples, which tile the 4×4 grid but no 3×3 one) or the
-        // one-sample form; without a limit, all K² in one upscaled pass.
+        // A limit below K² leaves the multisampled plan of the device's
+        // sample counts up to the limit that tile the K×K grid, with the
+        // fewest passes (lavapipe: 4 samples, which tile the 4×4 grid but
+        // no 3×3 one; NVIDIA adds 2 and 8), or the one-sample form;
+        // without a limit, all K² in one upscaled pass.
+        let counts = ctx.info.gbuffer_sample_counts.as_raw();
+        let multisampled = |ssaa: u32, limit: u32| {
+            [8, 4, 2]
+                .into_iter()
+                .filter(|&s| s <= limit && counts & s != 0)
+                .find(|&s| SamplePlan::multisampled(ssaa, s).is_some())
+                .unwrap_or(1)
+        };
+        if ctx.info.name.starts_with("llvmpipe") {
+            // As the comment says: the rows below are not all one-sample.
+            assert_eq!((multisampled(4, 16), multisampled(3, 9)), (4, 1));
+        }
         for (ssaa, limit, expected) in [
             (3, None, 9),
-            (3, Some(8), 1),
-            (4, Some(2), 1),
+            (3, Some(8), multisampled(3, 8)),
+            (4, Some(2), multisampled(4, 2)),
             (4, Some(1), 1),
             (1, None, 1),
-            (4, Some(4), 4),
-            (4, Some(15), 4),
+            (4, Some(4), multisampled(4, 4)),
+            (4, Some(15), multisampled(4, 15)),
             (4, Some(16), 16),
             (4, None, 16),
             (2, None, 4),
@@ -157,12 +172,19 @@ fn one_sample_per_pass_is_the_device_independent_form() {
             assert_eq!(s, expected, "K = {ssaa}, limit {limit:?}");
         }
         // A splat K times wider than the device's largest point sprite
-        // (lavapipe: 255 px) would be clamped in the upscaled target: the
-        // frame takes the multisampled plan instead.
-        let wide = renderer.upload(&cloud, SplatSize::Pixels(100.0)).unwrap();
+        // (lavapipe: 255 px, so 100 px here) would be clamped in the
+        // upscaled target: the frame takes the multisampled plan instead;
+        // one K times narrower (60 px on lavapipe) fits it.
+        let largest = ctx.info.point_size_max;
         let options = RenderOptions { ssaa: 4, ..base };
-        assert_eq!(render(&renderer, &wide, &options, None).1, 4);
-        let narrow = renderer.upload(&cloud, SplatSize::Pixels(60.0)).unwrap();
+        let wide = SplatSize::Pixels((largest * 0.39).round());
+        let wide = renderer.upload(&cloud, wide).unwrap();
+        assert_eq!(
+            render(&renderer, &wide, &options, None).1,
+            multisampled(4, 16)
+        );
+        let narrow = SplatSize::Pixels((largest * 0.235).round());
+        let narrow = renderer.upload(&cloud, narrow).unwrap();
         assert_eq!(render(&renderer, &narrow, &options, None).1, 16);
     });
 }

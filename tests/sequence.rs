@@ -392,15 +392,24 @@ fn a_terminated_sequence_leaves_only_complete_frames() {
     let mut args = vec!["render", &b, "-o", &out];
     args.extend(SMALL);
     args.extend(["--frames", "40", "--orbit", "360"]);
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
         .args(&args)
         .env("POINTLENS_VALIDATION", "1")
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    // Wait for the first frame, then SIGTERM.
+    // Wait for the first frame, then SIGTERM; a run that ends before it
+    // fails the test at once, with its stderr (not after the 5 minutes).
     let started = std::time::Instant::now();
     while !dir.join("t_001.png").exists() {
+        if child.try_wait().unwrap().is_some() {
+            let o = child.wait_with_output().unwrap();
+            panic!(
+                "the sequence ended before its first frame ({}): {}",
+                o.status,
+                stderr(&o)
+            );
+        }
         assert!(
             started.elapsed().as_secs() < 300,
             "no frame after 5 minutes"

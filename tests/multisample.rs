@@ -144,12 +144,10 @@ fn one_sample_per_pass_is_the_device_independent_form() {
         // no 3×3 one; NVIDIA adds 2 and 8), or the one-sample form;
         // without a limit, all K² in one upscaled pass.
         let counts = ctx.info.gbuffer_sample_counts.as_raw();
+        // The device's counts up to `limit` (bit S: S samples).
         let multisampled = |ssaa: u32, limit: u32| {
-            [8, 4, 2]
-                .into_iter()
-                .filter(|&s| s <= limit && counts & s != 0)
-                .find(|&s| SamplePlan::multisampled(ssaa, s).is_some())
-                .unwrap_or(1)
+            let up_to_limit = (1u32 << (limit.ilog2() + 1)) - 1;
+            SamplePlan::best(ssaa, counts & up_to_limit).samples_per_pass
         };
         if ctx.info.name.starts_with("llvmpipe") {
             // As the comment says: the rows below are not all one-sample.

@@ -12,7 +12,7 @@ use pointlens::metrics::psnr;
 use pointlens::options::Method;
 use pointlens::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use pointlens::reference;
-use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
+use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
 use pointlens::PointCloud;
 
 fn render(
@@ -40,6 +40,16 @@ fn worst_relative<'a>(pairs: impl IntoIterator<Item = (&'a [f32; 4], &'a [f32; 4
         .into_iter()
         .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.05)))
         .fold(0.0f32, f32::max)
+}
+
+/// The blocks of the gather's tree in a rendered frame (the count
+/// `fast.tree_blocks`; 0 where every window went pixel by pixel).
+fn tree_blocks(rendered: &Rendered) -> Option<u64> {
+    rendered
+        .counts
+        .iter()
+        .find(|(name, _)| name == "fast.tree_blocks")
+        .map(|c| c.1)
 }
 
 /// Asserts that `image`, rendered with `rendered`, differs from the
@@ -367,14 +377,8 @@ fn the_block_tree_gathers_what_the_pixel_loop_gathers() {
                 .render_with_gbuffer(&scene, &fast(FastGather::Tree))
                 .unwrap();
             let pixels = renderer.render(&scene, &fast(FastGather::Pixels)).unwrap();
-            let blocks = |r: &pointlens::render::Rendered| {
-                r.counts
-                    .iter()
-                    .find(|(name, _)| name == "fast.tree_blocks")
-                    .map(|c| c.1)
-            };
-            assert!(blocks(&tree).unwrap() > 0, "the tree was not built");
-            assert_eq!(blocks(&pixels), Some(0));
+            assert!(tree_blocks(&tree).unwrap() > 0, "the tree was not built");
+            assert_eq!(tree_blocks(&pixels), Some(0));
             // The sums of rgba16f-rounded colors in another order: each
             // output is rounded to rgba16f again (a relative step of
             // 2^-11), so the two differ by a step or two.
@@ -499,8 +503,10 @@ fn the_block_tree_and_the_pixel_loop_agree_bit_for_bit_where_sums_are_exact() {
                 .iter()
                 .flatten()
                 .all(|&c| (c * 4.0).fract() == 0.0));
-            let blocks = tree.counts.iter().find(|(n, _)| n == "fast.tree_blocks");
-            assert!(blocks.is_some_and(|b| b.1 > 0), "the tree was not built");
+            assert!(
+                tree_blocks(&tree).is_some_and(|b| b > 0),
+                "the tree was not built"
+            );
             assert_eq!(
                 differing(&tree.image, &pixels.image),
                 0,
@@ -606,12 +612,10 @@ fn the_block_tree_meets_its_floor_against_accum_on_the_bundled_scenes() {
             };
             let tree = renderer.render(&scene, &fast(FastGather::Tree)).unwrap();
             let pixels = renderer.render(&scene, &fast(FastGather::Pixels)).unwrap();
-            let blocks = tree
-                .counts
-                .iter()
-                .find(|(n, _)| n == "fast.tree_blocks")
-                .map_or(0, |c| c.1);
-            assert!(blocks > 0, "{name}: the tree was not used");
+            assert!(
+                tree_blocks(&tree).is_some_and(|b| b > 0),
+                "{name}: the tree was not used"
+            );
             let (got, loop_db) = (
                 psnr(&reference, &tree.image).unwrap(),
                 psnr(&reference, &pixels.image).unwrap(),

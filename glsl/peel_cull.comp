@@ -39,7 +39,7 @@ layout(binding = 6, std430) buffer Tiles { float tile_near[]; };
 #include "splat_compute_push.glsl"
 
 // A surface is this many splat diameters thick for the peel (mirrors
-// splat_peel.frag; src/passes/splat_raster.rs, PEEL_THICKNESS_DIAMETERS).
+// splat_peel_frag.glsl; src/passes/splat_raster.rs, PEEL_THICKNESS_DIAMETERS).
 const float PEEL_THICKNESS = 1.0;
 // Sprites wider than this many pixels are kept without a look.
 const float MAX_FOOTPRINT = 64.0;

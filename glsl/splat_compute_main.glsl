@@ -24,6 +24,13 @@
 //      65,535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS), and a
 //      255 px splat at SSAA 16 covers 16.6 M target pixels, 260,000 each
 //      for 64 invocations (drawn in bands with gaps before the chunks).
+//
+// With SPLAT_PEEL (splat_compute_peel*.comp) it is the depth peel of the
+// layered method's later layers, as splat_peel_frag.glsl is for the
+// sprites: a target pixel keeps only the splats beyond the previous
+// layer's resolved depth at its G-buffer pixel by more than their
+// thickness. The target is then the whole G-buffer, a whole number of
+// times its size along each axis (one band).
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_shader_atomic_int64 : require
 #include "lens.glsl"
@@ -42,6 +49,16 @@ layout(binding = 2, std430) buffer Large { uint large_dispatch[4]; uint large[];
 #include "splat_compute_push.glsl"
 
 #include "splat_project.glsl"
+
+#ifdef SPLAT_PEEL
+// The previous layer's G-buffer eye image: (0, 0, z, coverage), z = +inf
+// where it saw nothing (so nothing lies beyond it).
+layout(binding = 3, rgba32f) uniform readonly image2D previous;
+
+// A surface is this many splat diameters thick for the peel
+// (src/passes/splat_raster.rs, PEEL_THICKNESS_DIAMETERS).
+const float PEEL_THICKNESS = 1.0;
+#endif
 
 // Squares of more target pixels go to the large list (mirrors
 // src/passes/splat_compute.rs, LARGE_PIXELS).
@@ -78,6 +95,21 @@ bool covers(Projected s, int x, int y) {
 #endif
 }
 
+#ifdef SPLAT_PEEL
+// Target pixels per G-buffer pixel along each axis: the peel's target is
+// the G-buffer's size times it (src/passes/splat_compute.rs,
+// ComputeRaster::record).
+int peel_scale() {
+    return int(pc.extent.x) / imageSize(previous).x;
+}
+
+// Whether the splat lies beyond the previous layer at G-buffer pixel g by
+// more than its thickness, as splat_peel_frag.glsl tests it.
+bool beyond_previous(Projected s, ivec2 g) {
+    return s.z > imageLoad(previous, g).z + PEEL_THICKNESS * s.diameter;
+}
+#endif
+
 void main() {
     uint i;
     if (pc.stage == 0u) {
@@ -106,6 +138,26 @@ void main() {
             large[atomicAdd(large_dispatch[0], 1u)] = i;
             return;
         }
+#ifdef SPLAT_PEEL
+        // By G-buffer pixel: the peel's test once for its scale² target
+        // pixels (the same target pixels as testing each).
+        int k = peel_scale();
+        for (int gy = ys.x / k; gy <= ys.y / k; ++gy) {
+            for (int gx = xs.x / k; gx <= xs.y / k; ++gx) {
+                if (!beyond_previous(s, ivec2(gx, gy))) {
+                    continue;
+                }
+                for (int y = max(ys.x, gy * k); y <= min(ys.y, gy * k + k - 1); ++y) {
+                    uint row = uint(y) * width;
+                    for (int x = max(xs.x, gx * k); x <= min(xs.y, gx * k + k - 1); ++x) {
+                        if (covers(s, x, y)) {
+                            atomicMin(visibility[row + uint(x)], word);
+                        }
+                    }
+                }
+            }
+        }
+#else
         for (int y = ys.x; y <= ys.y; ++y) {
             uint row = uint(y) * width;
             for (int x = xs.x; x <= xs.y; ++x) {
@@ -114,7 +166,34 @@ void main() {
                 }
             }
         }
+#endif
     } else {
+#ifdef SPLAT_PEEL
+        // By G-buffer pixel, as above: each invocation tests a G-buffer
+        // pixel of the square once, then takes its target pixels; a chunk
+        // holds CHUNK_PIXELS / scale² G-buffer pixels (no more loop
+        // iterations per invocation than a chunk of target pixels).
+        int k = peel_scale();
+        ivec2 g_lo = ivec2(xs.x, ys.x) / k;
+        uint gw = uint(xs.y / k - g_lo.x + 1);
+        uint gn = gw * uint(ys.y / k - g_lo.y + 1);
+        uint chunk = CHUNK_PIXELS / uint(k * k);
+        uint first = gl_WorkGroupID.y * chunk;
+        uint end = min(gn, first + chunk);
+        for (uint j = first + gl_LocalInvocationID.x; j < end; j += gl_WorkGroupSize.x) {
+            ivec2 g = g_lo + ivec2(j % gw, j / gw);
+            if (!beyond_previous(s, g)) {
+                continue;
+            }
+            for (int y = max(ys.x, g.y * k); y <= min(ys.y, g.y * k + k - 1); ++y) {
+                for (int x = max(xs.x, g.x * k); x <= min(xs.y, g.x * k + k - 1); ++x) {
+                    if (covers(s, x, y)) {
+                        atomicMin(visibility[uint(y) * width + uint(x)], word);
+                    }
+                }
+            }
+        }
+#else
         uint first = gl_WorkGroupID.y * CHUNK_PIXELS;
         uint end = min(n, first + CHUNK_PIXELS);
         for (uint k = first + gl_LocalInvocationID.x; k < end; k += gl_WorkGroupSize.x) {
@@ -124,5 +203,6 @@ void main() {
                 atomicMin(visibility[y * width + x], word);
             }
         }
+#endif
     }
 }

@@ -159,6 +159,25 @@ pub struct GBufferPasses {
 /// standard locations beyond are optional in Vulkan).
 const PLANNED_COUNTS: [u32; 4] = [1, 2, 4, 8];
 
+/// The largest scale of the compute rasteriser's depth peel: 2×2 samples
+/// per pixel, the sprite peel's 4 on lavapipe (a hidden layer is seen
+/// only through a blurred occluder's edge; one sample per pixel lost
+/// 5.3 dB on the thin bar of `tests/layered.rs`: docs/BENCHMARKS.md).
+pub const COMPUTE_PEEL_SCALE: u32 = 2;
+
+/// How the layered method's later layers are peeled: one raster pass and
+/// its resolve per layer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PeelPlan {
+    /// Point sprites, multisampled: `samples` per pixel at the standard
+    /// locations, unjittered.
+    Sprites { samples: u32 },
+    /// The compute rasteriser into a target `scale` times the G-buffer's
+    /// size along each axis (scale² samples per pixel on the upscaled
+    /// plan's grid), in one band.
+    Compute { scale: u32 },
+}
+
 impl GBufferPasses {
     /// The passes drawing splats of `shape`.
     pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<GBufferPasses> {
@@ -262,10 +281,40 @@ impl GBufferPasses {
         Ok(otherwise)
     }
 
-    /// Samples per pixel of each depth-peel pass (one per later layer):
-    /// the device's largest count up to the first layer's K² samples and
-    /// `max_samples_per_pass` whose targets for `pixels` pixels take at
-    /// most `budget_bytes`, taken in one pass at the standard locations.
+    /// The depth peel of each later layer (one pass each) for a G-buffer
+    /// of `pixels` pixels whose first layer is drawn with `raster`: with
+    /// the compute rasteriser, its peel at the largest scale up to K and
+    /// [`COMPUTE_PEEL_SCALE`] whose words fit `budget_bytes` and the
+    /// storage buffer range in one band; else (or if none fits) sprites
+    /// of [`GBufferPasses::peel_samples`].
+    pub fn peel_plan(
+        &self,
+        raster: Raster,
+        ssaa: u32,
+        max_samples_per_pass: Option<u32>,
+        pixels: u64,
+        budget_bytes: u64,
+    ) -> PeelPlan {
+        if raster == Raster::Compute && self.compute.is_some() {
+            let limit = budget_bytes.min(self.max_storage_buffer_bytes);
+            let fits = |scale: u64| pixels * scale * scale * splat_compute::WORD_BYTES <= limit;
+            if let Some(scale) = (1..=ssaa.min(COMPUTE_PEEL_SCALE))
+                .rev()
+                .find(|&s| fits(s as u64))
+            {
+                return PeelPlan::Compute { scale };
+            }
+        }
+        PeelPlan::Sprites {
+            samples: self.peel_samples(ssaa, max_samples_per_pass, pixels, budget_bytes),
+        }
+    }
+
+    /// Samples per pixel of each depth-peel pass of sprites (one per
+    /// later layer): the device's largest count up to the first layer's K²
+    /// samples and `max_samples_per_pass` whose targets for `pixels` pixels
+    /// take at most `budget_bytes`, taken in one pass at the standard
+    /// locations.
     pub fn peel_samples(
         &self,
         ssaa: u32,
@@ -300,6 +349,17 @@ enum FirstTargets {
     Compute(Visibility),
 }
 
+/// The targets of the depth peel's passes, where they are not the first
+/// layer's.
+enum PeelTargets {
+    Sprites(SampleTargets),
+    /// The whole G-buffer, `scale` times its size along each axis.
+    Compute {
+        target: Visibility,
+        scale: u32,
+    },
+}
+
 /// The G-buffer images (with guard band) of every layer, in `GENERAL`
 /// layout after the last compute write once `record` has run.
 pub struct GBuffer {
@@ -312,7 +372,7 @@ pub struct GBuffer {
     targets: FirstTargets,
     /// The depth peel's targets where the first layer's are not the
     /// sprite targets of its samples per pixel (else it draws into them).
-    peel_targets: Option<SampleTargets>,
+    peel_targets: Option<PeelTargets>,
     /// Each peel's splats, culled before it (None: the peel draws every
     /// splat).
     peel_cull: Option<PeelCullBuffers>,
@@ -324,12 +384,13 @@ pub struct GBuffer {
 impl GBuffer {
     /// Allocates `layers` G-buffer layers for `view` (1: the pinhole
     /// G-buffer), the sample targets for the passes of `plan` and, for
-    /// more than one layer, those of the depth peel's passes of
-    /// `peel_samples` samples ([`GBufferPasses::peel_samples`]) and, with
-    /// `cull_splats` (the frame's splat count), the buffers that cull each
-    /// peel's splats ([`PeelCull`]; None: every peel draws every splat).
-    /// The first layer's passes draw with `raster` (a compute plan:
-    /// `compute_splats`, the frame's splat count).
+    /// more than one layer, those of the depth peel's passes of `peel`
+    /// ([`GBufferPasses::peel_plan`]) and, with `cull_splats` (the frame's
+    /// splat count) and a peel of sprites, the buffers that cull each
+    /// peel's splats ([`PeelCull`]; None: every peel draws every splat; the
+    /// compute peel's cost per splat is small, and it draws every one).
+    /// The first layer's passes draw with `raster` (a compute plan or
+    /// peel: `compute_splats`, the frame's splat count).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Arc<Context>,
@@ -338,7 +399,7 @@ impl GBuffer {
         raster: Raster,
         compute_splats: u32,
         layers: u32,
-        peel_samples: u32,
+        peel: PeelPlan,
         cull_splats: Option<u32>,
         background: Vec3,
     ) -> Result<GBuffer> {
@@ -398,22 +459,35 @@ impl GBuffer {
                 )?)
             }
         };
-        let shares = matches!(targets, FirstTargets::Sprites(_))
-            && peel_samples == plan.samples_per_pass
-            && scale == 1;
+        let peel_targets = match peel {
+            _ if layers == 1 => None,
+            PeelPlan::Sprites { samples }
+                if matches!(targets, FirstTargets::Sprites(_))
+                    && samples == plan.samples_per_pass
+                    && scale == 1 =>
+            {
+                None
+            }
+            // The peel reads in place at the G-buffer's size: its targets
+            // need no margin.
+            PeelPlan::Sprites { samples } => Some(PeelTargets::Sprites(SampleTargets::new(
+                ctx, w, h, samples,
+            )?)),
+            PeelPlan::Compute { scale } => Some(PeelTargets::Compute {
+                target: Visibility::new(ctx, scale * w, scale * h, compute_splats)?,
+                scale,
+            }),
+        };
         Ok(GBuffer {
             layers: images,
             color_sums,
             targets,
-            // The peel reads in place at the G-buffer's size: its targets
-            // need no margin.
-            peel_targets: match layers > 1 && !shares {
-                true => Some(SampleTargets::new(ctx, w, h, peel_samples)?),
-                false => None,
-            },
+            peel_targets,
             view: *view,
-            peel_cull: match (layers > 1, cull_splats) {
-                (true, Some(count)) => Some(PeelCullBuffers::new(ctx, count, w, h)?),
+            peel_cull: match (layers > 1, cull_splats, peel) {
+                (true, Some(count), PeelPlan::Sprites { .. }) => {
+                    Some(PeelCullBuffers::new(ctx, count, w, h)?)
+                }
                 _ => None,
             },
             plan: plan.clone(),
@@ -498,6 +572,7 @@ impl GBuffer {
                             splats,
                             count,
                             &push,
+                            None,
                         );
                         Samples::Visibility {
                             target,
@@ -526,10 +601,14 @@ impl GBuffer {
             return;
         }
         let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
+        if let Some(PeelTargets::Compute { target, scale }) = &self.peel_targets {
+            self.record_compute_peel(frame, passes, splats, count, lens_u, target, *scale);
+            return;
+        }
         let peel = match (&self.peel_targets, &self.targets) {
-            (Some(p), _) => p,
+            (Some(PeelTargets::Sprites(p)), _) => p,
             (None, FirstTargets::Sprites(t)) => t,
-            (None, FirstTargets::Compute(_)) => unreachable!("a compute plan has peel targets"),
+            _ => unreachable!("a compute plan has peel targets of its own"),
         };
         if self.peel_targets.is_some() {
             before.sample = Access::NONE;
@@ -590,6 +669,65 @@ impl GBuffer {
             );
             before.sample = Access::COMPUTE_READ;
             before.depth = Access::DEPTH_WRITE;
+        }
+    }
+
+    /// Records every later layer as one depth peel by the compute
+    /// rasteriser into `target` (`scale` times the G-buffer's size, the
+    /// upscaled plan's grid of scale² samples per pixel, unjittered)
+    /// against the previous layer's resolved depth, and its resolve:
+    /// passes `peel.raster` and `peel.resolve`.
+    #[allow(clippy::too_many_arguments)]
+    fn record_compute_peel<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        passes: &'r GBufferPasses,
+        splats: &'r Buffer,
+        count: u32,
+        lens_u: Vec2,
+        target: &'r Visibility,
+        scale: u32,
+    ) {
+        let height = self.layers[0].color.height();
+        let extent = [target.width(), target.height()];
+        let mut push = self.view.push(Vec2::ZERO, lens_u, extent, scale, 0);
+        // The one-sample form's largest splat, `scale` times wider.
+        push.max_point_size = self.view.max_point_size * scale as f32;
+        let background = self.background.to_array();
+        let mut before = Access::NONE;
+        for layer in 1..self.layers.len() {
+            let previous = &self.layers[layer - 1].eye;
+            passes.compute().record(
+                frame,
+                "peel.raster",
+                target,
+                before,
+                splats,
+                count,
+                &push,
+                Some(previous),
+            );
+            let sample = Samples::Visibility {
+                target,
+                splats,
+                background,
+            };
+            let pass = ResolvePass {
+                first_sample: 0,
+                sample_count: scale * scale,
+                read_offsets: 0,
+                index_base: 0,
+                indices: [0, 0],
+                scale,
+                rows: (0, height),
+            };
+            passes.resolve.record(
+                frame,
+                "peel.resolve",
+                &self.resolve_images(sample, layer),
+                &pass,
+            );
+            before = Access::COMPUTE_READ;
         }
     }
 

@@ -12,7 +12,7 @@ use gpu_allocator::MemoryLocation;
 use crate::camera::Camera;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
-use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, RasterView};
+use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, PeelPlan, RasterView};
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{
     check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
@@ -774,7 +774,8 @@ impl Renderer {
             self.ctx.info.max_image_dimension_2d,
         )?;
         let pixels = plan_view.frame.full_width() as u64 * plan_view.frame.full_height() as u64;
-        let peel_samples = self.gbuffer.peel_samples(
+        let peel = self.gbuffer.peel_plan(
+            raster,
             options.ssaa,
             options.samples_per_pass,
             pixels,
@@ -794,7 +795,7 @@ impl Renderer {
                 method: method.as_ref(),
                 plan: &plan,
                 raster,
-                peel_samples,
+                peel,
             };
             self.render_window(&tile, options, format, keep_gbuffer)
         };
@@ -894,7 +895,7 @@ impl Renderer {
             tile.raster,
             splats.count,
             method.gbuffer_layers(),
-            tile.peel_samples,
+            tile.peel,
             self.peel_cull.then_some(splats.count),
             options.background,
         )?;
@@ -972,7 +973,7 @@ struct TileRender<'a> {
     method: &'a dyn DofMethod,
     plan: &'a SamplePlan,
     raster: Raster,
-    peel_samples: u32,
+    peel: PeelPlan,
 }
 
 impl HostGBuffer {

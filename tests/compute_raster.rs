@@ -16,6 +16,12 @@ fn render(renderer: &mut Renderer, scene: &Scene, options: &RenderOptions, r: Ra
     renderer.render(scene, options).expect("render")
 }
 
+/// How many times the frame ran pass `name`.
+fn pass_count(rendered: &Rendered, name: &str) -> u32 {
+    let pass = rendered.timings.passes.iter().find(|p| p.name == name);
+    pass.map_or(0, |p| p.count)
+}
+
 /// The two rasterisers take the same samples (the K×K grid of pixel-cell
 /// centres) of the same squares, placed by the same code
 /// (`glsl/splat_project.glsl`). They differ only where a sample lies within
@@ -25,7 +31,11 @@ fn render(renderer: &mut Renderer, scene: &Scene, options: &RenderOptions, r: Ra
 /// floor is 45 dB; at K = 1 a sample that falls the other way is a whole
 /// pixel: 37.9–50.9 dB measured, floor 30 dB. And each within 0.2 dB of
 /// the other against accum 16 (measured ≤ 0.04 dB), as the upscaled sprite
-/// plan is held to the one-sample form (tests/multisample.rs).
+/// plan is held to the one-sample form (tests/multisample.rs). The layered
+/// method's later layers are peeled with 4 samples a pixel by both, but
+/// not the same 4: the sprites' standard locations, the compute peel's 2×2
+/// grid; a peeled layer shows only through blur, so the floors hold (see
+/// the measurements printed).
 const FLOOR_DB: f64 = 45.0;
 const FLOOR_K1_DB: f64 = 30.0;
 const AGAINST_ACCUM_DB: f64 = 0.2;
@@ -77,6 +87,14 @@ fn compute_raster_matches_the_sprites_on_the_bundled_scenes_with_every_method() 
                 };
                 assert_eq!(compute.samples_per_pass, ssaa * ssaa, "{what}");
                 assert_eq!(rasters(&compute), lens, "{what}");
+                // The later layers are peeled by the compute rasteriser
+                // too, over every splat (the sprites' peel culls first).
+                if let Method::Layered(o) = method {
+                    let peels = o.layers - 1;
+                    assert_eq!(pass_count(&compute, "peel.raster"), peels, "{what}");
+                    assert_eq!(pass_count(&compute, "peel.cull"), 0, "{what}");
+                    assert_eq!(pass_count(&sprites, "peel.cull"), peels, "{what}");
+                }
                 // Atomics decide each sample whatever the order of arrival:
                 // bitwise the same run to run.
                 assert_eq!(differing(&compute.image, &again.image), 0, "{what}");
@@ -186,5 +204,73 @@ fn a_splat_past_llvmpipes_loop_limit_is_drawn_whole() {
         assert_eq!(dark, 0, "{dark} pixels of the splat not drawn");
         let n = differing(&sprites.image, &compute.image);
         assert_eq!(n, 0, "{n} pixels differ from the sprites'");
+    });
+}
+
+#[test]
+fn the_compute_peel_takes_the_largest_scale_that_fits_else_the_sprites() {
+    with_gpu(|ctx| {
+        use pointlens::gbuffer::{GBufferPasses, PeelPlan, COMPUTE_PEEL_SCALE};
+        use pointlens::options::SplatShape;
+        let passes = GBufferPasses::new(ctx, SplatShape::Square).unwrap();
+        let pixels = 1000u64;
+        let plan = |raster, ssaa, budget| passes.peel_plan(raster, ssaa, None, pixels, budget);
+        let compute = |scale| PeelPlan::Compute { scale };
+        assert_eq!(COMPUTE_PEEL_SCALE, 2);
+        assert_eq!(plan(Raster::Compute, 4, u64::MAX), compute(2));
+        assert_eq!(plan(Raster::Compute, 2, u64::MAX), compute(2));
+        assert_eq!(plan(Raster::Compute, 1, u64::MAX), compute(1));
+        // 8 bytes a word: 4 words a pixel need 32,000 bytes, 1 needs 8,000.
+        assert_eq!(plan(Raster::Compute, 4, 32_000), compute(2));
+        assert_eq!(plan(Raster::Compute, 4, 31_999), compute(1));
+        assert_eq!(plan(Raster::Compute, 4, 8_000), compute(1));
+        let sprites = |budget| PeelPlan::Sprites {
+            samples: passes.peel_samples(4, None, pixels, budget),
+        };
+        assert_eq!(plan(Raster::Compute, 4, 7_999), sprites(7_999));
+        assert_eq!(plan(Raster::Sprites, 4, u64::MAX), sprites(u64::MAX));
+    });
+}
+
+#[test]
+fn the_compute_peel_draws_large_splats_as_the_sprites_peel() {
+    // Splats of 40 output pixels on the mug: at the peel's scale 2, 6,400
+    // target pixels each, beyond LARGE_PIXELS, so the peel's second stage
+    // draws them (a workgroup a splat, by G-buffer pixel); 40 px fits
+    // lavapipe's sprites at K = 2 (80 px), so the sprite path is the
+    // one-pass plan with its multisampled peel. Against the sprites' peel
+    // (other sample locations) and accum 16, as the main test.
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let model = BenchModel::Mug;
+        let cloud = model.load(&root().join("data"), 0).unwrap();
+        let scene = renderer.upload(&cloud, SplatSize::Pixels(40.0)).unwrap();
+        let base = RenderOptions {
+            camera: model.camera(&cloud, 96, 72).unwrap(),
+            method: Method::accum(16),
+            ssaa: 2,
+            samples_per_pass: None,
+            background: Vec3::new(0.05, 0.1, 0.2),
+            lod: Lod::default(),
+        };
+        let reference = render(&mut renderer, &scene, &base, Raster::Sprites).image;
+        let options = RenderOptions {
+            method: Method::layered(3),
+            ..base
+        };
+        let sprites = render(&mut renderer, &scene, &options, Raster::Sprites);
+        let compute = render(&mut renderer, &scene, &options, Raster::Compute);
+        assert_eq!(pass_count(&compute, "peel.raster"), 2);
+        let close = psnr(&sprites.image, &compute.image).unwrap();
+        let (ps, pc) = (
+            psnr(&reference, &sprites.image).unwrap(),
+            psnr(&reference, &compute.image).unwrap(),
+        );
+        eprintln!("40 px splats, layered 3: {close:.1} dB apart; against accum 16 sprites {ps:.2} dB, compute {pc:.2} dB");
+        assert!(close >= FLOOR_DB, "{close:.1} dB apart");
+        assert!(
+            (pc - ps).abs() <= AGAINST_ACCUM_DB,
+            "compute {pc:.2} dB, sprites {ps:.2} dB"
+        );
     });
 }

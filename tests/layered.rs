@@ -430,10 +430,12 @@ fn a_sharp_surface_and_a_blurred_one_do_not_leak_into_each_other() {
 
 #[test]
 fn culling_the_peel_s_splats_changes_no_layered_image() {
-    // The peel draws only the splats that can pass its test somewhere
-    // (passes::peel_cull): the same images bit for bit, fewer splats drawn.
+    // The sprites' peel draws only the splats that can pass its test
+    // somewhere (passes::peel_cull): the same images bit for bit, fewer
+    // splats drawn. (The compute rasteriser's peel draws every splat.)
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
+        renderer.set_raster(pointlens::options::Raster::Sprites);
         let cases = [
             (BenchModel::Bunny, SplatSize::Spacing),
             (BenchModel::Mug, SplatSize::Spacing),

@@ -18,10 +18,15 @@ use gpu_allocator::MemoryLocation;
 use super::splat_raster::{SplatComputePush, SplatPush, SplatVertex};
 use crate::error::Result;
 use crate::options::SplatShape;
-use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame};
+use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute.comp.spv"));
 static DISC_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute_disc.comp.spv"));
+static PEEL_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/splat_compute_peel.comp.spv"));
+static PEEL_DISC_SPIRV: &[u8] = include_bytes!(concat!(
+    env!("OUT_DIR"),
+    "/splat_compute_peel_disc.comp.spv"
+));
 
 /// Invocations per workgroup (the shader's `local_size_x`).
 const GROUP: u32 = 64;
@@ -47,6 +52,9 @@ pub const WORD_BYTES: u64 = 8;
 
 pub struct ComputeRaster {
     pipeline: ComputePipeline<SplatComputePush>,
+    /// The depth peel of the layered method's later layers (the shader
+    /// with `SPLAT_PEEL`).
+    peel: ComputePipeline<SplatComputePush>,
 }
 
 /// The buffers of one target of `width` × `height` pixels: its visibility
@@ -62,7 +70,7 @@ pub struct Visibility {
 impl Visibility {
     /// The buffers of a `width` × `height` target for up to `splats` splats.
     pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
-        let bytes = width as u64 * height as u64 * WORD_BYTES;
+        let bytes = Self::bytes(width, height);
         assert!(
             bytes <= ctx.info.max_storage_buffer_range,
             "the plan's bands keep the words within the storage buffer range"
@@ -82,6 +90,11 @@ impl Visibility {
         })
     }
 
+    /// Bytes of the words of a `width` × `height` target.
+    pub fn bytes(width: u32, height: u32) -> u64 {
+        width as u64 * height as u64 * WORD_BYTES
+    }
+
     /// Visibility words per row.
     pub fn width(&self) -> u32 {
         self.width
@@ -99,12 +112,14 @@ impl ComputeRaster {
     pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<ComputeRaster> {
         assert!(ctx.info.buffer_int64_atomics, "64-bit buffer atomics");
         let b = Binding::StorageBuffer;
-        let spirv = match shape {
-            SplatShape::Square => SPIRV,
-            SplatShape::Disc => DISC_SPIRV,
+        let (spirv, peel) = match shape {
+            SplatShape::Square => (SPIRV, PEEL_SPIRV),
+            SplatShape::Disc => (DISC_SPIRV, PEEL_DISC_SPIRV),
         };
+        let image = Binding::StorageImage;
         Ok(ComputeRaster {
             pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b])?,
+            peel: ComputePipeline::new(ctx, "splat_compute_peel", peel, &[b, b, b, image])?,
         })
     }
 
@@ -113,6 +128,12 @@ impl ComputeRaster {
     /// visibility's size) into `target`, cleared first, after `before`
     /// (the last access to its words: a resolve's read, or none), and the
     /// barrier that hands the words to the resolve's compute reads.
+    ///
+    /// With `previous` (the previous layer's resolved eye image, last
+    /// written by its resolve), the depth peel of a later layer: at each
+    /// target pixel only the splats beyond it by their thickness, as the
+    /// sprite path's peel keeps them; `target` is then the whole G-buffer,
+    /// a whole number of times its size along each axis.
     #[allow(clippy::too_many_arguments)]
     pub fn record<'r>(
         &'r self,
@@ -123,7 +144,15 @@ impl ComputeRaster {
         splats: &'r Buffer,
         count: u32,
         push: &SplatPush,
+        previous: Option<&'r Image>,
     ) {
+        if let Some(image) = previous {
+            let (w, h) = (image.width(), image.height());
+            assert!(
+                target.width.is_multiple_of(w) && target.width / w * h == target.height,
+                "the peel's target is the G-buffer's size times a whole scale"
+            );
+        }
         assert_eq!(
             push.extent,
             [target.width as f32, target.height as f32],
@@ -134,30 +163,36 @@ impl ComputeRaster {
             "the splats are in the buffer"
         );
         let base = push.for_compute(count);
-        let binds = [
+        let mut binds = vec![
             Bind::StorageBuffer(splats),
             Bind::StorageBuffer(&target.words),
             Bind::StorageBuffer(&target.large),
         ];
+        let pipeline = match previous {
+            Some(image) => {
+                binds.push(Bind::StorageImage(image));
+                &self.peel
+            }
+            None => &self.pipeline,
+        };
         frame.pass(name, |rec| {
             // The words and the large list were last read by the previous
             // pass's resolve and large-splat dispatch.
             rec.memory_barrier(before, Access::FILL);
             rec.memory_barrier(Access::INDIRECT_READ, Access::FILL);
+            if let Some(image) = previous {
+                // Written by the previous layer's resolve.
+                rec.barriers(&[(image, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ)]);
+            }
             rec.fill_u32(&target.words, u32::MAX);
             rec.update_u32(&target.large, &[0, large_chunks(push.max_point_size), 1, 0]);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             let small = SplatComputePush { stage: 0, ..base };
-            rec.dispatch(
-                &self.pipeline,
-                &binds,
-                &small,
-                [count.div_ceil(GROUP), 1, 1],
-            );
+            rec.dispatch(pipeline, &binds, &small, [count.div_ceil(GROUP), 1, 1]);
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::INDIRECT_READ);
             let large = SplatComputePush { stage: 1, ..base };
-            rec.dispatch_indirect(&self.pipeline, &binds, &large, &target.large, 0);
+            rec.dispatch_indirect(pipeline, &binds, &large, &target.large, 0);
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ);
         });
     }
@@ -185,8 +220,16 @@ mod tests {
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatComputePush>("splat_compute", SPIRV).unwrap();
         check_push_layout::<SplatComputePush>("splat_compute_disc", DISC_SPIRV).unwrap();
+        check_push_layout::<SplatComputePush>("splat_compute_peel", PEEL_SPIRV).unwrap();
+        check_push_layout::<SplatComputePush>("splat_compute_peel_disc", PEEL_DISC_SPIRV).unwrap();
         assert_eq!(std::mem::size_of::<SplatComputePush>(), 128);
         assert!(include_str!("../../glsl/splat_compute_disc.comp").contains("#define SPLAT_DISC"));
+        let peel = include_str!("../../glsl/splat_compute_peel.comp");
+        assert!(peel.contains("#define SPLAT_PEEL") && !peel.contains("SPLAT_DISC"));
+        let peel_disc = include_str!("../../glsl/splat_compute_peel_disc.comp");
+        assert!(
+            peel_disc.contains("#define SPLAT_PEEL") && peel_disc.contains("#define SPLAT_DISC")
+        );
         let shader = include_str!("../../glsl/splat_compute_main.glsl");
         assert!(shader.contains(&format!("const uint LARGE_PIXELS = {LARGE_PIXELS}u;")));
         assert!(shader.contains(&format!("const uint CHUNK_PIXELS = {CHUNK_PIXELS}u;")));

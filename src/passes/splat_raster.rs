@@ -276,12 +276,21 @@ mod tests {
     #[test]
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<SplatPush>("splat_raster.vert", VERT).unwrap();
-        let peel = include_str!("../../glsl/splat_peel_frag.glsl");
+        // Every shader that takes the peel's test states one thickness.
         let thickness = format!("const float PEEL_THICKNESS = {PEEL_THICKNESS_DIAMETERS:?};");
-        assert!(
-            peel.contains(&thickness),
-            "glsl/splat_peel_frag.glsl: {thickness}"
-        );
+        for (file, text) in [
+            (
+                "splat_peel_frag.glsl",
+                include_str!("../../glsl/splat_peel_frag.glsl"),
+            ),
+            ("peel_cull.comp", include_str!("../../glsl/peel_cull.comp")),
+            (
+                "splat_compute_main.glsl",
+                include_str!("../../glsl/splat_compute_main.glsl"),
+            ),
+        ] {
+            assert!(text.contains(&thickness), "glsl/{file}: {thickness}");
+        }
         // Both shapes' shaders are the one body, the disc's with SPLAT_DISC.
         for (file, text, disc) in [
             (

@@ -160,6 +160,7 @@ def methods(args, scene):
     sample counts from --accum, else the scene's."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
+         ("layered1", ["--method", "layered", "--layers", "1"]),
          ("layered2", ["--method", "layered", "--layers", "2"]),
          ("layered4", ["--method", "layered", "--layers", "4"])]
     m += [(f"accum{s}", ["--method", "accum", "--samples", str(s)]) for s in args.accum or SCENES[scene]["accum"]]

@@ -62,7 +62,7 @@ const float PEEL_THICKNESS = 1.0;
 
 // Squares of more target pixels go to the large list (mirrors
 // src/passes/splat_compute.rs, LARGE_PIXELS).
-const uint LARGE_PIXELS = 256u;
+const uint LARGE_PIXELS = 4096u;
 // Target pixels of a large splat per workgroup of stage 1 (mirrors
 // src/passes/splat_compute.rs, CHUNK_PIXELS).
 const uint CHUNK_PIXELS = 1048576u;

@@ -135,8 +135,9 @@ fn large_splats_and_bands_of_the_compute_raster() {
             lod: Lod::default(),
         };
         // Squares of 5 and 70 output pixels: 400 and 78,400 target pixels
-        // at K = 4, beyond splat_compute's LARGE_PIXELS (256), so drawn by
-        // a workgroup each; 70 px is also K times wider than lavapipe's
+        // at K = 4: the first drawn by the first stage, the second beyond
+        // splat_compute's LARGE_PIXELS (4,096), by a workgroup each; 70 px
+        // is also K times wider than lavapipe's
         // largest sprite (255 px), so the sprite path takes its
         // multisampled plan (the same samples), the compute path its
         // upscaled one (a device with larger sprites, as NVIDIA's 2047 px,

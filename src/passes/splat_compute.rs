@@ -31,8 +31,11 @@ static PEEL_DISC_SPIRV: &[u8] = include_bytes!(concat!(
 /// Invocations per workgroup (the shader's `local_size_x`).
 const GROUP: u32 = 64;
 /// A splat covering more target pixels is drawn by a workgroup of its own
-/// (mirrors `LARGE_PIXELS` in the shader).
-pub const LARGE_PIXELS: u32 = 256;
+/// (mirrors `LARGE_PIXELS` in the shader). 4,096, measured against 256
+/// (docs/BENCHMARKS.md, "The compute raster's large splats"): a splat of
+/// a few hundred pixels costs less in one invocation; an invocation's
+/// loop stays far below llvmpipe's 65,535 iterations.
+pub const LARGE_PIXELS: u32 = 4096;
 /// Target pixels of a large splat per workgroup of the second stage
 /// (mirrors `CHUNK_PIXELS` in the shader): 16,384 loop iterations per
 /// invocation at most, a quarter of llvmpipe's 65,535 per invocation.
@@ -202,6 +205,7 @@ impl ComputeRaster {
 mod tests {
     use super::*;
     use crate::vk::check_push_layout;
+    use crate::vk::LLVMPIPE_LOOP_ITERATIONS;
 
     #[test]
     fn large_splats_take_enough_chunks() {
@@ -214,6 +218,17 @@ mod tests {
             let side = size.ceil() as u64 + 1;
             assert!(large_chunks(size) as u64 * CHUNK_PIXELS as u64 >= side * side);
         }
+    }
+
+    #[test]
+    fn a_first_stage_square_stays_within_llvmpipes_loop_limit() {
+        // The first stage draws a square of at most LARGE_PIXELS target
+        // pixels in one invocation: its loop iterations (per target pixel
+        // at most one of each nested loop: the peel's G-buffer rows and
+        // pixels, then the target's rows and pixels) within a third of
+        // llvmpipe's per-invocation limit.
+        let worst = 4 * LARGE_PIXELS as u64;
+        assert!(worst <= LLVMPIPE_LOOP_ITERATIONS / 3, "{worst}");
     }
 
     #[test]

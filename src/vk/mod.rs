@@ -15,6 +15,7 @@ mod sync;
 
 pub use context::{
     Context, ContextOptions, DeviceInfo, DeviceListing, MessageLog, ValidationMessage,
+    LLVMPIPE_LOOP_ITERATIONS,
 };
 pub use frame::{texel_bytes, DrawCount, Frame, FrameTimings, PassTiming, Recorder};
 pub use pipeline::{

@@ -103,10 +103,22 @@ int peel_scale() {
     return int(pc.extent.x) / imageSize(previous).x;
 }
 
-// Whether the splat lies beyond the previous layer at G-buffer pixel g by
-// more than its thickness, as splat_peel_frag.glsl tests it.
-bool beyond_previous(Projected s, ivec2 g) {
-    return s.z > imageLoad(previous, g).z + PEEL_THICKNESS * s.diameter;
+// Draws the splat's target pixels (xs × ys) within G-buffer pixel g, of
+// k × k target pixels, where the splat lies beyond the previous layer
+// there by more than its thickness, as splat_peel_frag.glsl tests it: the
+// test once for the pixel's k² target pixels.
+void peel_gbuffer_pixel(Projected s, uint64_t word, ivec2 xs, ivec2 ys, ivec2 g, int k) {
+    if (s.z > imageLoad(previous, g).z + PEEL_THICKNESS * s.diameter) {
+        uint width = uint(pc.extent.x);
+        for (int y = max(ys.x, g.y * k); y <= min(ys.y, g.y * k + k - 1); ++y) {
+            uint row = uint(y) * width;
+            for (int x = max(xs.x, g.x * k); x <= min(xs.y, g.x * k + k - 1); ++x) {
+                if (covers(s, x, y)) {
+                    atomicMin(visibility[row + uint(x)], word);
+                }
+            }
+        }
+    }
 }
 #endif
 
@@ -144,17 +156,7 @@ void main() {
         int k = peel_scale();
         for (int gy = ys.x / k; gy <= ys.y / k; ++gy) {
             for (int gx = xs.x / k; gx <= xs.y / k; ++gx) {
-                if (!beyond_previous(s, ivec2(gx, gy))) {
-                    continue;
-                }
-                for (int y = max(ys.x, gy * k); y <= min(ys.y, gy * k + k - 1); ++y) {
-                    uint row = uint(y) * width;
-                    for (int x = max(xs.x, gx * k); x <= min(xs.y, gx * k + k - 1); ++x) {
-                        if (covers(s, x, y)) {
-                            atomicMin(visibility[row + uint(x)], word);
-                        }
-                    }
-                }
+                peel_gbuffer_pixel(s, word, xs, ys, ivec2(gx, gy), k);
             }
         }
 #else
@@ -181,17 +183,7 @@ void main() {
         uint first = gl_WorkGroupID.y * chunk;
         uint end = min(gn, first + chunk);
         for (uint j = first + gl_LocalInvocationID.x; j < end; j += gl_WorkGroupSize.x) {
-            ivec2 g = g_lo + ivec2(j % gw, j / gw);
-            if (!beyond_previous(s, g)) {
-                continue;
-            }
-            for (int y = max(ys.x, g.y * k); y <= min(ys.y, g.y * k + k - 1); ++y) {
-                for (int x = max(xs.x, g.x * k); x <= min(xs.y, g.x * k + k - 1); ++x) {
-                    if (covers(s, x, y)) {
-                        atomicMin(visibility[uint(y) * width + uint(x)], word);
-                    }
-                }
-            }
+            peel_gbuffer_pixel(s, word, xs, ys, g_lo + ivec2(j % gw, j / gw), k);
         }
 #else
         uint first = gl_WorkGroupID.y * CHUNK_PIXELS;

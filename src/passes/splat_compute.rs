@@ -73,7 +73,7 @@ pub struct Visibility {
 impl Visibility {
     /// The buffers of a `width` × `height` target for up to `splats` splats.
     pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
-        let bytes = Self::bytes(width, height);
+        let bytes = width as u64 * height as u64 * WORD_BYTES;
         assert!(
             bytes <= ctx.info.max_storage_buffer_range,
             "the plan's bands keep the words within the storage buffer range"
@@ -91,11 +91,6 @@ impl Visibility {
             width,
             height,
         })
-    }
-
-    /// Bytes of the words of a `width` × `height` target.
-    pub fn bytes(width: u32, height: u32) -> u64 {
-        width as u64 * height as u64 * WORD_BYTES
     }
 
     /// Visibility words per row.

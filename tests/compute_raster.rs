@@ -7,6 +7,7 @@ mod common;
 use common::{differing, rasters, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
+use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::options::{FastWeights, GatherWindow, Lod, Method, Raster, RdbMode};
 use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
@@ -14,6 +15,34 @@ use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
 fn render(renderer: &mut Renderer, scene: &Scene, options: &RenderOptions, r: Raster) -> Rendered {
     renderer.set_raster(r);
     renderer.render(scene, options).expect("render")
+}
+
+/// The compute image within `floor` dB of the sprites' and within
+/// [`AGAINST_ACCUM_DB`] of it against `reference` (accum 16), the
+/// measurements printed.
+fn assert_close(
+    what: &str,
+    reference: &LinearImage,
+    sprites: &LinearImage,
+    compute: &LinearImage,
+    floor: f64,
+) {
+    let close = psnr(sprites, compute).unwrap();
+    let (ps, pc) = (
+        psnr(reference, sprites).unwrap(),
+        psnr(reference, compute).unwrap(),
+    );
+    eprintln!(
+        "{what}: {} of {} pixels differ, {close:.1} dB apart; against accum 16 \
+         sprites {ps:.2} dB, compute {pc:.2} dB",
+        differing(sprites, compute),
+        sprites.pixels.len()
+    );
+    assert!(close >= floor, "{what}: {close:.1} dB apart");
+    assert!(
+        (pc - ps).abs() <= AGAINST_ACCUM_DB,
+        "{what}: against accum {pc:.2} dB (compute), {ps:.2} dB (sprites)"
+    );
 }
 
 /// How many times the frame ran pass `name`.
@@ -98,23 +127,8 @@ fn compute_raster_matches_the_sprites_on_the_bundled_scenes_with_every_method() 
                 // Atomics decide each sample whatever the order of arrival:
                 // bitwise the same run to run.
                 assert_eq!(differing(&compute.image, &again.image), 0, "{what}");
-                let close = psnr(&sprites.image, &compute.image).unwrap();
-                let (ps, pc) = (
-                    psnr(&reference, &sprites.image).unwrap(),
-                    psnr(&reference, &compute.image).unwrap(),
-                );
-                eprintln!(
-                    "{what}: {} of {} pixels differ, {close:.1} dB apart; against accum 16 \
-                     sprites {ps:.2} dB, compute {pc:.2} dB",
-                    differing(&sprites.image, &compute.image),
-                    sprites.image.pixels.len()
-                );
                 let floor = if ssaa == 1 { FLOOR_K1_DB } else { FLOOR_DB };
-                assert!(close >= floor, "{what}: {close:.1} dB apart");
-                assert!(
-                    (pc - ps).abs() <= AGAINST_ACCUM_DB,
-                    "{what}: against accum {pc:.2} dB (compute), {ps:.2} dB (sprites)"
-                );
+                assert_close(&what, &reference, &sprites.image, &compute.image, floor);
             }
         }
     });
@@ -262,16 +276,7 @@ fn the_compute_peel_draws_large_splats_as_the_sprites_peel() {
         let sprites = render(&mut renderer, &scene, &options, Raster::Sprites);
         let compute = render(&mut renderer, &scene, &options, Raster::Compute);
         assert_eq!(pass_count(&compute, "peel.raster"), 2);
-        let close = psnr(&sprites.image, &compute.image).unwrap();
-        let (ps, pc) = (
-            psnr(&reference, &sprites.image).unwrap(),
-            psnr(&reference, &compute.image).unwrap(),
-        );
-        eprintln!("40 px splats, layered 3: {close:.1} dB apart; against accum 16 sprites {ps:.2} dB, compute {pc:.2} dB");
-        assert!(close >= FLOOR_DB, "{close:.1} dB apart");
-        assert!(
-            (pc - ps).abs() <= AGAINST_ACCUM_DB,
-            "compute {pc:.2} dB, sprites {ps:.2} dB"
-        );
+        let what = "40 px splats, layered 3";
+        assert_close(what, &reference, &sprites.image, &compute.image, FLOOR_DB);
     });
 }

@@ -90,7 +90,7 @@ bool peels(uint i) {
 void main() {
     uint i = gl_GlobalInvocationID.x;
     uint runs_count = (pc.count + RUN - 1u) / RUN;
-    if (pc.stage == 0u) {
+    if (pass_stage() == 0u) {
         ivec2 extent = imageSize(previous);
         ivec2 tiles = (extent + TILE - 1) / TILE;
         if (i >= uint(tiles.x * tiles.y)) {
@@ -106,11 +106,11 @@ void main() {
             }
         }
         tile_near[i] = z_near;
-    } else if (pc.stage == 1u) {
+    } else if (pass_stage() == 1u) {
         if (i < pc.count) {
             flags[i] = peels(i) ? 1u : 0u;
         }
-    } else if (pc.stage == 2u) {
+    } else if (pass_stage() == 2u) {
         if (i < runs_count) {
             uint kept_in_run = 0u;
             for (uint j = i * RUN; j < min((i + 1u) * RUN, pc.count); ++j) {
@@ -118,7 +118,7 @@ void main() {
             }
             runs[i] = kept_in_run;
         }
-    } else if (pc.stage == 3u) {
+    } else if (pass_stage() == 3u) {
         if (i == 0u) {
             uint sum = 0u;
             for (uint r = 0u; r < runs_count; ++r) {

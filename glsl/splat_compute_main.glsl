@@ -5,12 +5,22 @@
 // sprite path's depth test keeps it. The G-buffer resolve
 // (gbuffer_resolve_vis.comp) reads each word's splat color.
 //
-// A splat covers the target pixels whose centre lies in its square,
+// A splat covers the target pixels whose sample lies in its square,
 // [p − size/2, p + size/2) along each axis (the sprite rule of the
 // Vulkan specification, without the sprite path's rounding of the
 // position to sub-pixel steps and of the size to the point-size
 // granularity). Positions and sizes are those of splat_raster.vert
 // (splat_project.glsl).
+//
+// The samples: a G-buffer pixel is a block of k × k target pixels (k the
+// push block's cells), and the target pixel in the block's column i and
+// row j samples at (i + 1 − (j + ½)/k, j + (i + ½)/k) target pixels from
+// the block's corner: a grid rotated by atan(1/k), so that the k² samples
+// of a pixel fall in k² different columns and rows of 1/k² pixel each
+// (at k = 2 the standard 4-sample locations; at k = 1 the pixel centre).
+// A splat is an axis-aligned square: a k × k grid of cell centres sees
+// its edges in steps of 1/k pixel, the rotated grid in steps of 1/k²
+// (docs/ARCHITECTURE.md, the compute rasteriser, *The rotated grid*).
 //
 // Two stages of one shader:
 //   0: one invocation per splat; a square of at most LARGE_PIXELS target
@@ -72,51 +82,109 @@ vec4 position_size(uint i) {
                 uintBitsToFloat(splats[6u * i + 2u]), uintBitsToFloat(splats[6u * i + 3u]));
 }
 
-// The first and last target pixel (inclusive) whose centre x + 0.5 lies
-// in [centre − size/2, centre + size/2), clamped to the target; empty
-// when last < first.
-ivec2 covered(float centre, float size, float extent) {
-    float lo = ceil(centre - 0.5 * size - 0.5);
-    float hi = ceil(centre + 0.5 * size - 0.5) - 1.0;
+// Target pixels per G-buffer pixel along each axis: the cells of the
+// sample lattice (src/passes/splat_compute.rs, ComputeRaster::record).
+int cells() {
+    return int(pc.stage_cells >> 16u);
+}
+
+// How far past its corner, along one axis, the sample of a target pixel
+// lies, in target pixels, for cell c of k (inv_k = 1/k): along y the
+// pixel's cell column, along x k − 1 − its cell row (the rotated grid
+// above). The cells of target pixel (x, y) are (x mod k, y mod k): the
+// target starts at a G-buffer pixel's corner, a band at a G-buffer row.
+// The callers keep cells and 1/k out of their loops over pixels (lavapipe
+// divides lane by lane, and reloads the push block after each atomic).
+float cell_offset(int c, float inv_k) {
+    return (float(c) + 0.5) * inv_k;
+}
+
+// The target pixels t along an axis (first, last; empty when last <
+// first) whose sample, `offset` past t, lies in
+// [centre − size/2, centre + size/2).
+ivec2 span(float centre, float size, float offset) {
+    return ivec2(ceil(centre - 0.5 * size - offset), ceil(centre + 0.5 * size - offset) - 1.0);
+}
+
+bool in_span(int t, ivec2 span) {
+    return t >= span.x && t <= span.y;
+}
+
+// The splat's box along an axis: the target pixels with a sample in
+// [centre − size/2, centre + size/2) at some cell, from the largest
+// offset's first to the smallest's last; clamped to the target.
+ivec2 covered(float centre, float size, float extent, int k, float inv_k) {
+    float lo = float(span(centre, size, cell_offset(k - 1, inv_k)).x);
+    float hi = float(span(centre, size, cell_offset(0, inv_k)).y);
     return ivec2(clamp(lo, 0.0, extent), clamp(hi, -1.0, extent - 1.0));
 }
 
-// Whether target pixel (x, y) of the splat's square is the splat's: every
-// one for a square; for a disc (SPLAT_DISC, `--splat-shape disc`) those
-// whose centre lies strictly inside the disc of the square's diameter, as
-// the sprites' disc test (splat_disc.glsl).
-bool covers(Projected s, int x, int y) {
+// Whether target pixel (x, y), at cells (i, j), is the splat's: its
+// sample lies in the square; for a disc (SPLAT_DISC, `--splat-shape
+// disc`) strictly inside the disc of the square's diameter, as the
+// sprites' disc test (splat_disc.glsl).
+bool covers(Projected s, int x, int y, int i, int j, int k, float inv_k) {
+    float ox = cell_offset(k - 1 - j, inv_k);
+    float oy = cell_offset(i, inv_k);
 #ifdef SPLAT_DISC
-    vec2 d = vec2(x, y) + 0.5 - s.p;
+    vec2 d = vec2(float(x) + ox, float(y) + oy) - s.p;
     float r = 0.5 * s.size_px;
     return dot(d, d) < r * r;
 #else
-    return true;
+    return in_span(x, span(s.p.x, s.size_px, ox)) && in_span(y, span(s.p.y, s.size_px, oy));
+#endif
+}
+
+// Draws the splat's target pixels of row y (cell row j) from column x0
+// (cell column i0) to x1, all within its box: those `covers` keeps. For a
+// square, the same test by the row: the columns of the row's span, and of
+// them those whose cell column's span holds y (every one in a row inside
+// the smallest and the largest offset's spans: the spans move with the
+// offset).
+void draw_row(Projected s, uint64_t word, int y, int j, int x0, int x1, int i0, int k,
+              float inv_k) {
+    uint row = uint(y) * uint(pc.extent.x);
+#ifdef SPLAT_DISC
+    for (int x = x0, i = i0; x <= x1; ++x, i = i + 1 == k ? 0 : i + 1) {
+        if (covers(s, x, y, i, j, k, inv_k)) {
+            atomicMin(visibility[row + uint(x)], word);
+        }
+    }
+#else
+    ivec2 xr = span(s.p.x, s.size_px, cell_offset(k - 1 - j, inv_k));
+    uint columns = 0xffffffffu;
+    if (!in_span(y, span(s.p.y, s.size_px, cell_offset(0, inv_k)))
+        || !in_span(y, span(s.p.y, s.size_px, cell_offset(k - 1, inv_k)))) {
+        columns = 0u;
+        for (int c = 0; c < k; ++c) {
+            columns |= uint(in_span(y, span(s.p.y, s.size_px, cell_offset(c, inv_k)))) << uint(c);
+        }
+    }
+    // The row's span starts at most a pixel after the box (the offsets
+    // differ by less than a pixel).
+    int first = max(x0, xr.x);
+    int i = i0 + (first - x0);
+    i = i >= k ? i - k : i;
+    for (int x = first; x <= min(x1, xr.y); ++x, i = i + 1 == k ? 0 : i + 1) {
+        if (((columns >> uint(i)) & 1u) != 0u) {
+            atomicMin(visibility[row + uint(x)], word);
+        }
+    }
 #endif
 }
 
 #ifdef SPLAT_PEEL
-// Target pixels per G-buffer pixel along each axis: the peel's target is
-// the G-buffer's size times it (src/passes/splat_compute.rs,
-// ComputeRaster::record).
-int peel_scale() {
-    return int(pc.extent.x) / imageSize(previous).x;
-}
-
 // Draws the splat's target pixels (xs × ys) within G-buffer pixel g, of
 // k × k target pixels, where the splat lies beyond the previous layer
 // there by more than its thickness, as splat_peel_frag.glsl tests it: the
 // test once for the pixel's k² target pixels.
-void peel_gbuffer_pixel(Projected s, uint64_t word, ivec2 xs, ivec2 ys, ivec2 g, int k) {
+void peel_gbuffer_pixel(Projected s, uint64_t word, ivec2 xs, ivec2 ys, ivec2 g, int k,
+                        float inv_k) {
     if (s.z > imageLoad(previous, g).z + PEEL_THICKNESS * s.diameter) {
-        uint width = uint(pc.extent.x);
+        int x0 = max(xs.x, g.x * k);
+        int x1 = min(xs.y, g.x * k + k - 1);
         for (int y = max(ys.x, g.y * k); y <= min(ys.y, g.y * k + k - 1); ++y) {
-            uint row = uint(y) * width;
-            for (int x = max(xs.x, g.x * k); x <= min(xs.y, g.x * k + k - 1); ++x) {
-                if (covers(s, x, y)) {
-                    atomicMin(visibility[row + uint(x)], word);
-                }
-            }
+            draw_row(s, word, y, y - g.y * k, x0, x1, x0 - g.x * k, k, inv_k);
         }
     }
 }
@@ -124,7 +192,7 @@ void peel_gbuffer_pixel(Projected s, uint64_t word, ivec2 xs, ivec2 ys, ivec2 g,
 
 void main() {
     uint i;
-    if (pc.stage == 0u) {
+    if (pass_stage() == 0u) {
         i = gl_GlobalInvocationID.x;
         if (i >= pc.count) {
             return;
@@ -136,8 +204,10 @@ void main() {
     if (!project_splat(position_size(i), vec2(0.0), s)) {
         return;
     }
-    ivec2 xs = covered(s.p.x, s.size_px, pc.extent.x);
-    ivec2 ys = covered(s.p.y, s.size_px, pc.extent.y);
+    int k = cells();
+    float inv_k = 1.0 / float(k);
+    ivec2 xs = covered(s.p.x, s.size_px, pc.extent.x, k, inv_k);
+    ivec2 ys = covered(s.p.y, s.size_px, pc.extent.y, k, inv_k);
     if (xs.y < xs.x || ys.y < ys.x) {
         return;
     }
@@ -145,7 +215,7 @@ void main() {
     uint n = w * uint(ys.y - ys.x + 1);
     uint width = uint(pc.extent.x);
     uint64_t word = (uint64_t(floatBitsToUint(s.z)) << 32) | uint64_t(i);
-    if (pc.stage == 0u) {
+    if (pass_stage() == 0u) {
         if (n > LARGE_PIXELS) {
             large[atomicAdd(large_dispatch[0], 1u)] = i;
             return;
@@ -153,20 +223,15 @@ void main() {
 #ifdef SPLAT_PEEL
         // By G-buffer pixel: the peel's test once for its scale² target
         // pixels (the same target pixels as testing each).
-        int k = peel_scale();
         for (int gy = ys.x / k; gy <= ys.y / k; ++gy) {
             for (int gx = xs.x / k; gx <= xs.y / k; ++gx) {
-                peel_gbuffer_pixel(s, word, xs, ys, ivec2(gx, gy), k);
+                peel_gbuffer_pixel(s, word, xs, ys, ivec2(gx, gy), k, inv_k);
             }
         }
 #else
-        for (int y = ys.x; y <= ys.y; ++y) {
-            uint row = uint(y) * width;
-            for (int x = xs.x; x <= xs.y; ++x) {
-                if (covers(s, x, y)) {
-                    atomicMin(visibility[row + uint(x)], word);
-                }
-            }
+        int i0 = xs.x % k;
+        for (int y = ys.x, j = ys.x % k; y <= ys.y; ++y, j = j + 1 == k ? 0 : j + 1) {
+            draw_row(s, word, y, j, xs.x, xs.y, i0, k, inv_k);
         }
 #endif
     } else {
@@ -175,7 +240,6 @@ void main() {
         // pixel of the square once, then takes its target pixels; a chunk
         // holds CHUNK_PIXELS / scale² G-buffer pixels (no more loop
         // iterations per invocation than a chunk of target pixels).
-        int k = peel_scale();
         ivec2 g_lo = ivec2(xs.x, ys.x) / k;
         uint gw = uint(xs.y / k - g_lo.x + 1);
         uint gn = gw * uint(ys.y / k - g_lo.y + 1);
@@ -183,16 +247,16 @@ void main() {
         uint first = gl_WorkGroupID.y * chunk;
         uint end = min(gn, first + chunk);
         for (uint j = first + gl_LocalInvocationID.x; j < end; j += gl_WorkGroupSize.x) {
-            peel_gbuffer_pixel(s, word, xs, ys, g_lo + ivec2(j % gw, j / gw), k);
+            peel_gbuffer_pixel(s, word, xs, ys, g_lo + ivec2(j % gw, j / gw), k, inv_k);
         }
 #else
         uint first = gl_WorkGroupID.y * CHUNK_PIXELS;
         uint end = min(n, first + CHUNK_PIXELS);
-        for (uint k = first + gl_LocalInvocationID.x; k < end; k += gl_WorkGroupSize.x) {
-            uint x = uint(xs.x) + k % w;
-            uint y = uint(ys.x) + k / w;
-            if (covers(s, int(x), int(y))) {
-                atomicMin(visibility[y * width + x], word);
+        for (uint m = first + gl_LocalInvocationID.x; m < end; m += gl_WorkGroupSize.x) {
+            int x = xs.x + int(m % w);
+            int y = ys.x + int(m / w);
+            if (covers(s, x, y, x % k, y % k, k, inv_k)) {
+                atomicMin(visibility[uint(y) * width + uint(x)], word);
             }
         }
 #endif

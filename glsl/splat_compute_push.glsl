@@ -1,7 +1,8 @@
 // Push constants of the compute passes over the splats (splat_compute.comp,
 // peel_cull.comp; src/passes/splat_raster.rs, SplatComputePush): the
 // sprite path's projection (splat_raster.glsl) without its jitter, with
-// the splat count and the pass's stage. 128 bytes, lavapipe's limit.
+// the splat count and the pass's stage (with the compute rasteriser's
+// cells per pixel). 128 bytes, lavapipe's limit.
 layout(push_constant, std430) uniform SplatComputePush {
     vec4 eye;
     vec4 right;
@@ -19,5 +20,12 @@ layout(push_constant, std430) uniform SplatComputePush {
     float max_point_size;
     float min_point_size;
     uint count;    // splats
-    uint stage;
+    // Bits 0–15: the pass's stage; bits 16–31: the compute rasteriser's
+    // target pixels per G-buffer pixel along each axis, the cells of its
+    // sample lattice (splat_compute_main.glsl; 0 in the peel's cull).
+    uint stage_cells;
 } pc;
+
+uint pass_stage() {
+    return pc.stage_cells & 0xffffu;
+}

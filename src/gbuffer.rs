@@ -572,6 +572,7 @@ impl GBuffer {
                             splats,
                             count,
                             &push,
+                            scale,
                             None,
                         );
                         Samples::Visibility {
@@ -705,6 +706,7 @@ impl GBuffer {
                 splats,
                 count,
                 &push,
+                scale,
                 Some(previous),
             );
             let sample = Samples::Visibility {

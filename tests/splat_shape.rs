@@ -85,12 +85,23 @@ fn compute_and_sprite_discs_agree_on_the_bunny_with_every_method() {
             let compute = renderer.render(&scene, &opts).unwrap().image;
             renderer.set_raster(Raster::Sprites);
             let sprites = renderer.render(&scene, &opts).unwrap().image;
-            let db = psnr(&compute, &sprites).unwrap();
-            // Measured 89.5 dB (pinhole, 320×240): only samples on a rim
-            // within the sprites' 1/256-pixel rounding differ.
+            let converged = RenderOptions { ssaa: 8, ..opts };
+            let converged = renderer.render(&scene, &converged).unwrap().image;
+            // The two take other samples (the compute rasteriser's
+            // rotated grid, the sprites' grid of cell centres:
+            // tests/compute_raster.rs): against the sprites at K = 8, the
+            // compute discs as close as the sprites' or closer, within
+            // 0.2 dB, and within 30 dB (measured: compute 38.9–43.4 dB,
+            // sprites 38.2–43.2 dB; a disc's rim is not axis-aligned, so
+            // the rotated grid gains less than on a square's edges).
+            let (cs, cc) = (
+                psnr(&converged, &sprites).unwrap(),
+                psnr(&converged, &compute).unwrap(),
+            );
+            eprintln!("{method:?}: from K = 8 sprites {cs:.2} dB, compute {cc:.2} dB");
             assert!(
-                db >= 45.0,
-                "{method:?}: compute and sprite discs {db:.2} dB apart"
+                cc >= cs - 0.2 && cc >= 30.0,
+                "{method:?}: from K = 8 compute {cc:.2} dB, sprites {cs:.2} dB"
             );
             let squares = square.render(&square_scene, &opts).unwrap().image;
             let apart = psnr(&compute, &squares).unwrap();

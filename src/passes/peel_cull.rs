@@ -130,7 +130,7 @@ impl PeelCull {
                     3 => 1,
                     _ => runs,
                 };
-                let push = SplatComputePush { stage, ..base };
+                let push = base.with_stage(stage, 0);
                 rec.dispatch(&self.pipeline, &binds, &push, [size, 1, 1]);
             }
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::VERTEX_READ);

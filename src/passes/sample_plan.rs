@@ -192,6 +192,10 @@ impl SamplePlan {
     /// (i, j)'s centre, so the samples are the one-sample form's; the
     /// resolve folds them in that form's index order (its sample s takes
     /// the mirrored cell K² − 1 − s, see [`SamplePlan::multisampled`]).
+    /// The compute rasteriser draws the same target, but samples target
+    /// pixel K·p + (i, j) on a rotated grid, at p + ((i + 1 − (j + ½)/K)/K,
+    /// (j + (i + ½)/K)/K) (`glsl/splat_compute_main.glsl`); the resolve
+    /// and its order are the same.
     pub fn upscaled(ssaa: u32) -> SamplePlan {
         SamplePlan {
             samples_per_pass: 1,

@@ -61,6 +61,11 @@ push_constants! {
     /// (`glsl/splat_compute_push.glsl`: the compute rasteriser and the
     /// peel's cull): [`SplatPush`] without its jitter, with the splat
     /// count and the pass's stage (128 bytes).
+    ///
+    /// `stage_cells` is the pass's stage in bits 0–15 and, for the compute
+    /// rasteriser, its target pixels per G-buffer pixel along each axis
+    /// (the cells of its sample lattice) in bits 16–31:
+    /// [`SplatComputePush::with_stage`].
     pub struct SplatComputePush {
         pub eye: [f32; 4],
         pub right: [f32; 4],
@@ -78,7 +83,7 @@ push_constants! {
         pub max_point_size: f32,
         pub min_point_size: f32,
         pub count: u32,
-        pub stage: u32,
+        pub stage_cells: u32,
     }
 }
 
@@ -104,7 +109,23 @@ impl SplatPush {
             max_point_size: self.max_point_size,
             min_point_size: self.min_point_size,
             count,
-            stage: 0,
+            stage_cells: 0,
+        }
+    }
+}
+
+impl SplatComputePush {
+    /// The same push for stage `stage` of a pass whose sample lattice has
+    /// `cells` cells per axis (0 where the pass draws nothing: the peel's
+    /// cull).
+    pub fn with_stage(self, stage: u32, cells: u32) -> SplatComputePush {
+        assert!(
+            stage <= 0xffff && cells <= 0xffff,
+            "stage {stage}, cells {cells}"
+        );
+        SplatComputePush {
+            stage_cells: stage | cells << 16,
+            ..self
         }
     }
 }

@@ -130,6 +130,7 @@ def parse_args(argv):
     p.add_argument("--height", type=int, default=480)
     p.add_argument("--raster", default=None, choices=["sprites", "compute"])
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
+    p.add_argument("--ssaa", default=None)
     try:
         args = p.parse_args(argv)
     except SystemExit as e:
@@ -140,6 +141,9 @@ def parse_args(argv):
             fail(f"--scenes: unknown scene '{s}' (known: {', '.join(SCENES)})")
     args.spp = sorted(set(parse_list(args.spp, "--spp")))
     args.accum = sorted(set(parse_list(args.accum, "--accum"))) if args.accum else None
+    args.ssaa = parse_list(args.ssaa, "--ssaa") if args.ssaa else None
+    if args.ssaa and (max(args.ssaa) > 16 or len(set(args.ssaa)) != len(args.ssaa)):
+        fail("--ssaa: distinct values from 1 to 16, as pointlens takes them")
     if not args.scenes:
         fail("--scenes: no scene given")
     if args.reps < 1:
@@ -157,7 +161,8 @@ def parse_args(argv):
 
 def methods(args, scene):
     """pointlens methods: (name as `bench` names it, render flags); accum's
-    sample counts from --accum, else the scene's."""
+    sample counts from --accum, else the scene's. With --ssaa, each method
+    at each K, named with `-ssaaK`."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
          ("layered1", ["--method", "layered", "--layers", "1"]),
@@ -165,7 +170,9 @@ def methods(args, scene):
          ("layered4", ["--method", "layered", "--layers", "4"])]
     m += [(f"accum{s}", ["--method", "accum", "--samples", str(s)]) for s in args.accum or SCENES[scene]["accum"]]
     raster = ["--raster", args.raster] if args.raster else []
-    return [(name, flags + raster) for name, flags in m]
+    if not args.ssaa:
+        return [(name, flags + raster) for name, flags in m]
+    return [(f"{name}-ssaa{k}", flags + raster + ["--ssaa", str(k)]) for k in args.ssaa for name, flags in m]
 
 
 def scene_flags(args, scene):
@@ -478,7 +485,7 @@ class Bench:
                     r.update(eq)
                     r["ratio"] = eq["mitsuba_ms_same_psnr"] / r["time_ms"] if eq["mitsuba_ms_same_psnr"] else None
             info["rows"] = rows
-            info["pointlens_device"] = pl[scene]["pinhole"][0]["device"]
+            info["pointlens_device"] = next(iter(pl[scene].values()))[0]["device"]
             self.results["scenes"][scene] = info
         self.finish()
 
@@ -588,6 +595,7 @@ def environment(a, mi, dr, results):
         "ref_spp": a.ref_spp,
         "pinhole_spp": a.pinhole_spp,
         "raster": a.raster or "pointlens's default",
+        "ssaa": a.ssaa or "pointlens's default",
         "splat_shape": a.splat_shape,
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
         "load_average_1min": results.get("load_average_1min"),

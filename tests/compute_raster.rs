@@ -104,7 +104,7 @@ const SAME_DB: f64 = 0.2;
 const CONVERGED_K: u32 = 8;
 
 #[test]
-fn compute_raster_matches_the_sprites_on_the_bundled_scenes_with_every_method() {
+fn compute_raster_is_as_close_to_converged_as_the_sprites_with_every_method() {
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
         let models = [
@@ -292,7 +292,7 @@ fn the_compute_peel_takes_the_largest_scale_that_fits_else_the_sprites() {
 }
 
 #[test]
-fn the_compute_peel_draws_large_splats_as_the_sprites_peel() {
+fn the_compute_peel_draws_large_splats_as_well_as_the_sprites_peel() {
     // Splats of 40 output pixels on every 8th point of the mug: at the peel's scale 2, 6,400
     // target pixels each, beyond LARGE_PIXELS, so the peel's second stage
     // draws them (a workgroup a splat, by G-buffer pixel); 40 px fits

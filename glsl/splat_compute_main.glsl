@@ -83,7 +83,7 @@ vec4 position_size(uint i) {
 }
 
 // Target pixels per G-buffer pixel along each axis: the cells of the
-// sample lattice (src/passes/splat_compute.rs, ComputeRaster::record).
+// rotated sample grid (src/passes/splat_compute.rs, ComputeRaster::record).
 int cells() {
     return int(pc.stage_cells >> 16u);
 }

@@ -22,7 +22,7 @@ layout(push_constant, std430) uniform SplatComputePush {
     uint count;    // splats
     // Bits 0–15: the pass's stage; bits 16–31: the compute rasteriser's
     // target pixels per G-buffer pixel along each axis, the cells of its
-    // sample lattice (splat_compute_main.glsl; 0 in the peel's cull).
+    // rotated sample grid (splat_compute_main.glsl; 0 in the peel's cull).
     uint stage_cells;
 } pc;
 

@@ -64,7 +64,7 @@ push_constants! {
     ///
     /// `stage_cells` is the pass's stage in bits 0–15 and, for the compute
     /// rasteriser, its target pixels per G-buffer pixel along each axis
-    /// (the cells of its sample lattice) in bits 16–31:
+    /// (the cells of its rotated sample grid) in bits 16–31:
     /// [`SplatComputePush::with_stage`].
     pub struct SplatComputePush {
         pub eye: [f32; 4],
@@ -115,7 +115,7 @@ impl SplatPush {
 }
 
 impl SplatComputePush {
-    /// The same push for stage `stage` of a pass whose sample lattice has
+    /// The same push for stage `stage` of a pass whose sample grid has
     /// `cells` cells per axis (0 where the pass draws nothing: the peel's
     /// cull).
     pub fn with_stage(self, stage: u32, cells: u32) -> SplatComputePush {

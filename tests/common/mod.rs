@@ -286,6 +286,38 @@ pub fn differing(
         .count()
 }
 
+/// How many times the frame ran pass `name` (0: not at all).
+pub fn pass_count(r: &pointlens::render::Rendered, name: &str) -> u32 {
+    let pass = r.timings.passes.iter().find(|p| p.name == name);
+    pass.map_or(0, |p| p.count)
+}
+
+/// How much worse than the sprites' image the compute rasteriser's may be
+/// against a reference, dB: the two sample other points at K ≥ 2 (the
+/// compute rasteriser's rotated grid), and the compute image must be as
+/// close or closer.
+pub const SAME_DB: f64 = 0.2;
+
+/// The PSNR of `compute` against `reference`, asserted at least the
+/// sprites' image's less [`SAME_DB`]; both printed, the reference named
+/// `against`.
+pub fn assert_compute_as_close(
+    what: &str,
+    against: &str,
+    reference: &LinearImage,
+    sprites: &LinearImage,
+    compute: &LinearImage,
+) -> f64 {
+    let s = metrics::psnr(reference, sprites).unwrap();
+    let c = metrics::psnr(reference, compute).unwrap();
+    eprintln!("{what}: against {against} sprites {s:.2} dB, compute {c:.2} dB");
+    assert!(
+        c >= s - SAME_DB,
+        "{what}: against {against} {c:.2} dB (compute), {s:.2} dB (sprites)"
+    );
+    c
+}
+
 /// The G-buffer raster passes of a frame (the depth peel's excluded).
 pub fn rasters(r: &pointlens::render::Rendered) -> u32 {
     r.timings

@@ -240,8 +240,9 @@ pub struct BenchOptions {
     pub points: usize,
     pub runs: u32,
     pub warmup: u32,
-    /// K of the K×K SSAA G-buffer, for every method.
-    pub ssaa: u32,
+    /// K of the K×K SSAA G-buffer, for every method (None: the default of
+    /// the measured frames' raster, [`Renderer::default_ssaa`]).
+    pub ssaa: Option<u32>,
     /// The most samples per G-buffer raster pass (None: the device's best).
     pub samples_per_pass: Option<u32>,
     /// How the measured frames' G-buffers are rasterised (the quality
@@ -422,6 +423,11 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     }
     let mut renderer = Renderer::new(ctx)?;
     renderer.set_splat_shape(options.splat_shape)?;
+    renderer.set_raster(options.raster);
+    let ssaa = match options.ssaa {
+        Some(k) => k,
+        None => renderer.default_ssaa(options.samples_per_pass)?,
+    };
     let total = frame_count(options);
     let mut done = 0u64;
     let mut cells = Vec::new();
@@ -435,7 +441,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
             let frame = |method: Method, lod_px: f32| RenderOptions {
                 camera,
                 method,
-                ssaa: options.ssaa,
+                ssaa,
                 samples_per_pass: options.samples_per_pass,
                 background: Vec3::ZERO,
                 lod: Lod {
@@ -505,7 +511,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     width,
                     height,
                     method: m.name.clone(),
-                    ssaa: options.ssaa,
+                    ssaa,
                     samples_per_pass,
                     samples: m.samples(),
                     camera: camera.to_spec(),
@@ -536,7 +542,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         device: DeviceReport::of(&ctx.info),
         runs: options.runs,
         warmup: options.warmup,
-        ssaa: options.ssaa,
+        ssaa,
         raster: options
             .raster
             .to_possible_value()

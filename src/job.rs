@@ -105,8 +105,9 @@ pub struct JobSpec {
     /// `--focus-pixel X,Y`: focus every frame on what that pixel sees.
     pub focus_pixel: Option<[u32; 2]>,
     pub method: Method,
-    /// K: K×K G-buffer samples per pixel.
-    pub ssaa: u32,
+    /// K: K×K G-buffer samples per pixel (None: the default of the frame's
+    /// raster, [`Renderer::default_ssaa`]; of a scene of 3D Gaussians, 1).
+    pub ssaa: Option<u32>,
     /// The most samples one raster pass takes (None: the device's best).
     pub samples_per_pass: Option<u32>,
     /// Linear-light background color.
@@ -411,7 +412,7 @@ impl RenderJob {
             let measure = write_frame(renderer, scene, &options, &job.output, self.spec.written)?;
             let report = FrameReport {
                 load_ms,
-                ..measure.into_report(renderer, &self.spec, scene)
+                ..measure.into_report(renderer, &self.spec, &options, scene)
             };
             Ok((spec, report))
         })
@@ -457,6 +458,14 @@ impl RenderJob {
         Ok(outcome)
     }
 
+    /// K of a scene of 3D Gaussians: `--ssaa`, else
+    /// [`crate::options::DEFAULT_SSAA_GAUSSIANS`] (pixel centres, as trained).
+    pub fn gaussian_ssaa(&self) -> u32 {
+        self.spec
+            .ssaa
+            .unwrap_or(crate::options::DEFAULT_SSAA_GAUSSIANS)
+    }
+
     /// Checks that the job asks for nothing a Gaussian scene cannot give
     /// (docs/ARCHITECTURE.md, "3D Gaussian scenes"): `pinhole`, `layered`
     /// (one sample a pixel) or `accum`, no `--focus-pixel`, no depth or
@@ -477,7 +486,7 @@ impl RenderJob {
         if self.spec.written.transparent {
             return refuse("a transparent --background");
         }
-        if matches!(self.spec.method, Method::Layered(_)) && self.spec.ssaa > 1 {
+        if matches!(self.spec.method, Method::Layered(_)) && self.gaussian_ssaa() > 1 {
             return refuse("--ssaa above 1 with --method layered");
         }
         match self.spec.method {
@@ -521,7 +530,7 @@ impl RenderJob {
                     scene,
                     &job.camera,
                     &lens,
-                    self.spec.ssaa,
+                    self.gaussian_ssaa(),
                     self.spec.background,
                 )?,
             };
@@ -546,7 +555,7 @@ impl RenderJob {
                         m => m.short_name(),
                     },
                     (job.camera.width, job.camera.height),
-                    self.spec.ssaa,
+                    self.gaussian_ssaa(),
                     scene.len() as usize,
                     frame.guard,
                     &frame.timings,
@@ -566,13 +575,17 @@ impl RenderJob {
         mut camera: Camera,
     ) -> Result<RenderOptions> {
         let s = &self.spec;
+        let ssaa = match s.ssaa {
+            Some(k) => k,
+            None => renderer.default_ssaa(s.samples_per_pass)?,
+        };
         if let Some([x, y]) = s.focus_pixel {
-            camera.focus_distance = renderer.depth_at_pixel(scene, &camera, s.ssaa, s.lod, x, y)?;
+            camera.focus_distance = renderer.depth_at_pixel(scene, &camera, ssaa, s.lod, x, y)?;
         }
         Ok(RenderOptions {
             camera,
             method: s.method,
-            ssaa: s.ssaa,
+            ssaa,
             samples_per_pass: s.samples_per_pass,
             background: s.background,
             lod: s.lod,
@@ -657,7 +670,13 @@ struct FrameMeasure {
 }
 
 impl FrameMeasure {
-    fn into_report(self, renderer: &Renderer, spec: &JobSpec, scene: &Scene) -> FrameReport {
+    fn into_report(
+        self,
+        renderer: &Renderer,
+        spec: &JobSpec,
+        options: &RenderOptions,
+        scene: &Scene,
+    ) -> FrameReport {
         let r = self.rendered;
         FrameReport {
             samples_per_pass: r.samples_per_pass,
@@ -668,7 +687,7 @@ impl FrameMeasure {
                 &renderer.ctx().info,
                 spec.method.short_name(),
                 (self.camera.width, self.camera.height),
-                spec.ssaa,
+                options.ssaa,
                 scene.len(),
                 r.guard,
                 &r.timings,

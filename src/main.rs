@@ -181,9 +181,10 @@ struct BenchArgs {
     /// Untimed runs before them (default: the device's matrix's).
     #[arg(long)]
     warmup: Option<u32>,
-    /// K: the G-buffer takes K×K samples per pixel, 1 to 16.
-    #[arg(long, default_value_t = pointlens::options::DEFAULT_SSAA, value_parser = checked(check_ssaa))]
-    ssaa: u32,
+    /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (default: 3 on
+    /// the compute raster's rotated grid, 4 on the sprites').
+    #[arg(long, value_parser = checked(check_ssaa))]
+    ssaa: Option<u32>,
     #[command(flatten)]
     gbuffer: GBufferArgs,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
@@ -281,8 +282,10 @@ struct RenderArgs {
     #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
     samples: u32,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard
-    /// sprites; default 4). A scene of 3D Gaussians is sampled at pixel
-    /// centres as trained (default 1); K > 1 averages K×K cell centres.
+    /// sprites; default 3 on the compute raster's rotated grid, 4 on the
+    /// sprites' K×K grid: docs/BENCHMARKS.md). A scene of 3D Gaussians is
+    /// sampled at pixel centres as trained (default 1); K > 1 averages K×K
+    /// cell centres.
     #[arg(long, value_parser = checked(check_ssaa))]
     ssaa: Option<u32>,
     #[command(flatten)]
@@ -1159,11 +1162,7 @@ fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
         );
     }
     let shot = shot_of(&args)?;
-    let spec = JobSpec {
-        ssaa: args.ssaa.unwrap_or(1),
-        ..job_spec(&args, shot)?
-    };
-    let job = RenderJob::new(spec)?;
+    let job = RenderJob::new(job_spec(&args, shot)?)?;
     job.gaussian_lens()?;
     let stop = Arc::new(AtomicBool::new(false));
     job::watch_signals(job.is_sequence(), stop.clone())?;
@@ -1487,7 +1486,7 @@ fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
         camera_flags: camera_flags(args),
         focus_pixel: args.focus_pixel,
         method: method_of(args),
-        ssaa: args.ssaa.unwrap_or(pointlens::options::DEFAULT_SSAA),
+        ssaa: args.ssaa,
         samples_per_pass: args.gbuffer.samples_per_pass,
         background: background_of(args)?,
         lod: Lod {

@@ -448,7 +448,12 @@ impl Renderer {
     /// the samples per pass asks for the sprite path's plans (the compute
     /// raster takes every sample in one pass).
     fn frame_raster(&self, options: &RenderOptions) -> Result<Raster> {
-        Ok(match (self.raster, options.samples_per_pass) {
+        self.raster_with(options.samples_per_pass)
+    }
+
+    /// The raster of a frame with `samples_per_pass` (see `frame_raster`).
+    fn raster_with(&self, samples_per_pass: Option<u32>) -> Result<Raster> {
+        Ok(match (self.raster, samples_per_pass) {
             (Raster::Auto, Some(_)) => Raster::Sprites,
             (Raster::Auto, None) if self.ctx.info.buffer_int64_atomics => Raster::Compute,
             (Raster::Auto, None) => Raster::Sprites,
@@ -461,6 +466,15 @@ impl Renderer {
             }
             (chosen, _) => chosen,
         })
+    }
+
+    /// The default K of `--ssaa` for a frame with `samples_per_pass`: that
+    /// of the raster it gets ([`crate::options::default_ssaa`]: 3 on the
+    /// compute raster's rotated grid, 4 on the sprites' grid).
+    pub fn default_ssaa(&self, samples_per_pass: Option<u32>) -> Result<u32> {
+        Ok(crate::options::default_ssaa(
+            self.raster_with(samples_per_pass)?,
+        ))
     }
 
     /// Whether each depth peel of `layered` first culls the splats it

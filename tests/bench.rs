@@ -457,7 +457,7 @@ fn bench_fails_on_any_validation_message() {
         points: 100,
         runs: 1,
         warmup: 0,
-        ssaa: 1,
+        ssaa: Some(1),
         samples_per_pass: None,
         raster: pointlens::options::Raster::Sprites,
         splat_shape: pointlens::options::SplatShape::Square,

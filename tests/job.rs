@@ -39,7 +39,7 @@ fn spec(shot: Shot, output: &Path) -> JobSpec {
         },
         focus_pixel: None,
         method: Method::Pinhole,
-        ssaa: 2,
+        ssaa: Some(2),
         samples_per_pass: None,
         background: Vec3::ZERO,
         lod: Lod::default(),

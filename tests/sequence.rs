@@ -717,6 +717,43 @@ fn render_without_a_method_is_layered_with_two_layers_and_its_help_gives_the_com
 }
 
 #[test]
+fn render_without_ssaa_takes_three_on_the_compute_raster_and_four_on_the_sprites() {
+    // The default K follows the raster (docs/BENCHMARKS.md, "The default
+    // K follows the raster"): the compute raster's rotated grid at K = 3
+    // sees edges more finely than the sprites' grid at 4.
+    let dir = scratch("seq-default-ssaa");
+    let out = |name: &str| dir.join(name);
+    let ssaa_of = |name: &str| -> u64 {
+        let t: serde_json::Value =
+            serde_json::from_slice(&bytes(out(&format!("{name}.json")))).expect("timings JSON");
+        t["ssaa"].as_u64().expect("ssaa in the timings")
+    };
+    for (name, flags) in [
+        ("default", &[][..]),
+        ("k3", &["--ssaa", "3"][..]),
+        ("k4", &["--ssaa", "4"][..]),
+        ("sprites", &["--raster", "sprites"][..]),
+        ("sprites-k3", &["--raster", "sprites", "--ssaa", "3"][..]),
+        ("sprites-k4", &["--raster", "sprites", "--ssaa", "4"][..]),
+    ] {
+        let (b, png) = (bunny(), out(&format!("{name}.png")).display().to_string());
+        let json = out(&format!("{name}.json")).display().to_string();
+        // SMALL without its --ssaa.
+        let mut args = vec!["render", &b, "-o", &png, "--timings-json", &json];
+        args.extend(["--width", "48", "--height", "36", "--device", "llvmpipe"]);
+        args.extend(flags);
+        let o = pointlens(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("validation"), "{}", stderr(&o));
+    }
+    assert_eq!((ssaa_of("default"), ssaa_of("sprites")), (3, 4));
+    assert_eq!(bytes(out("default.png")), bytes(out("k3.png")));
+    assert_ne!(bytes(out("default.png")), bytes(out("k4.png")));
+    assert_eq!(bytes(out("sprites.png")), bytes(out("sprites-k4.png")));
+    assert_ne!(bytes(out("sprites.png")), bytes(out("sprites-k3.png")));
+}
+
+#[test]
 fn pointlens_alone_prints_its_help_and_fails() {
     let o = pointlens(&[]);
     assert_eq!(o.status.code(), Some(2));

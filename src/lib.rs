@@ -20,6 +20,7 @@ pub mod cloud;
 pub mod color;
 pub mod convert;
 pub mod error;
+pub mod fields;
 pub mod gaussian_render;
 pub mod gaussians;
 pub mod gbuffer;

@@ -251,9 +251,11 @@ struct RenderArgs {
     /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
     #[arg(long, value_enum, default_value_t)]
     fast_window: GatherWindow,
-    /// How the fast method sums its window: tree (by blocks of a tree,
-    /// opened only where the gather's tests differ within a block) or
-    /// pixels (pixel by pixel, the paper's loop); the same contributors.
+    /// How the fast method gathers: tree (DESIGN §4's rule by blocks of a
+    /// tree, opened only where the gather's tests differ within a block),
+    /// pixels (the same rule pixel by pixel, the paper's loop), or fields
+    /// (the bounded two-field gather: 9–12 dB closer to Mitsuba's
+    /// reference, its cost bounded whatever the CoC; docs/BENCHMARKS.md).
     #[arg(long, value_enum, default_value_t)]
     fast_gather: FastGather,
     /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.

@@ -31,8 +31,9 @@ pub enum GatherWindow {
     Fixed,
 }
 
-/// How the fast gather forms its sums over a window (`--fast-gather`);
-/// the same pixels contribute either way, the float sums round differently.
+/// How the fast method gathers (`--fast-gather`): DESIGN §4's rule by a
+/// block tree or pixel by pixel (the same pixels contribute either way,
+/// the float sums round differently), or the bounded two-field gather.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum FastGather {
     /// By blocks of a tree of 2^l-pixel blocks, each taken whole where
@@ -43,6 +44,13 @@ pub enum FastGather {
     Tree,
     /// Pixel by pixel over the window: the paper's loop.
     Pixels,
+    /// Not DESIGN §4's rule but the bounded two-field gather (issue 28,
+    /// item 5; `crate::fields`): a surface's front (the near field's
+    /// bands, the far field's taps in front of it) as alpha over its
+    /// normalised back, a bounded number of taps whatever the CoC
+    /// (docs/BENCHMARKS.md). `--fast-weights` and `--fast-window` do not
+    /// apply.
+    Fields,
 }
 
 /// How the G-buffer's splats are rasterised (`--raster`).
@@ -320,7 +328,7 @@ impl Method {
     }
 
     /// Syntax of [`Method::parse_short`], for error messages and help.
-    pub const SHORT_SYNTAX: &'static str = "pinhole, fast, fast-uniform, fast-fixed, fast-pixels (and their combinations), rdbN or rdbN-pairs (N in 2..=16), layeredK (K in 1..=8), accumS (S ≥ 1)";
+    pub const SHORT_SYNTAX: &'static str = "pinhole, fast, fast-uniform, fast-fixed, fast-pixels (and their combinations), fast-fields, rdbN or rdbN-pairs (N in 2..=16), layeredK (K in 1..=8), accumS (S ≥ 1)";
 
     /// Parses a method with its options in one word, as `bench --methods`
     /// names them: `pinhole`, `fast`, `fast-uniform`, `fast-fixed`,
@@ -417,8 +425,10 @@ impl Method {
                 if o.window == GatherWindow::Fixed {
                     name += "-fixed";
                 }
-                if o.gather == FastGather::Pixels {
-                    name += "-pixels";
+                match o.gather {
+                    FastGather::Tree => {}
+                    FastGather::Pixels => name += "-pixels",
+                    FastGather::Fields => name += "-fields",
                 }
                 name
             }

@@ -328,6 +328,7 @@ fn method_names_and_statistics() {
         "fast-uniform-pixels",
         "fast-fixed-pixels",
         "fast-uniform-fixed-pixels",
+        "fast-fields",
     ] {
         let m = Method::parse_short(name).unwrap();
         assert_eq!(m.short_name(), name);
@@ -336,6 +337,13 @@ fn method_names_and_statistics() {
         Method::parse_short("fast-pixels").unwrap(),
         Method::Fast(FastOptions {
             gather: FastGather::Pixels,
+            ..FastOptions::default()
+        })
+    );
+    assert_eq!(
+        Method::parse_short("fast-fields").unwrap(),
+        Method::Fast(FastOptions {
+            gather: FastGather::Fields,
             ..FastOptions::default()
         })
     );

@@ -131,6 +131,7 @@ def parse_args(argv):
     p.add_argument("--raster", default=None, choices=["sprites", "compute"])
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     p.add_argument("--ssaa", default=None)
+    p.add_argument("--methods", default=None)
     try:
         args = p.parse_args(argv)
     except SystemExit as e:
@@ -164,11 +165,18 @@ def methods(args, scene):
     sample counts from --accum, else the scene's. With --ssaa, each method
     at each K, named with `-ssaaK`."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
+         ("fast-fields", ["--method", "fast", "--fast-gather", "fields"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
          ("layered1", ["--method", "layered", "--layers", "1"]),
          ("layered2", ["--method", "layered", "--layers", "2"]),
          ("layered4", ["--method", "layered", "--layers", "4"])]
     m += [(f"accum{s}", ["--method", "accum", "--samples", str(s)]) for s in args.accum or SCENES[scene]["accum"]]
+    if args.methods:
+        wanted = args.methods.split(",")
+        unknown = [w for w in wanted if w not in [name for name, _ in m]]
+        if unknown:
+            fail(f"--methods: unknown {', '.join(unknown)} (known: {', '.join(name for name, _ in m)})")
+        m = [(name, flags) for name, flags in m if name in wanted]
     raster = ["--raster", args.raster] if args.raster else []
     if not args.ssaa:
         return [(name, flags + raster) for name, flags in m]

@@ -92,6 +92,8 @@ pub struct Fast {
     gather: ComputePipeline<GatherPush>,
     tree: ComputePipeline<TreePush>,
     gather_tree: ComputePipeline<GatherPush>,
+    /// `--fast-gather fields`.
+    fields: super::fields::Fields,
 }
 
 impl Fast {
@@ -109,6 +111,7 @@ impl Fast {
                 GATHER_TREE,
                 &[I, I, I, I, I, B, B, B],
             )?,
+            fields: super::fields::Fields::new(ctx)?,
         })
     }
 }
@@ -176,15 +179,39 @@ pub fn tree_index(padded: [u32; 2], level: u32, x: u32, y: u32) -> u64 {
 
 /// Every pixel blurs, the background too: the default guard band.
 impl DofMethod for Configured<'_, Fast, FastOptions> {
+    /// The two-field gather's band and mip texels start at the G-buffer's
+    /// corner, which a tile moves: its tiles would not join without seams.
+    fn whole_frames_only(&self) -> bool {
+        self.options.gather == FastGather::Fields
+    }
+
     fn prepare<'m>(
         &'m self,
         ctx: &Arc<Context>,
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
+        if self.options.gather == FastGather::Fields {
+            return Ok(Box::new(FieldsFastFrame {
+                pipelines: &self.pipelines.fields,
+                frame: super::fields::FieldsFrame::new(ctx, view.full_width(), view.full_height())?,
+            }));
+        }
         Ok(Box::new(FastFrame {
             method: self,
             images: FastImages::new(ctx, view, self.options)?,
         }))
+    }
+}
+
+/// One frame of `--fast-gather fields`.
+struct FieldsFastFrame<'m> {
+    pipelines: &'m super::fields::Fields,
+    frame: super::fields::FieldsFrame,
+}
+
+impl DofFrame for FieldsFastFrame<'_> {
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        self.frame.record(self.pipelines, frame, input)
     }
 }
 
@@ -247,7 +274,7 @@ impl FastImages {
         // the frame's largest CoC / 2; the fixed window's at least 0.5).
         let max_radius_px = (view.max_coc_px / 2.0).max(0.5);
         let levels = match options.gather {
-            FastGather::Tree => tree_levels(max_radius_px, w, h),
+            FastGather::Tree | FastGather::Fields => tree_levels(max_radius_px, w, h),
             FastGather::Pixels => {
                 check_pixel_loop(ctx, max_radius_px, w, h)?;
                 0

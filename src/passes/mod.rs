@@ -21,6 +21,7 @@ use crate::vk::{Context, Frame, Image};
 pub mod accum;
 pub mod edl;
 pub mod fast;
+pub mod fields;
 pub mod gbuffer_resolve;
 pub mod layered;
 pub mod output;
@@ -180,6 +181,13 @@ pub trait DofMethod {
     /// ([`max_gbuffer_coc`]).
     fn guard_coc_px(&self, camera: &Camera, depths: Option<(f32, f32)>) -> f32 {
         max_gbuffer_coc(camera, depths)
+    }
+
+    /// Whether the method renders only whole frames, not tiles (a poster,
+    /// `--tile-px`): false by default, where tiles give the whole frame's
+    /// image (docs/ARCHITECTURE.md, "Posters in tiles").
+    fn whole_frames_only(&self) -> bool {
+        false
     }
 
     /// Allocates the images of one frame of `view`. Called before recording

@@ -1,0 +1,204 @@
+#version 460
+// The two-field gather, pass 4 (fields::reference): per output pixel Q,
+// its front and back, composited. A surface receiver's front is the
+// near-field bands (full resolution by the overlap table, then every band
+// level bilinearly) and the far-field taps in front of it; its back the
+// far-field taps behind it: rings of its own CoC over the far mip, or for
+// radii under K + 1/2 the full-resolution offsets by the rings' overlap
+// table. A background receiver's front is the bands of all surfaces, its
+// back its own colour.
+#include "lens.glsl"
+#include "fields.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
+layout(binding = 1, rgba32f) uniform readonly image2D gbuffer_eye;
+layout(binding = 2, std430) readonly buffer FarColor { vec4 far_color[]; };
+layout(binding = 3, std430) readonly buffer FarRest { vec4 far_rest[]; };
+layout(binding = 4, std430) readonly buffer Bands { vec4 bands[]; };
+layout(binding = 5, std430) readonly buffer Tables { float tables[]; };
+layout(binding = 6, rgba16f) uniform writeonly image2D result;
+
+float share(int base, int row, float r, float r_max) {
+    return tables[base + row * (FIELDS_STEPS + 1) + fields_step(r, r_max)];
+}
+
+// N(r): the pixel centres within r of a pixel centre (fields::disk_count).
+float disk_count(float r) {
+    float m = floor(r * r);
+    if (m <= float(FIELDS_COUNT_MAX)) {
+        return tables[FIELDS_COUNT_BASE + int(m)];
+    }
+    return FIELDS_PI * r * r;
+}
+
+// Bilinear fetch of far mip level l at texel coordinates xy (texel centres
+// at integers), indices clamped (fields::Plane::bilinear).
+void far_fetch(int l, vec2 xy, out vec4 color, out vec4 rest) {
+    ivec2 size = fields_level_size(l);
+    uint base = fields_far_offset(l);
+    vec2 f0 = floor(xy);
+    vec2 fr = xy - f0;
+    ivec2 a = clamp(ivec2(f0), ivec2(0), size - 1);
+    ivec2 b = clamp(ivec2(f0) + 1, ivec2(0), size - 1);
+    uint i00 = base + uint(a.y * size.x + a.x), i10 = base + uint(a.y * size.x + b.x);
+    uint i01 = base + uint(b.y * size.x + a.x), i11 = base + uint(b.y * size.x + b.x);
+    vec4 top = far_color[i00] + (far_color[i10] - far_color[i00]) * fr.x;
+    vec4 bottom = far_color[i01] + (far_color[i11] - far_color[i01]) * fr.x;
+    color = top + (bottom - top) * fr.y;
+    top = far_rest[i00] + (far_rest[i10] - far_rest[i00]) * fr.x;
+    bottom = far_rest[i01] + (far_rest[i11] - far_rest[i01]) * fr.x;
+    rest = top + (bottom - top) * fr.y;
+}
+
+// Bilinear fetch of band level l's set at texel coordinates xy: colour and
+// weight.
+vec4 band_fetch(int l, int set, vec2 xy, out float weight) {
+    ivec2 size = fields_level_size(l);
+    uint base = fields_band_offset(l);
+    vec2 f0 = floor(xy);
+    vec2 fr = xy - f0;
+    ivec2 a = clamp(ivec2(f0), ivec2(0), size - 1);
+    ivec2 b = clamp(ivec2(f0) + 1, ivec2(0), size - 1);
+    uint i00 = 3u * (base + uint(a.y * size.x + a.x)), i10 = 3u * (base + uint(a.y * size.x + b.x));
+    uint i01 = 3u * (base + uint(b.y * size.x + a.x)), i11 = 3u * (base + uint(b.y * size.x + b.x));
+    uint c = uint(set);
+    vec4 top = bands[i00 + c] + (bands[i10 + c] - bands[i00 + c]) * fr.x;
+    vec4 bottom = bands[i01 + c] + (bands[i11 + c] - bands[i01 + c]) * fr.x;
+    float w00 = bands[i00 + 2u][set], w10 = bands[i10 + 2u][set];
+    float w01 = bands[i01 + 2u][set], w11 = bands[i11 + 2u][set];
+    float wt = w00 + (w10 - w00) * fr.x;
+    float wb = w01 + (w11 - w01) * fr.x;
+    weight = wt + (wb - wt) * fr.y;
+    return top + (bottom - top) * fr.y;
+}
+
+void main() {
+    if (any(greaterThanEqual(gl_GlobalInvocationID.xy, uvec2(pc.size)))) {
+        return;
+    }
+    ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
+    vec4 cq = imageLoad(gbuffer_color, q);
+    float zq = imageLoad(gbuffer_eye, q).z;
+    bool surface = !isinf(zq);
+    float rq = fields_radius(zq);
+    float izq = surface ? 1.0 / zq : 0.0;
+    int set = surface ? 0 : 1;
+
+    // The bands of the receiver's set: full resolution first.
+    vec4 front = vec4(0.0);
+    float front_w = 0.0;
+    {
+        float reach = FIELDS_B0 + FIELDS_HALF_DIAGONAL;
+        int n = int(ceil(reach));
+        int row = 0;
+        for (int dy = -n; dy <= n; ++dy) {
+            int h = fields_row_half(reach * reach, dy);
+            for (int dx = -h; dx <= h; ++dx) {
+                ivec2 p = q + ivec2(dx, dy);
+                if (all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, pc.extent))) {
+                    float z = imageLoad(gbuffer_eye, p).z;
+                    if (!isinf(z) && (set == 1 || z < pc.focus_distance)) {
+                        float r = fields_radius(z);
+                        if (r < FIELDS_B0) {
+                            float s = share(FIELDS_T0_BASE, row, r, FIELDS_B0);
+                            front += imageLoad(gbuffer_color, p) * s;
+                            front_w += s;
+                        }
+                    }
+                }
+                ++row;
+            }
+        }
+    }
+    for (int l = 1; l <= FIELDS_LEVELS; ++l) {
+        float t = float(1 << l);
+        float w;
+        front += band_fetch(l, set, (vec2(q) + 0.5) / t - 0.5, w);
+        front_w += w;
+    }
+
+    vec4 back = cq;
+    float back_w = 1.0;
+    if (surface) {
+        // The far field's taps, in front of Q and behind it.
+        vec4 ring = vec4(0.0);
+        float ring_w = 0.0;
+        back = vec4(0.0);
+        back_w = 0.0;
+        float small = float(FIELDS_RINGS) + 0.5;
+        if (rq < small) {
+            float reach = small + FIELDS_HALF_DIAGONAL;
+            int n = int(ceil(reach));
+            int row = 0;
+            for (int dy = -n; dy <= n; ++dy) {
+                int h = fields_row_half(reach * reach, dy);
+                for (int dx = -h; dx <= h; ++dx) {
+                    ivec2 p = q + ivec2(dx, dy);
+                    if (all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, pc.extent))) {
+                        uint at = uint(p.y * pc.extent.x + p.x);
+                        vec4 rest = far_rest[at];
+                        if (rest.x != 0.0) {
+                            vec4 c = far_color[at];
+                            if (rest.z > izq) {
+                                float s = share(FIELDS_T1_BASE, row, rest.y, small);
+                                ring += c * s;
+                                ring_w += s;
+                            } else {
+                                float s = share(FIELDS_T1_BASE, row, min(rest.y, rq), small);
+                                back += c * s;
+                                back_w += s;
+                            }
+                        }
+                    }
+                    ++row;
+                }
+            }
+        } else {
+            float spacing = rq / small;
+            float area = FIELDS_PI * rq * rq / float(FIELDS_TAPS);
+            int l = int(clamp(roundEven(log2(max(spacing, 1.0))), 0.0, float(FIELDS_LEVELS)));
+            float t = float(1 << l);
+            for (int i = 0; i < FIELDS_TAPS; ++i) {
+                int b = FIELDS_TAPS_BASE + 4 * i;
+                vec3 tap = vec3(tables[b], tables[b + 1], tables[b + 2]); // (dy, dx, |d|)
+                vec2 pxy = vec2(q) + tap.yx * spacing;
+                vec4 c, rest;
+                far_fetch(l, (pxy + 0.5) / t - 0.5, c, rest);
+                float n = rest.x;
+                if (n <= 1e-6) {
+                    continue;
+                }
+                c /= n;
+                float r = rest.y / n;
+                float iz = rest.z / n;
+                float rb = min(r, rq);
+                float dist = tap.z * spacing;
+                float cover, cover_back;
+                if (tap.z == 0.0) {
+                    float half_spacing = 0.5 * spacing;
+                    cover = FIELDS_PI * min(r, half_spacing) * min(r, half_spacing) / area;
+                    cover_back = FIELDS_PI * min(rb, half_spacing) * min(rb, half_spacing) / area;
+                } else {
+                    cover = clamp((r - dist) / spacing + 0.5, 0.0, 1.0);
+                    cover_back = clamp((rb - dist) / spacing + 0.5, 0.0, 1.0);
+                }
+                if (iz > izq) {
+                    float w = area * n * cover / disk_count(r);
+                    ring += c * w;
+                    ring_w += w;
+                } else {
+                    float w = area * n * cover_back / disk_count(rb);
+                    back += c * w;
+                    back_w += w;
+                }
+            }
+        }
+        front += ring;
+        front_w += ring_w;
+    }
+    float alpha = back_w > 1e-9 ? clamp(front_w, 0.0, 1.0) : 1.0;
+    vec4 out_color = front / max(front_w, 1e-12) * alpha + back / max(back_w, 1e-12) * (1.0 - alpha);
+    imageStore(result, q, out_color);
+}

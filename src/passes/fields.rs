@@ -1,0 +1,214 @@
+//! The bounded two-field gather (`--fast-gather fields`; issue 28, item 5;
+//! `crate::fields` has its constants, tables and CPU reference) as compute
+//! passes, each beside its GLSL file: `fields_far` (the far field's mip,
+//! one dispatch per level), `fields_bands` (each band texel's sources),
+//! `fields_spread` (the bands' spread) and `fields_resolve` (per output
+//! pixel: bands, rings, composite).
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use super::DofInput;
+use crate::error::{Error, Result};
+use crate::fields::{tables, LEVELS};
+use crate::push_constants;
+use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
+
+static FAR: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fields_far.comp.spv"));
+static BANDS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fields_bands.comp.spv"));
+static SPREAD: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fields_spread.comp.spv"));
+static RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/fields_resolve.comp.spv"));
+
+push_constants! {
+    /// The push block of every pass (`glsl/fields.glsl`).
+    pub struct FieldsPush {
+        extent: [i32; 2],
+        origin: [i32; 2],
+        size: [i32; 2],
+        f_px: f32,
+        aperture_radius: f32,
+        focus_distance: f32,
+        level: i32,
+    }
+}
+
+/// The pipelines of the gather.
+pub struct Fields {
+    far: ComputePipeline<FieldsPush>,
+    bands: ComputePipeline<FieldsPush>,
+    spread: ComputePipeline<FieldsPush>,
+    resolve: ComputePipeline<FieldsPush>,
+}
+
+impl Fields {
+    pub fn new(ctx: &Arc<Context>) -> Result<Fields> {
+        use Binding::{StorageBuffer as B, StorageImage as I};
+        Ok(Fields {
+            far: ComputePipeline::new(ctx, "fields_far", FAR, &[I, I, B, B])?,
+            bands: ComputePipeline::new(ctx, "fields_bands", BANDS, &[I, I, B])?,
+            spread: ComputePipeline::new(ctx, "fields_spread", SPREAD, &[B, B])?,
+            resolve: ComputePipeline::new(ctx, "fields_resolve", RESOLVE, &[I, I, B, B, B, B, I])?,
+        })
+    }
+}
+
+/// Texels of levels `from..=to` of a `w`×`h` G-buffer (level l: 2^l px a
+/// texel, the last partial texel included).
+fn texels(w: u32, h: u32, from: u32, to: u32) -> u64 {
+    (from..=to)
+        .map(|l| w.div_ceil(1 << l) as u64 * h.div_ceil(1 << l) as u64)
+        .sum()
+}
+
+/// The buffers and the result of one frame.
+pub struct FieldsFrame {
+    /// The far mip's c · far per texel, levels 0..=LEVELS end to end.
+    far_color: Buffer,
+    /// The far mip's (far, r · far, far / z, 0).
+    far_rest: Buffer,
+    /// Per band texel (levels 1..=LEVELS): per set, colour and
+    /// (weight, rho, centroid), divided by its spread.
+    band_sources: Buffer,
+    /// Per band texel: near colour, all colour, (near, all weight).
+    bands: Buffer,
+    tables: Buffer,
+    /// The result: G-buffer sized, written inside the guard band only.
+    pub result: Image,
+}
+
+impl FieldsFrame {
+    pub fn new(ctx: &Arc<Context>, w: u32, h: u32) -> Result<FieldsFrame> {
+        let far = texels(w, h, 0, LEVELS);
+        let band = texels(w, h, 1, LEVELS);
+        let largest = [16 * far, 64 * band, 48 * band]
+            .into_iter()
+            .max()
+            .unwrap_or(0);
+        let limit = ctx.info.largest_storage_buffer_bytes();
+        // The shaders' indices are 32-bit.
+        if largest > limit || 4 * far > u32::MAX as u64 {
+            return Err(Error::InvalidArgument(format!(
+                "the two-field gather's buffers for a {w}×{h} G-buffer ({largest} bytes) exceed the device's {limit}-byte buffer limit; use --fast-gather tree, or --tile-px to render in tiles"
+            )));
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let buffer = |name, bytes| Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuOnly);
+        let table = tables();
+        Ok(FieldsFrame {
+            far_color: buffer("fields far colour", 16 * far)?,
+            far_rest: buffer("fields far rest", 16 * far)?,
+            band_sources: buffer("fields band sources", 64 * band)?,
+            bands: buffer("fields bands", 48 * band)?,
+            tables: Buffer::with_bytes(ctx, "fields tables", bytemuck::cast_slice(&table), usage)?,
+            result: Image::new_2d(
+                ctx,
+                "fields result",
+                vk::Format::R16G16B16A16_SFLOAT,
+                w,
+                h,
+                1,
+                vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC,
+            )?,
+        })
+    }
+
+    /// Records the passes; returns the result.
+    pub fn record<'r>(
+        &'r self,
+        p: &'r Fields,
+        frame: &mut Frame<'r>,
+        input: &DofInput<'r>,
+    ) -> &'r Image {
+        let view = &input.view;
+        let camera = &view.camera;
+        let (w, h) = (input.color.width(), input.color.height());
+        let g = view.guard as i32;
+        let push = |level: u32| FieldsPush {
+            extent: [w as i32, h as i32],
+            origin: [g, g],
+            size: [view.window.width as i32, view.window.height as i32],
+            f_px: camera.f_px(),
+            aperture_radius: camera.aperture_radius,
+            focus_distance: camera.focus_distance,
+            level: level as i32,
+        };
+        let gbuffer = [
+            (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
+            (input.eye, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ),
+        ];
+        frame.pass("fast.fields_far", |rec| {
+            rec.barriers(&gbuffer);
+            // A previous frame's passes may have read these buffers.
+            rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
+            for level in 0..=LEVELS {
+                if level > 0 {
+                    rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ_WRITE);
+                }
+                rec.dispatch(
+                    &p.far,
+                    &[
+                        Bind::StorageImage(input.color),
+                        Bind::StorageImage(input.eye),
+                        Bind::StorageBuffer(&self.far_color),
+                        Bind::StorageBuffer(&self.far_rest),
+                    ],
+                    &push(level),
+                    [
+                        groups(w.div_ceil(1 << level), 8),
+                        groups(h.div_ceil(1 << level), 8),
+                        1,
+                    ],
+                );
+            }
+        });
+        frame.pass("fast.fields_bands", |rec| {
+            rec.dispatch(
+                &p.bands,
+                &[
+                    Bind::StorageImage(input.color),
+                    Bind::StorageImage(input.eye),
+                    Bind::StorageBuffer(&self.band_sources),
+                ],
+                &push(1),
+                [groups(w.div_ceil(2), 8), groups(h.div_ceil(2), 8), LEVELS],
+            );
+        });
+        frame.pass("fast.fields_spread", |rec| {
+            rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
+            rec.dispatch(
+                &p.spread,
+                &[
+                    Bind::StorageBuffer(&self.band_sources),
+                    Bind::StorageBuffer(&self.bands),
+                ],
+                &push(1),
+                [groups(w.div_ceil(2), 8), groups(h.div_ceil(2), 8), LEVELS],
+            );
+        });
+        frame.pass("fast.fields_resolve", |rec| {
+            rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
+            rec.barriers(&[(&self.result, Access::NONE, Access::COMPUTE_WRITE)]);
+            rec.dispatch(
+                &p.resolve,
+                &[
+                    Bind::StorageImage(input.color),
+                    Bind::StorageImage(input.eye),
+                    Bind::StorageBuffer(&self.far_color),
+                    Bind::StorageBuffer(&self.far_rest),
+                    Bind::StorageBuffer(&self.bands),
+                    Bind::StorageBuffer(&self.tables),
+                    Bind::StorageImage(&self.result),
+                ],
+                &push(0),
+                [
+                    groups(view.window.width, 8),
+                    groups(view.window.height, 8),
+                    1,
+                ],
+            );
+        });
+        &self.result
+    }
+}

@@ -7,15 +7,18 @@ const float FIELDS_BAND = 4.0;           // fields::BAND
 const int FIELDS_RINGS = 3;              // fields::RINGS
 const int FIELDS_LEVELS = 6;             // fields::LEVELS
 const int FIELDS_STEPS = 512;            // fields::TABLE_STEPS
-const float FIELDS_HALF_DIAGONAL = 0.7072;
+const float FIELDS_HALF_DIAGONAL = 0.7072; // fields::HALF_DIAGONAL
 const int FIELDS_COUNT_MAX = 65535;      // fields::DISK_COUNT_MAX
-const int FIELDS_TAPS = 49;              // 1 + 8 + 16 + 24
+const int FIELDS_TAPS = 1 + 4 * FIELDS_RINGS * (FIELDS_RINGS + 1); // fields::ring_taps
 const float FIELDS_PI = 3.14159265358979;
 
-// The tables buffer (fields::Tables): the full-resolution band's overlap
+// The tables buffer (fields::tables()): the full-resolution band's overlap
 // table (45 rows), the rings' (57 rows), N(r) by floor(r²), the ring taps.
-const int FIELDS_T0_ROWS = 45;
-const int FIELDS_T1_ROWS = 57;
+const int FIELDS_T0_ROWS = 45;           // OverlapTable::new(B0).offsets.len()
+const int FIELDS_T1_ROWS = 57;           // OverlapTable::new(small_radius()).offsets.len()
+// The band spread's reach in whole texels: ceil(BAND + 1/2 + HALF_DIAGONAL)
+// (fields::band_offsets).
+const int FIELDS_BAND_REACH = 6;
 const int FIELDS_T0_BASE = 0;
 const int FIELDS_T1_BASE = FIELDS_T0_BASE + FIELDS_T0_ROWS * (FIELDS_STEPS + 1);
 const int FIELDS_COUNT_BASE = FIELDS_T1_BASE + FIELDS_T1_ROWS * (FIELDS_STEPS + 1);

@@ -53,7 +53,7 @@ void main() {
     }
     uint at = 4u * (fields_band_offset(level) + uint(texel.y * size.x + texel.x));
     float cells = float(t * t);
-    int reach = int(ceil(FIELDS_BAND + 0.5 + FIELDS_HALF_DIAGONAL));
+    int reach = FIELDS_BAND_REACH;
     float reach2 = (FIELDS_BAND + 0.5 + FIELDS_HALF_DIAGONAL) * (FIELDS_BAND + 0.5 + FIELDS_HALF_DIAGONAL);
     for (int s = 0; s < 2; ++s) {
         if (n[s] == 0.0) {

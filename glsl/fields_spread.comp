@@ -14,7 +14,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, std430) readonly buffer BandSources { vec4 band_sources[]; };
 layout(binding = 1, std430) writeonly buffer Bands { vec4 bands[]; };
 
-const int REACH = 6;             // ceil(FIELDS_BAND + 0.5 + FIELDS_HALF_DIAGONAL)
+const int REACH = FIELDS_BAND_REACH;
 const int SIDE = 8 + 2 * REACH;  // the region's side, texels
 shared vec4 region[SIDE * SIDE * 4];
 shared uint any_source;

@@ -34,7 +34,8 @@ use crate::render::HostGBuffer;
 
 /// CoC radius (px) under which a surface spreads at full resolution.
 pub const B0: f32 = 3.0;
-/// Band width in texels: level L holds radii [B·2^(L−1), B·2^L).
+/// A band's largest radius in its own texels: level L (texels of 2^L px)
+/// holds radii [BAND·2^(L−1), BAND·2^L) px (the first from [`B0`]).
 pub const BAND: f32 = 4.0;
 /// Rings of the far-field gather: 1 + 8 + 16 + … + 8K taps.
 pub const RINGS: u32 = 3;
@@ -46,7 +47,7 @@ pub const TABLE_STEPS: u32 = 512;
 const TABLE_SUPERSAMPLES: u32 = 32;
 /// Half a pixel's diagonal, rounded up: how far past a disk's radius a
 /// pixel square it touches may be centred.
-const HALF_DIAGONAL: f32 = 0.7072;
+pub const HALF_DIAGONAL: f32 = 0.7072;
 
 /// The radius of the rings' receivers that take the full-resolution
 /// offsets instead: K + ½.
@@ -69,7 +70,10 @@ pub fn band_level(r: f32) -> Option<u32> {
 
 /// The integer texel offsets a band texel's disk can reach below the top
 /// level (its radius at most [`BAND`] texels, its centroid within half a
-/// texel's diagonal of its centre).
+/// texel's diagonal of its centre). At the open top level a radius past
+/// [`BAND`] texels (256 px) is clipped to this reach (5.2 texels, 333 px):
+/// its light is kept (the spread normalises over the same offsets), its
+/// disk is not.
 pub fn band_offsets() -> Vec<[i32; 2]> {
     disk_offsets(BAND + 0.5 + HALF_DIAGONAL)
 }

@@ -254,7 +254,7 @@ struct RenderArgs {
     /// How the fast method gathers: tree (DESIGN §4's rule by blocks of a
     /// tree, opened only where the gather's tests differ within a block),
     /// pixels (the same rule pixel by pixel, the paper's loop), or fields
-    /// (the bounded two-field gather: 9–12 dB closer to Mitsuba's
+    /// (the bounded two-field gather: 7–12 dB closer to Mitsuba's
     /// reference, its cost bounded whatever the CoC; docs/BENCHMARKS.md).
     #[arg(long, value_enum, default_value_t)]
     fast_gather: FastGather,

@@ -382,6 +382,15 @@ impl Method {
                         return Err(bad());
                     }
                 }
+                // The paper's weights and window are not the fields
+                // gather's: one name per image.
+                let fields = FastOptions {
+                    gather: FastGather::Fields,
+                    ..FastOptions::default()
+                };
+                if fast.gather == FastGather::Fields && fast != fields {
+                    return Err(bad());
+                }
                 Ok(Method::Fast(fast))
             }
             MethodKind::Rdb => {

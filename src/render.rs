@@ -765,7 +765,7 @@ impl Renderer {
         };
         if method.whole_frames_only() && windows != [Window::whole(&options.camera)] {
             return Err(Error::InvalidArgument(format!(
-                "--method {} renders whole frames only, and this {}×{} frame would take {} tiles (--tile-px, or a frame past the device's {} px images): its texels start at the frame's corner, so tiles would show seams",
+                "the method {} renders whole frames only, and this {}×{} frame would take {} tiles (--tile-px, or a frame past the device's {} px images): its texels start at the frame's corner, so tiles would show seams",
                 options.method.short_name(),
                 options.camera.width,
                 options.camera.height,

@@ -355,6 +355,8 @@ fn method_names_and_statistics() {
         "rdbx",
         "fastest",
         "fast-tiles-trees",
+        "fast-uniform-fields",
+        "fast-fixed-fields",
     ] {
         assert!(BenchMethod::parse(bad).is_err(), "{bad}");
     }

@@ -58,8 +58,7 @@ fn with_background_coc(mut camera: Camera, coc_px: f32) -> Camera {
 fn the_passes_equal_the_cpu_reference_at_every_band_level() {
     // Background CoCs of 12 to 300 px, focused on the scene's centre or
     // nearer, and a frame whose points' CoCs reach 300 px: the bands to
-    // their open top level (radii of 128 px and more), the rings to their
-    // coarsest mip levels.
+    // their open top level (radii of 128 px and more, asserted below).
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         // The band levels the surfaces of the frames reach (0: full

@@ -274,7 +274,9 @@ impl FastImages {
         // the frame's largest CoC / 2; the fixed window's at least 0.5).
         let max_radius_px = (view.max_coc_px / 2.0).max(0.5);
         let levels = match options.gather {
-            FastGather::Tree | FastGather::Fields => tree_levels(max_radius_px, w, h),
+            FastGather::Tree => tree_levels(max_radius_px, w, h),
+            // `prepare` makes a fields frame instead.
+            FastGather::Fields => 0,
             FastGather::Pixels => {
                 check_pixel_loop(ctx, max_radius_px, w, h)?;
                 0

@@ -34,12 +34,14 @@ push_constants! {
     }
 }
 
-/// The pipelines of the gather.
+/// The pipelines of the gather, and its tables (`fields::tables`, built
+/// once).
 pub struct Fields {
     far: ComputePipeline<FieldsPush>,
     bands: ComputePipeline<FieldsPush>,
     spread: ComputePipeline<FieldsPush>,
     resolve: ComputePipeline<FieldsPush>,
+    tables: Buffer,
 }
 
 impl Fields {
@@ -50,6 +52,12 @@ impl Fields {
             bands: ComputePipeline::new(ctx, "fields_bands", BANDS, &[I, I, B])?,
             spread: ComputePipeline::new(ctx, "fields_spread", SPREAD, &[B, B])?,
             resolve: ComputePipeline::new(ctx, "fields_resolve", RESOLVE, &[I, I, B, B, B, B, I])?,
+            tables: Buffer::with_bytes(
+                ctx,
+                "fields tables",
+                bytemuck::cast_slice(&tables()),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            )?,
         })
     }
 }
@@ -73,7 +81,6 @@ pub struct FieldsFrame {
     band_sources: Buffer,
     /// Per band texel: near colour, all colour, (near, all weight).
     bands: Buffer,
-    tables: Buffer,
     /// The result: G-buffer sized, written inside the guard band only.
     pub result: Image,
 }
@@ -90,18 +97,16 @@ impl FieldsFrame {
         // The shaders' indices are 32-bit.
         if largest > limit || 4 * far > u32::MAX as u64 {
             return Err(Error::InvalidArgument(format!(
-                "the two-field gather's buffers for a {w}×{h} G-buffer ({largest} bytes) exceed the device's {limit}-byte buffer limit; use --fast-gather tree, or --tile-px to render in tiles"
+                "the two-field gather's buffers for a {w}×{h} G-buffer ({largest} bytes) exceed the device's {limit}-byte buffer limit; use --fast-gather tree"
             )));
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let buffer = |name, bytes| Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuOnly);
-        let table = tables();
         Ok(FieldsFrame {
             far_color: buffer("fields far colour", 16 * far)?,
             far_rest: buffer("fields far rest", 16 * far)?,
             band_sources: buffer("fields band sources", 64 * band)?,
             bands: buffer("fields bands", 48 * band)?,
-            tables: Buffer::with_bytes(ctx, "fields tables", bytemuck::cast_slice(&table), usage)?,
             result: Image::new_2d(
                 ctx,
                 "fields result",
@@ -140,7 +145,7 @@ impl FieldsFrame {
         ];
         frame.pass("fast.fields_far", |rec| {
             rec.barriers(&gbuffer);
-            // A previous frame's passes may have read these buffers.
+            // Buffers a pool may hand on from a previous frame's reads.
             rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
             for level in 0..=LEVELS {
                 if level > 0 {
@@ -198,7 +203,7 @@ impl FieldsFrame {
                     Bind::StorageBuffer(&self.far_color),
                     Bind::StorageBuffer(&self.far_rest),
                     Bind::StorageBuffer(&self.bands),
-                    Bind::StorageBuffer(&self.tables),
+                    Bind::StorageBuffer(&p.tables),
                     Bind::StorageImage(&self.result),
                 ],
                 &push(0),
@@ -210,5 +215,50 @@ impl FieldsFrame {
             );
         });
         &self.result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fields::{
+        band_offsets, ring_taps, small_radius, OverlapTable, B0, BAND, DISK_COUNT_MAX,
+        HALF_DIAGONAL, RINGS, TABLE_STEPS,
+    };
+    use crate::vk::check_push_layout;
+
+    #[test]
+    fn push_constants_match_the_glsl_blocks() {
+        check_push_layout::<FieldsPush>("fields_far", FAR).unwrap();
+        check_push_layout::<FieldsPush>("fields_bands", BANDS).unwrap();
+        check_push_layout::<FieldsPush>("fields_spread", SPREAD).unwrap();
+        check_push_layout::<FieldsPush>("fields_resolve", RESOLVE).unwrap();
+    }
+
+    #[test]
+    fn constants_match_the_glsl() {
+        let glsl = include_str!("../../glsl/fields.glsl");
+        let has = |line: String| assert!(glsl.contains(&line), "glsl/fields.glsl lacks `{line}`");
+        has(format!("const float FIELDS_B0 = {B0:?};"));
+        has(format!("const float FIELDS_BAND = {BAND:?};"));
+        has(format!("const int FIELDS_RINGS = {RINGS};"));
+        has(format!("const int FIELDS_LEVELS = {LEVELS};"));
+        has(format!("const int FIELDS_STEPS = {TABLE_STEPS};"));
+        has(format!(
+            "const float FIELDS_HALF_DIAGONAL = {HALF_DIAGONAL};"
+        ));
+        has(format!("const int FIELDS_COUNT_MAX = {DISK_COUNT_MAX};"));
+        let rows = |r| OverlapTable::new(r).offsets.len();
+        has(format!("const int FIELDS_T0_ROWS = {};", rows(B0)));
+        has(format!(
+            "const int FIELDS_T1_ROWS = {};",
+            rows(small_radius())
+        ));
+        let reach = (BAND + 0.5 + HALF_DIAGONAL).ceil() as i32;
+        has(format!("const int FIELDS_BAND_REACH = {reach};"));
+        assert!(band_offsets()
+            .iter()
+            .all(|d| d[0].abs() <= reach && d[1].abs() <= reach));
+        assert_eq!(ring_taps().len() as u32, 1 + 4 * RINGS * (RINGS + 1));
     }
 }

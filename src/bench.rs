@@ -241,7 +241,7 @@ pub struct BenchOptions {
     pub runs: u32,
     pub warmup: u32,
     /// K of the K×K SSAA G-buffer, for every method (None: the default of
-    /// the measured frames' raster, [`Renderer::default_ssaa`]).
+    /// the measured frames' raster, [`Renderer::ssaa`]).
     pub ssaa: Option<u32>,
     /// The most samples per G-buffer raster pass (None: the device's best).
     pub samples_per_pass: Option<u32>,
@@ -424,10 +424,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     let mut renderer = Renderer::new(ctx)?;
     renderer.set_splat_shape(options.splat_shape)?;
     renderer.set_raster(options.raster);
-    let ssaa = match options.ssaa {
-        Some(k) => k,
-        None => renderer.default_ssaa(options.samples_per_pass)?,
-    };
+    let ssaa = renderer.ssaa(options.ssaa, options.samples_per_pass)?;
     let total = frame_count(options);
     let mut done = 0u64;
     let mut cells = Vec::new();

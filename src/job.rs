@@ -106,7 +106,7 @@ pub struct JobSpec {
     pub focus_pixel: Option<[u32; 2]>,
     pub method: Method,
     /// K: K×K G-buffer samples per pixel (None: the default of the frame's
-    /// raster, [`Renderer::default_ssaa`]; of a scene of 3D Gaussians, 1).
+    /// raster, [`Renderer::ssaa`]; of a scene of 3D Gaussians, 1).
     pub ssaa: Option<u32>,
     /// The most samples one raster pass takes (None: the device's best).
     pub samples_per_pass: Option<u32>,
@@ -575,10 +575,7 @@ impl RenderJob {
         mut camera: Camera,
     ) -> Result<RenderOptions> {
         let s = &self.spec;
-        let ssaa = match s.ssaa {
-            Some(k) => k,
-            None => renderer.default_ssaa(s.samples_per_pass)?,
-        };
+        let ssaa = renderer.ssaa(s.ssaa, s.samples_per_pass)?;
         if let Some([x, y]) = s.focus_pixel {
             camera.focus_distance = renderer.depth_at_pixel(scene, &camera, ssaa, s.lod, x, y)?;
         }

@@ -468,13 +468,17 @@ impl Renderer {
         })
     }
 
-    /// The default K of `--ssaa` for a frame with `samples_per_pass`: that
-    /// of the raster it gets ([`crate::options::default_ssaa`]: 3 on the
-    /// compute raster's rotated grid, 4 on the sprites' grid).
-    pub fn default_ssaa(&self, samples_per_pass: Option<u32>) -> Result<u32> {
-        Ok(crate::options::default_ssaa(
-            self.raster_with(samples_per_pass)?,
-        ))
+    /// K of a frame with `--ssaa` `ssaa` and `samples_per_pass`: `ssaa` as
+    /// given, else the default of the raster the frame gets
+    /// ([`crate::options::default_ssaa`]: 3 on the compute raster's rotated
+    /// grid, 4 on the sprites' grid).
+    pub fn ssaa(&self, ssaa: Option<u32>, samples_per_pass: Option<u32>) -> Result<u32> {
+        match ssaa {
+            Some(k) => Ok(k),
+            None => Ok(crate::options::default_ssaa(
+                self.raster_with(samples_per_pass)?,
+            )),
+        }
     }
 
     /// Whether each depth peel of `layered` first culls the splats it

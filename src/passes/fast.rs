@@ -179,10 +179,10 @@ pub fn tree_index(padded: [u32; 2], level: u32, x: u32, y: u32) -> u64 {
 
 /// Every pixel blurs, the background too: the default guard band.
 impl DofMethod for Configured<'_, Fast, FastOptions> {
-    /// The two-field gather's band and mip texels start at the G-buffer's
-    /// corner, which a tile moves: its tiles would not join without seams.
-    fn whole_frames_only(&self) -> bool {
-        self.options.gather == FastGather::Fields
+    fn whole_frames_only(&self) -> Option<&'static str> {
+        (self.options.gather == FastGather::Fields).then_some(
+            "its texels start at the frame's corner, which a tile moves, so tiles would show seams",
+        )
     }
 
     fn prepare<'m>(
@@ -191,27 +191,17 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
         if self.options.gather == FastGather::Fields {
-            return Ok(Box::new(FieldsFastFrame {
-                pipelines: &self.pipelines.fields,
-                frame: super::fields::FieldsFrame::new(ctx, view.full_width(), view.full_height())?,
-            }));
+            return Ok(Box::new(super::fields::FieldsFrame::new(
+                ctx,
+                &self.pipelines.fields,
+                view.full_width(),
+                view.full_height(),
+            )?));
         }
         Ok(Box::new(FastFrame {
             method: self,
             images: FastImages::new(ctx, view, self.options)?,
         }))
-    }
-}
-
-/// One frame of `--fast-gather fields`.
-struct FieldsFastFrame<'m> {
-    pipelines: &'m super::fields::Fields,
-    frame: super::fields::FieldsFrame,
-}
-
-impl DofFrame for FieldsFastFrame<'_> {
-    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
-        self.frame.record(self.pipelines, frame, input)
     }
 }
 

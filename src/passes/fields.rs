@@ -10,7 +10,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::DofInput;
+use super::{DofFrame, DofInput};
 use crate::error::{Error, Result};
 use crate::fields::{tables, LEVELS};
 use crate::push_constants;
@@ -70,8 +70,10 @@ fn texels(w: u32, h: u32, from: u32, to: u32) -> u64 {
         .sum()
 }
 
-/// The buffers and the result of one frame.
-pub struct FieldsFrame {
+/// The buffers and the result of one frame, with the pipelines that
+/// record it.
+pub struct FieldsFrame<'m> {
+    pipelines: &'m Fields,
     /// The far mip's c · far per texel, levels 0..=LEVELS end to end.
     far_color: Buffer,
     /// The far mip's (far, r · far, far / z, 0).
@@ -82,11 +84,11 @@ pub struct FieldsFrame {
     /// Per band texel: near colour, all colour, (near, all weight).
     bands: Buffer,
     /// The result: G-buffer sized, written inside the guard band only.
-    pub result: Image,
+    result: Image,
 }
 
-impl FieldsFrame {
-    pub fn new(ctx: &Arc<Context>, w: u32, h: u32) -> Result<FieldsFrame> {
+impl<'m> FieldsFrame<'m> {
+    pub fn new(ctx: &Arc<Context>, pipelines: &'m Fields, w: u32, h: u32) -> Result<Self> {
         let far = texels(w, h, 0, LEVELS);
         let band = texels(w, h, 1, LEVELS);
         let largest = [16 * far, 64 * band, 48 * band]
@@ -103,6 +105,7 @@ impl FieldsFrame {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let buffer = |name, bytes| Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuOnly);
         Ok(FieldsFrame {
+            pipelines,
             far_color: buffer("fields far colour", 16 * far)?,
             far_rest: buffer("fields far rest", 16 * far)?,
             band_sources: buffer("fields band sources", 64 * band)?,
@@ -118,14 +121,11 @@ impl FieldsFrame {
             )?,
         })
     }
+}
 
-    /// Records the passes; returns the result.
-    pub fn record<'r>(
-        &'r self,
-        p: &'r Fields,
-        frame: &mut Frame<'r>,
-        input: &DofInput<'r>,
-    ) -> &'r Image {
+impl DofFrame for FieldsFrame<'_> {
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        let p = self.pipelines;
         let view = &input.view;
         let camera = &view.camera;
         let (w, h) = (input.color.width(), input.color.height());

@@ -33,45 +33,50 @@ float disk_count(float r) {
     return FIELDS_PI * r * r;
 }
 
-// Bilinear fetch of far mip level l at texel coordinates xy (texel centres
-// at integers), indices clamped (fields::Plane::bilinear).
-void far_fetch(int l, vec2 xy, out vec4 color, out vec4 rest) {
-    ivec2 size = fields_level_size(l);
-    uint base = fields_far_offset(l);
+// The four texels around texel coordinates xy (texel centres at integers)
+// of a level of `size` texels starting at texel `base`, indices clamped to
+// the level, in the order (x0, y0), (x1, y0), (x0, y1), (x1, y1), and the
+// fractions between them (fields::Plane::bilinear).
+void corners(ivec2 size, uint base, vec2 xy, out uvec4 at, out vec2 fr) {
     vec2 f0 = floor(xy);
-    vec2 fr = xy - f0;
+    fr = xy - f0;
     ivec2 a = clamp(ivec2(f0), ivec2(0), size - 1);
     ivec2 b = clamp(ivec2(f0) + 1, ivec2(0), size - 1);
-    uint i00 = base + uint(a.y * size.x + a.x), i10 = base + uint(a.y * size.x + b.x);
-    uint i01 = base + uint(b.y * size.x + a.x), i11 = base + uint(b.y * size.x + b.x);
-    vec4 top = far_color[i00] + (far_color[i10] - far_color[i00]) * fr.x;
-    vec4 bottom = far_color[i01] + (far_color[i11] - far_color[i01]) * fr.x;
-    color = top + (bottom - top) * fr.y;
-    top = far_rest[i00] + (far_rest[i10] - far_rest[i00]) * fr.x;
-    bottom = far_rest[i01] + (far_rest[i11] - far_rest[i01]) * fr.x;
-    rest = top + (bottom - top) * fr.y;
+    at = base + uvec4(a.y * size.x + a.x, a.y * size.x + b.x, b.y * size.x + a.x, b.y * size.x + b.x);
 }
 
-// Bilinear fetch of band level l's set at texel coordinates xy: colour and
-// weight.
-vec4 band_fetch(int l, int set, vec2 xy, out float weight) {
-    ivec2 size = fields_level_size(l);
-    uint base = fields_band_offset(l);
-    vec2 f0 = floor(xy);
-    vec2 fr = xy - f0;
-    ivec2 a = clamp(ivec2(f0), ivec2(0), size - 1);
-    ivec2 b = clamp(ivec2(f0) + 1, ivec2(0), size - 1);
-    uint i00 = 3u * (base + uint(a.y * size.x + a.x)), i10 = 3u * (base + uint(a.y * size.x + b.x));
-    uint i01 = 3u * (base + uint(b.y * size.x + a.x)), i11 = 3u * (base + uint(b.y * size.x + b.x));
-    uint c = uint(set);
-    vec4 top = bands[i00 + c] + (bands[i10 + c] - bands[i00 + c]) * fr.x;
-    vec4 bottom = bands[i01 + c] + (bands[i11 + c] - bands[i01 + c]) * fr.x;
-    float w00 = bands[i00 + 2u][set], w10 = bands[i10 + 2u][set];
-    float w01 = bands[i01 + 2u][set], w11 = bands[i11 + 2u][set];
-    float wt = w00 + (w10 - w00) * fr.x;
-    float wb = w01 + (w11 - w01) * fr.x;
-    weight = wt + (wb - wt) * fr.y;
+vec4 bilinear(vec4 v00, vec4 v10, vec4 v01, vec4 v11, vec2 fr) {
+    vec4 top = v00 + (v10 - v00) * fr.x;
+    vec4 bottom = v01 + (v11 - v01) * fr.x;
     return top + (bottom - top) * fr.y;
+}
+
+float bilinear(float v00, float v10, float v01, float v11, vec2 fr) {
+    float top = v00 + (v10 - v00) * fr.x;
+    float bottom = v01 + (v11 - v01) * fr.x;
+    return top + (bottom - top) * fr.y;
+}
+
+// The far mip's level of `size` texels from texel `base`, at xy.
+void far_fetch(ivec2 size, uint base, vec2 xy, out vec4 color, out vec4 rest) {
+    uvec4 at;
+    vec2 fr;
+    corners(size, base, xy, at, fr);
+    color = bilinear(far_color[at.x], far_color[at.y], far_color[at.z], far_color[at.w], fr);
+    rest = bilinear(far_rest[at.x], far_rest[at.y], far_rest[at.z], far_rest[at.w], fr);
+}
+
+// A band level's set (of `size` texels from band texel `base`) at xy:
+// colour and weight.
+vec4 band_fetch(ivec2 size, uint base, int set, vec2 xy, out float weight) {
+    uvec4 at;
+    vec2 fr;
+    corners(size, base, xy, at, fr);
+    at *= 3u;
+    uint c = uint(set);
+    weight = bilinear(bands[at.x + 2u][set], bands[at.y + 2u][set], bands[at.z + 2u][set],
+                      bands[at.w + 2u][set], fr);
+    return bilinear(bands[at.x + c], bands[at.y + c], bands[at.z + c], bands[at.w + c], fr);
 }
 
 void main() {
@@ -112,11 +117,14 @@ void main() {
             }
         }
     }
+    uint band_base = 0u;
     for (int l = 1; l <= FIELDS_LEVELS; ++l) {
         float t = float(1 << l);
+        ivec2 size = fields_level_size(l);
         float w;
-        front += band_fetch(l, set, (vec2(q) + 0.5) / t - 0.5, w);
+        front += band_fetch(size, band_base, set, (vec2(q) + 0.5) / t - 0.5, w);
         front_w += w;
+        band_base += uint(size.x * size.y);
     }
 
     vec4 back = cq;
@@ -160,12 +168,14 @@ void main() {
             float area = FIELDS_PI * rq * rq / float(FIELDS_TAPS);
             int l = int(clamp(roundEven(log2(max(spacing, 1.0))), 0.0, float(FIELDS_LEVELS)));
             float t = float(1 << l);
+            ivec2 size = fields_level_size(l);
+            uint base = fields_far_offset(l);
             for (int i = 0; i < FIELDS_TAPS; ++i) {
                 int b = FIELDS_TAPS_BASE + 4 * i;
                 vec3 tap = vec3(tables[b], tables[b + 1], tables[b + 2]); // (dy, dx, |d|)
                 vec2 pxy = vec2(q) + tap.yx * spacing;
                 vec4 c, rest;
-                far_fetch(l, (pxy + 0.5) / t - 0.5, c, rest);
+                far_fetch(size, base, (pxy + 0.5) / t - 0.5, c, rest);
                 float n = rest.x;
                 if (n <= 1e-6) {
                     continue;

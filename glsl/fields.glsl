@@ -28,6 +28,7 @@ layout(push_constant, std430) uniform Push {
     ivec2 extent;   // G-buffer size
     ivec2 origin;   // first output pixel (the guard band)
     ivec2 size;     // output size
+    ivec2 anchor;   // G-buffer pixel g is texel (g + anchor) >> l of level l
     float f_px;
     float aperture_radius;
     float focus_distance;
@@ -38,9 +39,11 @@ float fields_radius(float z) {
     return 0.5 * coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
 }
 
-// Texels of level l (2^l px) over the G-buffer.
+// Texels of level l (2^l px) over the G-buffer, whose pixel g lies in
+// texel (g + anchor) >> l: the texels of a tile are the whole frame's
+// (fields::reference's anchor).
 ivec2 fields_level_size(int l) {
-    return (pc.extent + (1 << l) - 1) >> l;
+    return (pc.extent + pc.anchor + (1 << l) - 1) >> l;
 }
 
 // Texels of the far mip's levels before l (level 0 first).
@@ -55,7 +58,8 @@ uint fields_far_offset(int l) {
 
 // Texels of the band levels before l (level 1 first).
 uint fields_band_offset(int l) {
-    return fields_far_offset(l) - uint(pc.extent.x * pc.extent.y);
+    ivec2 s = fields_level_size(0);
+    return fields_far_offset(l) - uint(s.x * s.y);
 }
 
 // The band level (1..FIELDS_LEVELS) of CoC radius r, 0 under FIELDS_B0.

@@ -29,8 +29,8 @@ void main() {
     vec2 cen[2] = vec2[2](vec2(0.0), vec2(0.0));
     for (int iy = 0; iy < t; ++iy) {
         for (int ix = 0; ix < t; ++ix) {
-            ivec2 p = texel * t + ivec2(ix, iy);
-            if (any(greaterThanEqual(p, pc.extent))) {
+            ivec2 p = texel * t + ivec2(ix, iy) - pc.anchor;
+            if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, pc.extent))) {
                 continue;
             }
             float z = imageLoad(gbuffer_eye, p).z;

@@ -1,6 +1,6 @@
 #version 460
 // The two-field gather, pass 1: the far field's mip (fields::far_mip). Level
-// 0 per G-buffer pixel: (c · far) and (far, r · far, (1/z) · far, 0), far
+// 0 per G-buffer pixel (and zero for the anchor's texels before it): (c · far) and (far, r · far, (1/z) · far, 0), far
 // = not in front of the focus plane (the background included); each level
 // after it the mean of the 2×2 texels below (zero past the edge). One
 // dispatch per level.
@@ -22,14 +22,20 @@ void main() {
     }
     uint at = fields_far_offset(pc.level) + uint(p.y * size.x + p.x);
     if (pc.level == 0) {
-        float z = imageLoad(gbuffer_eye, p).z;
+        ivec2 g = p - pc.anchor;
+        if (any(lessThan(g, ivec2(0)))) {
+            far_color[at] = vec4(0.0); // before the G-buffer's first pixel
+            far_rest[at] = vec4(0.0);
+            return;
+        }
+        float z = imageLoad(gbuffer_eye, g).z;
         bool near = !isinf(z) && z < pc.focus_distance;
         if (near) {
             far_color[at] = vec4(0.0);
             far_rest[at] = vec4(0.0);
             return;
         }
-        far_color[at] = imageLoad(gbuffer_color, p);
+        far_color[at] = imageLoad(gbuffer_color, g);
         far_rest[at] = vec4(1.0, fields_radius(z), isinf(z) ? 0.0 : 1.0 / z, 0.0);
         return;
     }

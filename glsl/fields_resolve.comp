@@ -122,7 +122,7 @@ void main() {
         float t = float(1 << l);
         ivec2 size = fields_level_size(l);
         float w;
-        front += band_fetch(size, band_base, set, (vec2(q) + 0.5) / t - 0.5, w);
+        front += band_fetch(size, band_base, set, (vec2(q + pc.anchor) + 0.5) / t - 0.5, w);
         front_w += w;
         band_base += uint(size.x * size.y);
     }
@@ -140,12 +140,14 @@ void main() {
             float reach = small + FIELDS_HALF_DIAGONAL;
             int n = int(ceil(reach));
             int row = 0;
+            int stride = fields_level_size(0).x;
             for (int dy = -n; dy <= n; ++dy) {
                 int h = fields_row_half(reach * reach, dy);
                 for (int dx = -h; dx <= h; ++dx) {
                     ivec2 p = q + ivec2(dx, dy);
                     if (all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, pc.extent))) {
-                        uint at = uint(p.y * pc.extent.x + p.x);
+                        ivec2 a = p + pc.anchor;
+                        uint at = uint(a.y * stride + a.x);
                         vec4 rest = far_rest[at];
                         if (rest.x != 0.0) {
                             vec4 c = far_color[at];
@@ -173,7 +175,7 @@ void main() {
             for (int i = 0; i < FIELDS_TAPS; ++i) {
                 int b = FIELDS_TAPS_BASE + 4 * i;
                 vec3 tap = vec3(tables[b], tables[b + 1], tables[b + 2]); // (dy, dx, |d|)
-                vec2 pxy = vec2(q) + tap.yx * spacing;
+                vec2 pxy = vec2(q + pc.anchor) + tap.yx * spacing;
                 vec4 c, rest;
                 far_fetch(size, base, (pxy + 0.5) / t - 0.5, c, rest);
                 float n = rest.x;

@@ -767,18 +767,6 @@ impl Renderer {
             Some(window) => vec![window],
             None => self.windows(&view.frame)?,
         };
-        if let Some(why) = method.whole_frames_only() {
-            if windows != [Window::whole(&options.camera)] {
-                return Err(Error::InvalidArgument(format!(
-                    "the method {} renders whole frames only, and this {}×{} frame would take {} tiles (--tile-px, or a frame past the device's {} px images): {why}",
-                    options.method.short_name(),
-                    options.camera.width,
-                    options.camera.height,
-                    windows.len(),
-                    self.ctx.info.max_image_dimension_2d
-                )));
-            }
-        }
         // One sample plan for every tile: the largest's (the tiles of a
         // row or column differ by at most a pixel).
         let largest = Window {

@@ -19,7 +19,9 @@ use glam::Vec3;
 use pointlens::camera::{Camera, CameraSpec};
 use pointlens::image_io::{read_image, write_image, LinearImage};
 use pointlens::metrics::{difference_image, psnr};
-use pointlens::options::{EdlOptions, FastWeights, GatherWindow, Lod, Method, Raster, RdbMode};
+use pointlens::options::{
+    EdlOptions, FastGather, FastOptions, FastWeights, GatherWindow, Lod, Method, Raster, RdbMode,
+};
 use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
 use pointlens::PointCloud;
 
@@ -114,6 +116,15 @@ fn every_method_renders_the_same_frame_in_tiles() {
             (
                 "fast",
                 Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                60.0,
+            ),
+            (
+                "fast-fields",
+                Method::Fast(FastOptions {
+                    weights: FastWeights::Area,
+                    window: GatherWindow::Tiles,
+                    gather: FastGather::Fields,
+                }),
                 60.0,
             ),
             ("rdb9", Method::rdb(9, RdbMode::Centre), 60.0),

@@ -179,12 +179,6 @@ pub fn tree_index(padded: [u32; 2], level: u32, x: u32, y: u32) -> u64 {
 
 /// Every pixel blurs, the background too: the default guard band.
 impl DofMethod for Configured<'_, Fast, FastOptions> {
-    fn whole_frames_only(&self) -> Option<&'static str> {
-        (self.options.gather == FastGather::Fields).then_some(
-            "its texels start at the frame's corner, which a tile moves, so tiles would show seams",
-        )
-    }
-
     fn prepare<'m>(
         &'m self,
         ctx: &Arc<Context>,
@@ -194,8 +188,7 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
             return Ok(Box::new(super::fields::FieldsFrame::new(
                 ctx,
                 &self.pipelines.fields,
-                view.full_width(),
-                view.full_height(),
+                view,
             )?));
         }
         Ok(Box::new(FastFrame {

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{DofFrame, DofInput};
+use super::{DofFrame, DofInput, FrameView, Window};
 use crate::error::{Error, Result};
 use crate::fields::{tables, LEVELS};
 use crate::push_constants;
@@ -27,6 +27,7 @@ push_constants! {
         extent: [i32; 2],
         origin: [i32; 2],
         size: [i32; 2],
+        anchor: [i32; 2],
         f_px: f32,
         aperture_radius: f32,
         focus_distance: f32,
@@ -70,10 +71,22 @@ fn texels(w: u32, h: u32, from: u32, to: u32) -> u64 {
         .sum()
 }
 
+/// The anchor of a window's texels: G-buffer pixel g lies in texel
+/// (g + anchor) >> l of level l, so that a tile's texels are the whole
+/// frame's. A window's G-buffer starts `window.x` pixels (less the guard
+/// band, the same for every window) right of the whole frame's; the
+/// largest texel is 2^LEVELS pixels.
+pub fn anchor(window: &Window) -> [u32; 2] {
+    let top = 1 << LEVELS;
+    [window.x % top, window.y % top]
+}
+
 /// The buffers and the result of one frame, with the pipelines that
 /// record it.
 pub struct FieldsFrame<'m> {
     pipelines: &'m Fields,
+    /// [`anchor`] of the frame's window.
+    anchor: [u32; 2],
     /// The far mip's c · far per texel, levels 0..=LEVELS end to end.
     far_color: Buffer,
     /// The far mip's (far, r · far, far / z, 0).
@@ -88,9 +101,13 @@ pub struct FieldsFrame<'m> {
 }
 
 impl<'m> FieldsFrame<'m> {
-    pub fn new(ctx: &Arc<Context>, pipelines: &'m Fields, w: u32, h: u32) -> Result<Self> {
-        let far = texels(w, h, 0, LEVELS);
-        let band = texels(w, h, 1, LEVELS);
+    pub fn new(ctx: &Arc<Context>, pipelines: &'m Fields, view: &FrameView) -> Result<Self> {
+        let (w, h) = (view.full_width(), view.full_height());
+        let anchor = anchor(&view.window);
+        // The texels cover the G-buffer and the anchor's pixels before it.
+        let (tw, th) = (w + anchor[0], h + anchor[1]);
+        let far = texels(tw, th, 0, LEVELS);
+        let band = texels(tw, th, 1, LEVELS);
         let largest = [16 * far, 64 * band, 48 * band]
             .into_iter()
             .max()
@@ -99,13 +116,14 @@ impl<'m> FieldsFrame<'m> {
         // The shaders' indices are 32-bit.
         if largest > limit || 4 * far > u32::MAX as u64 {
             return Err(Error::InvalidArgument(format!(
-                "the two-field gather's buffers for a {w}×{h} G-buffer ({largest} bytes) exceed the device's {limit}-byte buffer limit; use --fast-gather tree"
+                "the two-field gather's buffers for a {w}×{h} G-buffer ({largest} bytes) exceed the device's {limit}-byte buffer limit; use --tile-px (smaller tiles) or --fast-gather tree"
             )));
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let buffer = |name, bytes| Buffer::new(ctx, name, bytes, usage, MemoryLocation::GpuOnly);
         Ok(FieldsFrame {
             pipelines,
+            anchor,
             far_color: buffer("fields far colour", 16 * far)?,
             far_rest: buffer("fields far rest", 16 * far)?,
             band_sources: buffer("fields band sources", 64 * band)?,
@@ -130,10 +148,13 @@ impl DofFrame for FieldsFrame<'_> {
         let camera = &view.camera;
         let (w, h) = (input.color.width(), input.color.height());
         let g = view.guard as i32;
+        // The texels' extent: the G-buffer and the anchor's pixels.
+        let (tw, th) = (w + self.anchor[0], h + self.anchor[1]);
         let push = |level: u32| FieldsPush {
             extent: [w as i32, h as i32],
             origin: [g, g],
             size: [view.window.width as i32, view.window.height as i32],
+            anchor: self.anchor.map(|a| a as i32),
             f_px: camera.f_px(),
             aperture_radius: camera.aperture_radius,
             focus_distance: camera.focus_distance,
@@ -161,8 +182,8 @@ impl DofFrame for FieldsFrame<'_> {
                     ],
                     &push(level),
                     [
-                        groups(w.div_ceil(1 << level), 8),
-                        groups(h.div_ceil(1 << level), 8),
+                        groups(tw.div_ceil(1 << level), 8),
+                        groups(th.div_ceil(1 << level), 8),
                         1,
                     ],
                 );
@@ -177,7 +198,7 @@ impl DofFrame for FieldsFrame<'_> {
                     Bind::StorageBuffer(&self.band_sources),
                 ],
                 &push(1),
-                [groups(w.div_ceil(2), 8), groups(h.div_ceil(2), 8), LEVELS],
+                [groups(tw.div_ceil(2), 8), groups(th.div_ceil(2), 8), LEVELS],
             );
         });
         frame.pass("fast.fields_spread", |rec| {
@@ -189,7 +210,7 @@ impl DofFrame for FieldsFrame<'_> {
                     Bind::StorageBuffer(&self.bands),
                 ],
                 &push(1),
-                [groups(w.div_ceil(2), 8), groups(h.div_ceil(2), 8), LEVELS],
+                [groups(tw.div_ceil(2), 8), groups(th.div_ceil(2), 8), LEVELS],
             );
         });
         frame.pass("fast.fields_resolve", |rec| {

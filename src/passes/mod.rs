@@ -183,13 +183,6 @@ pub trait DofMethod {
         max_gbuffer_coc(camera, depths)
     }
 
-    /// Why the method renders only whole frames, not tiles (a poster,
-    /// `--tile-px`), if it does: None by default, where tiles give the
-    /// whole frame's image (docs/ARCHITECTURE.md, "Posters in tiles").
-    fn whole_frames_only(&self) -> Option<&'static str> {
-        None
-    }
-
     /// Allocates the images of one frame of `view`. Called before recording
     /// starts, so that a frame's wall time excludes allocation.
     fn prepare<'m>(

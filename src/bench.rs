@@ -88,7 +88,7 @@ impl DefaultMatrix {
 /// A method of the matrix, as named on the command line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BenchMethod {
-    /// `pinhole`, `fast`, `fast-uniform`, `rdb9`, `rdb5-pairs`, `layered4`,
+    /// `pinhole`, `fast`, `fast-uniform-tree`, `rdb9`, `rdb5-pairs`, `layered4`,
     /// `accum64`, …
     pub name: String,
     pub method: Method,

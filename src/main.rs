@@ -159,9 +159,10 @@ struct BenchArgs {
     width: Option<u32>,
     #[arg(long, requires = "width")]
     height: Option<u32>,
-    /// Comma-separated methods: pinhole, fast, fast-uniform, fast-fixed,
-    /// rdbN, rdbN-pairs, layeredK, accumS (default: by the device, see
-    /// below).
+    /// Comma-separated methods: pinhole, fast (the two-field gather),
+    /// fast-tree or fast-pixels (the paper's rule, after -uniform, -fixed
+    /// or both), rdbN, rdbN-pairs, layeredK, accumS (default: by the
+    /// device, see below).
     #[arg(long)]
     methods: Option<String>,
     /// Comma-separated models: bunny, mug, synthetic, or PLY, LAS or LAZ
@@ -243,19 +244,21 @@ struct RenderArgs {
     /// tile, docs/BENCHMARKS.md).
     #[arg(long, default_value = "layered", value_parser = method_kind)]
     method: MethodKind,
-    /// Weights of the fast method: area (by inverse CoC area) or uniform
-    /// (the paper's plain mean).
+    /// Weights of the paper's rule (--fast-gather tree or pixels): area (by
+    /// inverse CoC area) or uniform (the paper's plain mean).
     #[arg(long, value_enum, default_value_t)]
     fast_weights: FastWeights,
-    /// Gather window of the fast method: tiles (bounded by the tiles' CoCs)
-    /// or fixed (the frame's largest CoC everywhere; a benchmark baseline).
+    /// Gather window of the paper's rule (--fast-gather tree or pixels):
+    /// tiles (bounded by the tiles' CoCs) or fixed (the frame's largest CoC
+    /// everywhere; a benchmark baseline).
     #[arg(long, value_enum, default_value_t)]
     fast_window: GatherWindow,
-    /// How the fast method gathers: tree (DESIGN §4's rule by blocks of a
-    /// tree, opened only where the gather's tests differ within a block),
-    /// pixels (the same rule pixel by pixel, the paper's loop), or fields
-    /// (the bounded two-field gather: 7–12 dB closer to Mitsuba's
-    /// reference, its cost bounded whatever the CoC; docs/BENCHMARKS.md).
+    /// How the fast method gathers: fields (the bounded two-field gather:
+    /// 7–12 dB closer to Mitsuba's reference than the paper's rule, its
+    /// cost bounded whatever the CoC; docs/BENCHMARKS.md), tree (DESIGN
+    /// §4's rule, the paper's, by blocks of a tree, opened only where the
+    /// gather's tests differ within a block) or pixels (the same rule pixel
+    /// by pixel, the paper's loop).
     #[arg(long, value_enum, default_value_t)]
     fast_gather: FastGather,
     /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.

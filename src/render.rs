@@ -747,6 +747,9 @@ impl Renderer {
             ));
         }
         check_lod(&options.lod)?;
+        if let Method::Fast(fast) = options.method {
+            fast.check()?;
+        }
         if self.edl.is_some() && matches!(options.method, Method::Accum(_)) {
             return Err(Error::InvalidArgument(
                 "--edl shades the one G-buffer a depth-of-field method blurs; accum averages \

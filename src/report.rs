@@ -94,7 +94,7 @@ pub const GAUSSIAN_TILE_ENTRIES: &str = "gaussians.tile_entries";
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrameReport {
     pub device: DeviceReport,
-    /// The method as `bench` names it (`rdb9`, `fast-uniform`, `accum256`, …).
+    /// The method as `bench` names it (`rdb9`, `fast-uniform-tree`, `accum256`, …).
     pub method: String,
     pub width: u32,
     pub height: u32,

@@ -242,6 +242,16 @@ fn catalogue() -> Vec<Case> {
             "render {bunny} -o {out} R --fast-window round",
             "--fast-window",
         ),
+        // The paper's rule's options without the paper's rule: the
+        // default two-field gather would ignore them.
+        case(
+            "render {bunny} -o {out} R --method fast --fast-weights uniform",
+            "--fast-gather tree",
+        ),
+        case(
+            "render {bunny} -o {out} R --method fast --fast-window fixed",
+            "--fast-gather tree",
+        ),
         case("render {bunny} -o {out} R --rdb-mode corners", "--rdb-mode"),
         case("render {bunny} -o {out} R --rdb-atomics 16", "--rdb-atomics"),
         case("render {bunny} -o {out} R --width 0", "width"),

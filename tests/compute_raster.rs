@@ -104,7 +104,10 @@ fn compute_raster_is_as_close_to_converged_as_the_sprites_with_every_method() {
             let reference = render(&mut renderer, &scene, &base, Raster::Sprites).image;
             for (ssaa, method) in [
                 (4, Method::Pinhole),
-                (4, Method::fast(FastWeights::Area, GatherWindow::Tiles)),
+                (
+                    4,
+                    Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
+                ),
                 (4, Method::rdb(5, RdbMode::Centre)),
                 (4, Method::layered(3)),
                 (4, Method::accum(3)),

@@ -17,10 +17,18 @@ fn every_method_gives_the_same_bytes_across_runs_and_thread_counts() {
     assert!(cores >= 2, "needs two cores to vary the thread count");
     let bunny = root().join("data/bunny_colored.ply").display().to_string();
     let las = root().join("data/autzen_trim.las").display().to_string();
-    let methods: [&[&str]; 8] = [
+    let methods: [&[&str]; 9] = [
         &["--method", "pinhole"],
         &["--method", "fast"],
-        &["--method", "fast", "--fast-weights", "uniform"],
+        &["--method", "fast", "--fast-gather", "tree"],
+        &[
+            "--method",
+            "fast",
+            "--fast-gather",
+            "tree",
+            "--fast-weights",
+            "uniform",
+        ],
         &["--method", "rdb", "--rdb-atomics", "64"],
         &[
             "--method",

@@ -10,8 +10,8 @@ use pointlens::options::{FastWeights, GatherWindow, RdbMode};
 use pointlens::render::{Renderer, SplatSize};
 
 const METHODS: [Method; 7] = [
-    Method::fast(FastWeights::Area, GatherWindow::Tiles),
-    Method::fast(FastWeights::Uniform, GatherWindow::Tiles),
+    Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
+    Method::paper_fast(FastWeights::Uniform, GatherWindow::Tiles),
     Method::rdb(9, RdbMode::Centre),
     Method::rdb(9, RdbMode::Pairs),
     Method::layered(1),

@@ -91,7 +91,7 @@ fn edl_darkens_edges_and_leaves_a_facing_surface_alone() {
             ..cam
         };
         for method in [
-            Method::fast(FastWeights::Area, GatherWindow::Tiles),
+            Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
             Method::rdb(5, RdbMode::Centre),
             Method::layered(2),
         ] {

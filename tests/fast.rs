@@ -29,7 +29,7 @@ fn render(
         .image
 }
 
-const FAST: Method = Method::fast(FastWeights::Area, GatherWindow::Tiles);
+const FAST: Method = Method::paper_fast(FastWeights::Area, GatherWindow::Tiles);
 
 /// The largest difference between two images' pixels, color and alpha,
 /// relative to `b` (at least 0.05). The GPU stores rgba16f: a step is
@@ -119,7 +119,7 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                 let (gpu, gbuffer) = renderer
                     .render_with_gbuffer(
                         &scene,
-                        &options(cam, Method::fast(weights, GatherWindow::Tiles)),
+                        &options(cam, Method::paper_fast(weights, GatherWindow::Tiles)),
                     )
                     .unwrap();
                 let cpu = reference::fast(&gbuffer, &cam, weights);
@@ -128,7 +128,7 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
                 let fixed = renderer
                     .render(
                         &scene,
-                        &options(cam, Method::fast(weights, GatherWindow::Fixed)),
+                        &options(cam, Method::paper_fast(weights, GatherWindow::Fixed)),
                     )
                     .unwrap();
                 assert_eq!(
@@ -284,7 +284,7 @@ fn background_only_tiles_take_the_short_path_with_the_same_bits() {
         ] {
             let options = |window| RenderOptions {
                 background,
-                ..options(cam, Method::fast(weights, window))
+                ..options(cam, Method::paper_fast(weights, window))
             };
             let (tiles, gbuffer) = renderer
                 .render_with_gbuffer(&scene, &options(GatherWindow::Tiles))

@@ -148,7 +148,7 @@ fn it_meets_its_floor_against_accum_and_beats_the_papers_fast() {
                 renderer.render(&scene, &o).unwrap().image
             };
             let fields = psnr(&reference, &render(FIELDS)).unwrap();
-            let paper = psnr(&reference, &render(Method::Fast(FastOptions::default()))).unwrap();
+            let paper = psnr(&reference, &render(Method::Fast(FastOptions::PAPER))).unwrap();
             let layered = psnr(&reference, &render(Method::layered(1))).unwrap();
             eprintln!("{name}: fields {fields:.2} dB, the paper's fast {paper:.2}, layered1 {layered:.2} against accum 64");
             assert!(

@@ -122,7 +122,7 @@ fn layered_sees_the_background_through_a_blurred_occluder() {
             &renderer,
             &scene,
             cam,
-            Method::fast(FastWeights::Area, GatherWindow::Tiles),
+            Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
         );
         let (pl, pr, pf, p1) = (
             psnr(&layered, &reference),

@@ -45,7 +45,7 @@ fn a_thousand_frames_keep_device_memory_flat() {
             // part; pinhole and fast at 12×9.
             let method = match frame % 2 {
                 0 => Method::Pinhole,
-                _ => Method::fast(Default::default(), Default::default()),
+                _ => Method::paper_fast(Default::default(), Default::default()),
             };
             let options = common::options(orbit.camera(&base, frame), method);
             renderer.render(&scene, &options).unwrap();

@@ -60,7 +60,7 @@ fn multisampled_passes_match_one_sample_passes_on_the_bundled_scenes() {
             let (reference, _) = render(&renderer, &scene, &base, Some(1));
             for method in [
                 Method::Pinhole,
-                Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
                 Method::rdb(9, RdbMode::Centre),
                 Method::accum(2),
             ] {

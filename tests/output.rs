@@ -33,7 +33,7 @@ fn device_output_equals_the_host_conversion() {
             let camera = model.camera(&cloud, 83, 61).unwrap();
             for method in [
                 Method::Pinhole,
-                Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
                 Method::rdb(9, RdbMode::Centre),
                 Method::accum(4),
             ] {

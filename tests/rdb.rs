@@ -154,7 +154,7 @@ fn with_partial_occlusion_rdb_is_closer_to_accum_than_fast() {
                 &renderer,
                 &scene,
                 cam,
-                Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
             ),
         )
         .unwrap();

@@ -115,7 +115,7 @@ fn every_method_renders_the_same_frame_in_tiles() {
             ("pinhole", Method::Pinhole, 60.0),
             (
                 "fast",
-                Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
                 60.0,
             ),
             (

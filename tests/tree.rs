@@ -359,7 +359,7 @@ fn tree_splat_sizes_match_knn_sizes_against_accum() {
             };
             let reference = render(&knn, Method::accum(64));
             for method in [
-                Method::fast(FastWeights::Area, GatherWindow::Tiles),
+                Method::paper_fast(FastWeights::Area, GatherWindow::Tiles),
                 Method::Pinhole,
             ] {
                 let a = psnr(&render(&knn, method), &reference);

@@ -165,7 +165,7 @@ def methods(args, scene):
     sample counts from --accum, else the scene's. With --ssaa, each method
     at each K, named with `-ssaaK`."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
-         ("fast-fields", ["--method", "fast", "--fast-gather", "fields"]),
+         ("fast-tree", ["--method", "fast", "--fast-gather", "tree"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
          ("layered1", ["--method", "layered", "--layers", "1"]),
          ("layered2", ["--method", "layered", "--layers", "2"]),

@@ -500,7 +500,11 @@ impl GBuffer {
     /// resolve, as passes `{label}.raster` and `{label}.resolve`; the color
     /// is the mean over all samples, the eye depth the nearest sample's,
     /// ties to the lowest index in the one-sample form (lens position, then
-    /// sample), whatever the plan. Then every later layer (of a pinhole
+    /// sample), whatever the plan. Where the plan samples a pixel once
+    /// (K = 1) and there are several lens positions, lens position i also
+    /// moves that sample by [`crate::camera::pixel_jitters`]'s offset i:
+    /// the lens positions anti-alias the image together (accum at K = 1).
+    /// Then every later layer (of a pinhole
     /// view: one lens position) as one depth peel of the samples the
     /// targets were made for (`peel_samples` of [`GBuffer::new`]) at their
     /// standard locations (unjittered), against the previous
@@ -539,11 +543,15 @@ impl GBuffer {
             previous: Access::NONE,
         };
         let height = self.layers[0].color.height();
+        let pixel_jitters = match (per_lens, lens.len()) {
+            (1, n) if n > 1 => crate::camera::pixel_jitters(n as u32),
+            (_, n) => vec![Vec2::ZERO; n],
+        };
         for rows in self.plan.band_rows(height) {
             for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
-                let mut push = self
-                    .view
-                    .push(planned.jitter, lens_u, extent, scale, rows.0);
+                // In target pixels: a one-sample plan's scale is 1.
+                let jitter = planned.jitter + pixel_jitters[l as usize];
+                let mut push = self.view.push(jitter, lens_u, extent, scale, rows.0);
                 let sample = match &self.targets {
                     FirstTargets::Sprites(t) => {
                         passes.raster(samples, false).record(

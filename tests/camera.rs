@@ -1238,6 +1238,35 @@ fn concentric_map_is_area_preserving_and_inside_the_disk() {
     assert_eq!(lens_samples(1), vec![Vec2::ZERO]);
 }
 
+/// The pixel offsets of accum at K = 1: in [−½, ½)², the first at the
+/// pixel's centre, and even along each axis for every count, so that an
+/// edge through the pixel at any place covers the share of the offsets it
+/// covers of the pixel (within 3/S: a Kronecker sequence's discrepancy),
+/// and the lens positions do not all land on one side of it.
+#[test]
+fn pixel_jitters_cover_the_pixel_evenly() {
+    use pointlens::camera::pixel_jitters;
+    assert_eq!(pixel_jitters(1), vec![Vec2::ZERO]);
+    for count in [4u32, 16, 64, 256] {
+        let j = pixel_jitters(count);
+        assert_eq!(j.len(), count as usize);
+        assert!(j
+            .iter()
+            .all(|o| (-0.5..0.5).contains(&o.x) && (-0.5..0.5).contains(&o.y)));
+        for step in 0..=20 {
+            let edge = -0.5 + step as f32 / 20.0;
+            for axis in [0, 1] {
+                let below = j.iter().filter(|o| o[axis] < edge).count() as f32;
+                let share = below / count as f32;
+                assert!(
+                    (share - (edge + 0.5)).abs() <= 3.0 / count as f32,
+                    "{count} offsets: {share} below {edge} along axis {axis}"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn rdb_bins_round_trip_through_the_concentric_map() {
     use pointlens::camera::{concentric_disk, concentric_square, rdb_bin, rdb_lens_table};

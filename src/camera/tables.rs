@@ -64,6 +64,25 @@ pub fn rdb_bin(u: Vec2, n: u32) -> u32 {
     cell(a.y) * n + cell(a.x)
 }
 
+/// `count` offsets of a pixel's one sample from its centre, in pixels, in
+/// [−½, ½)²: the R2 sequence (frac(½ + i·(1/g, 1/g²)), g the plastic
+/// number) less ½, a low-discrepancy set for every count, the first at the
+/// centre. At K = 1 lens position i of [`lens_samples`] moves the pixel's
+/// sample by offset i, so that S lens positions anti-alias the image as
+/// S samples of the pixel would (Haeberli & Akeley's jittered
+/// accumulation; `GBuffer::record`).
+pub fn pixel_jitters(count: u32) -> Vec<Vec2> {
+    let g = 1.324_717_957_244_746_f64;
+    let (a1, a2) = (1.0 / g, 1.0 / (g * g));
+    (0..count)
+        .map(|i| {
+            let x = (0.5 + i as f64 * a1).fract() - 0.5;
+            let y = (0.5 + i as f64 * a2).fract() - 0.5;
+            Vec2::new(x as f32, y as f32)
+        })
+        .collect()
+}
+
 /// `count` normalised lens positions stratified over the unit disk: a
 /// Fibonacci lattice on the square ((i + ½)/S, frac(i/φ + ½)), mapped by
 /// [`concentric_disk`]. Deterministic; `lens_samples(1)` is the lens centre

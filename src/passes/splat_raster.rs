@@ -88,16 +88,19 @@ push_constants! {
 }
 
 impl SplatPush {
-    /// The same projection for a compute pass over `count` splats (an
-    /// unjittered one: the compute passes take no jitter).
+    /// The same projection for a compute pass over `count` splats, whose
+    /// push has no jitter of its own: the jitter moves the centre, which
+    /// moves every splat's position alike (`splat_project.glsl` adds both).
     pub fn for_compute(&self, count: u32) -> SplatComputePush {
-        assert_eq!(self.jitter, [0.0, 0.0], "compute passes are unjittered");
         SplatComputePush {
             eye: self.eye,
             right: self.right,
             up: self.up,
             forward: self.forward,
-            center: self.center,
+            center: [
+                self.center[0] + self.jitter[0],
+                self.center[1] + self.jitter[1],
+            ],
             extent: self.extent,
             lens_u: self.lens_u,
             f_px: self.f_px,

@@ -39,7 +39,9 @@ fn main() {
     let options = RenderOptions {
         camera,
         method: Method::Pinhole,
-        ssaa: renderer.ssaa(None, None).expect("the default K"),
+        ssaa: renderer
+            .ssaa(None, None, &Method::Pinhole)
+            .expect("the default K"),
         samples_per_pass: None,
         background: Vec3::ZERO,
         lod: Lod::ALL,

@@ -240,8 +240,9 @@ pub struct BenchOptions {
     pub points: usize,
     pub runs: u32,
     pub warmup: u32,
-    /// K of the K×K SSAA G-buffer, for every method (None: the default of
-    /// the measured frames' raster, [`Renderer::ssaa`]).
+    /// K of the K×K SSAA G-buffer, for every method (None: each method's
+    /// default on the measured frames' raster, [`Renderer::ssaa`]: accum's
+    /// is 1, the others' the raster's).
     pub ssaa: Option<u32>,
     /// The most samples per G-buffer raster pass (None: the device's best).
     pub samples_per_pass: Option<u32>,
@@ -424,7 +425,9 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     let mut renderer = Renderer::new(ctx)?;
     renderer.set_splat_shape(options.splat_shape)?;
     renderer.set_raster(options.raster);
-    let ssaa = renderer.ssaa(options.ssaa, options.samples_per_pass)?;
+    // The run's K (the report's): the methods' but accum's, whose default
+    // is its own (each cell records its K), and the quality reference's.
+    let ssaa = renderer.ssaa(options.ssaa, options.samples_per_pass, &Method::Pinhole)?;
     let total = frame_count(options);
     let mut done = 0u64;
     let mut cells = Vec::new();
@@ -435,7 +438,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
         for &(width, height) in &options.resolutions {
             let camera = model.camera(&cloud, width, height)?;
             let coc = CocRange::of(&camera, &cloud.positions);
-            let frame = |method: Method, lod_px: f32| RenderOptions {
+            let frame = |method: Method, ssaa: u32, lod_px: f32| RenderOptions {
                 camera,
                 method,
                 ssaa,
@@ -455,7 +458,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 });
                 // Every point: what the LOD's cost is measured against.
                 renderer.set_raster(Raster::Sprites);
-                let r = renderer.render(&scene, &frame(reference, 0.0))?;
+                let r = renderer.render(&scene, &frame(reference, ssaa, 0.0))?;
                 Some(r.image)
             } else {
                 None
@@ -466,7 +469,8 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 .iter()
                 .flat_map(|px| options.methods.iter().map(move |m| (px, m)))
             {
-                let options_m = frame(m.method, lod_px);
+                let ssaa = renderer.ssaa(options.ssaa, options.samples_per_pass, &m.method)?;
+                let options_m = frame(m.method, ssaa, lod_px);
                 let what = |m: &str| match options.lod_px.len() {
                     1 => what(m),
                     _ => what(&format!("{m} lod-px {lod_px}")),
@@ -595,6 +599,11 @@ impl BenchReport {
         s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|";
         s += if quality { "---:|---:|\n" } else { "\n" };
         for c in &self.cells {
+            // A cell at another K than the run's (accum's default) says so.
+            let method = match c.ssaa == self.ssaa {
+                true => c.method.clone(),
+                false => format!("{} (K = {})", c.method, c.ssaa),
+            };
             let dof: f64 = c
                 .passes
                 .iter()
@@ -611,7 +620,7 @@ impl BenchReport {
                 c.points,
                 c.width,
                 c.height,
-                c.method,
+                method,
                 c.lod_px,
                 c.lod.splats_emitted,
                 c.lod.traversal_ms,

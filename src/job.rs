@@ -575,7 +575,7 @@ impl RenderJob {
         mut camera: Camera,
     ) -> Result<RenderOptions> {
         let s = &self.spec;
-        let ssaa = renderer.ssaa(s.ssaa, s.samples_per_pass)?;
+        let ssaa = renderer.ssaa(s.ssaa, s.samples_per_pass, &s.method)?;
         if let Some([x, y]) = s.focus_pixel {
             camera.focus_distance = renderer.depth_at_pixel(scene, &camera, ssaa, s.lod, x, y)?;
         }

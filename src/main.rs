@@ -183,7 +183,8 @@ struct BenchArgs {
     #[arg(long)]
     warmup: Option<u32>,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (default: 3 on
-    /// the compute raster's rotated grid, 4 on the sprites').
+    /// the compute raster's rotated grid, 4 on the sprites'; 1 for accum,
+    /// whose lens positions then move the pixel's sample).
     #[arg(long, value_parser = checked(check_ssaa))]
     ssaa: Option<u32>,
     #[command(flatten)]
@@ -288,7 +289,8 @@ struct RenderArgs {
     samples: u32,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard
     /// sprites; default 3 on the compute raster's rotated grid, 4 on the
-    /// sprites' K×K grid: docs/BENCHMARKS.md). A scene of 3D Gaussians is
+    /// sprites' K×K grid: docs/BENCHMARKS.md; 1 for accum, whose lens
+    /// positions then move the pixel's sample too). A scene of 3D Gaussians is
     /// sampled at pixel centres as trained (default 1); K > 1 averages K×K
     /// cell centres.
     #[arg(long, value_parser = checked(check_ssaa))]

@@ -501,12 +501,25 @@ pub const DEFAULT_SSAA_COMPUTE: u32 = 3;
 /// Default K of a scene of 3D Gaussians: 1, the pixel centres, as trained.
 pub const DEFAULT_SSAA_GAUSSIANS: u32 = 1;
 
-/// The default K of `--ssaa` for frames rasterised by `raster` (resolved:
-/// sprites or compute; see [`DEFAULT_SSAA_COMPUTE`]).
-pub fn default_ssaa(raster: Raster) -> u32 {
-    match raster {
-        Raster::Compute => DEFAULT_SSAA_COMPUTE,
-        Raster::Sprites | Raster::Auto => DEFAULT_SSAA_SPRITES,
+/// Default K of `accum` on either raster: 1, where each lens position
+/// also moves the pixel's one sample (`camera::pixel_jitters`), so that S
+/// lens positions are S samples of the pixel. Against Mitsuba 3 in the
+/// same runs (docs/BENCHMARKS.md, "accum's default K"), accum 16 and 64 at
+/// K = 1 were faster at equal PSNR than at K = 3 in 9 of 12 cells (bunny,
+/// mug, LiDAR tile; 640×480 and 1920×1080) and at 1.5× Mitsuba or more in
+/// all 12, where K = 3 fell to 0.74–0.88× with 64 samples on the bunny;
+/// K = 3 stays ahead where the blur is small and the splats fine (the
+/// tile at 640×480).
+pub const DEFAULT_SSAA_ACCUM: u32 = 1;
+
+/// The default K of `--ssaa` for frames of `method` rasterised by
+/// `raster` (resolved: sprites or compute; see [`DEFAULT_SSAA_COMPUTE`]
+/// and [`DEFAULT_SSAA_ACCUM`]).
+pub fn default_ssaa(raster: Raster, method: &Method) -> u32 {
+    match (method, raster) {
+        (Method::Accum(_), _) => DEFAULT_SSAA_ACCUM,
+        (_, Raster::Compute) => DEFAULT_SSAA_COMPUTE,
+        (_, Raster::Sprites | Raster::Auto) => DEFAULT_SSAA_SPRITES,
     }
 }
 

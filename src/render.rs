@@ -468,15 +468,22 @@ impl Renderer {
         })
     }
 
-    /// K of a frame with `--ssaa` `ssaa` and `samples_per_pass`: `ssaa` as
-    /// given, else the default of the raster the frame gets
-    /// ([`crate::options::default_ssaa`]: 3 on the compute raster's rotated
-    /// grid, 4 on the sprites' grid).
-    pub fn ssaa(&self, ssaa: Option<u32>, samples_per_pass: Option<u32>) -> Result<u32> {
+    /// K of a frame of `method` with `--ssaa` `ssaa` and
+    /// `samples_per_pass`: `ssaa` as given, else the default of the method
+    /// and the raster the frame gets ([`crate::options::default_ssaa`]: 1
+    /// for accum, else 3 on the compute raster's rotated grid, 4 on the
+    /// sprites' grid).
+    pub fn ssaa(
+        &self,
+        ssaa: Option<u32>,
+        samples_per_pass: Option<u32>,
+        method: &Method,
+    ) -> Result<u32> {
         match ssaa {
             Some(k) => Ok(k),
             None => Ok(crate::options::default_ssaa(
                 self.raster_with(samples_per_pass)?,
+                method,
             )),
         }
     }

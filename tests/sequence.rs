@@ -717,10 +717,12 @@ fn render_without_a_method_is_layered_with_two_layers_and_its_help_gives_the_com
 }
 
 #[test]
-fn render_without_ssaa_takes_three_on_the_compute_raster_and_four_on_the_sprites() {
+fn render_without_ssaa_takes_three_on_the_compute_raster_four_on_the_sprites_and_one_for_accum() {
     // The default K follows the raster (docs/BENCHMARKS.md, "The default
     // K follows the raster"): the compute raster's rotated grid at K = 3
-    // sees edges more finely than the sprites' grid at 4.
+    // sees edges more finely than the sprites' grid at 4. accum's is 1 on
+    // either, its lens positions moving the pixel's sample ("accum's
+    // default K").
     let dir = scratch("seq-default-ssaa");
     let out = |name: &str| dir.join(name);
     let ssaa_of = |name: &str| -> u64 {
@@ -735,6 +737,19 @@ fn render_without_ssaa_takes_three_on_the_compute_raster_and_four_on_the_sprites
         ("sprites", &["--raster", "sprites"][..]),
         ("sprites-k3", &["--raster", "sprites", "--ssaa", "3"][..]),
         ("sprites-k4", &["--raster", "sprites", "--ssaa", "4"][..]),
+        ("accum", &["--method", "accum", "--samples", "8"][..]),
+        (
+            "accum-k1",
+            &["--method", "accum", "--samples", "8", "--ssaa", "1"][..],
+        ),
+        (
+            "accum-k3",
+            &["--method", "accum", "--samples", "8", "--ssaa", "3"][..],
+        ),
+        (
+            "accum-sprites",
+            &["--method", "accum", "--samples", "8", "--raster", "sprites"][..],
+        ),
     ] {
         let (b, png) = (bunny(), out(&format!("{name}.png")).display().to_string());
         let json = out(&format!("{name}.json")).display().to_string();
@@ -751,6 +766,9 @@ fn render_without_ssaa_takes_three_on_the_compute_raster_and_four_on_the_sprites
     assert_ne!(bytes(out("default.png")), bytes(out("k4.png")));
     assert_eq!(bytes(out("sprites.png")), bytes(out("sprites-k4.png")));
     assert_ne!(bytes(out("sprites.png")), bytes(out("sprites-k3.png")));
+    assert_eq!((ssaa_of("accum"), ssaa_of("accum-sprites")), (1, 1));
+    assert_eq!(bytes(out("accum.png")), bytes(out("accum-k1.png")));
+    assert_ne!(bytes(out("accum.png")), bytes(out("accum-k3.png")));
 }
 
 #[test]

@@ -41,7 +41,8 @@ float fields_radius(float z) {
 
 // Texels of level l (2^l px) over the G-buffer, whose pixel g lies in
 // texel (g + anchor) >> l: the texels of a tile are the whole frame's
-// (fields::reference's anchor).
+// (passes::fields::anchor; 0 for a whole frame, as fields::reference
+// has it).
 ivec2 fields_level_size(int l) {
     return (pc.extent + pc.anchor + (1 << l) - 1) >> l;
 }

@@ -1,6 +1,7 @@
 // Push constants of the compute passes over the splats (splat_compute.comp,
 // peel_cull.comp; src/passes/splat_raster.rs, SplatComputePush): the
-// sprite path's projection (splat_raster.glsl) without its jitter, with
+// sprite path's projection (splat_raster.glsl) with its jitter added to
+// the centre (SplatPush::for_compute), with
 // the splat count and the pass's stage (with the compute rasteriser's
 // cells per pixel). 128 bytes, lavapipe's limit.
 layout(push_constant, std430) uniform SplatComputePush {

@@ -106,7 +106,8 @@ pub struct JobSpec {
     pub focus_pixel: Option<[u32; 2]>,
     pub method: Method,
     /// K: K×K G-buffer samples per pixel (None: the default of the frame's
-    /// raster, [`Renderer::ssaa`]; of a scene of 3D Gaussians, 1).
+    /// method and raster, [`Renderer::ssaa`]; of a scene of 3D Gaussians,
+    /// 1).
     pub ssaa: Option<u32>,
     /// The most samples one raster pass takes (None: the device's best).
     pub samples_per_pass: Option<u32>,
@@ -577,7 +578,10 @@ impl RenderJob {
         let s = &self.spec;
         let ssaa = renderer.ssaa(s.ssaa, s.samples_per_pass, &s.method)?;
         if let Some([x, y]) = s.focus_pixel {
-            camera.focus_distance = renderer.depth_at_pixel(scene, &camera, ssaa, s.lod, x, y)?;
+            // The pinhole G-buffer's K, whatever the method (accum's
+            // default K is its own): every method focuses alike.
+            let probe = renderer.ssaa(s.ssaa, s.samples_per_pass, &Method::Pinhole)?;
+            camera.focus_distance = renderer.depth_at_pixel(scene, &camera, probe, s.lod, x, y)?;
         }
         Ok(RenderOptions {
             camera,

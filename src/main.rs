@@ -183,8 +183,9 @@ struct BenchArgs {
     #[arg(long)]
     warmup: Option<u32>,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (default: 3 on
-    /// the compute raster's rotated grid, 4 on the sprites'; 1 for accum,
-    /// whose lens positions then move the pixel's sample).
+    /// the compute raster's rotated grid, 4 on the sprites'; 1 for accum
+    /// with at least K² samples, whose lens positions then move the
+    /// pixel's sample).
     #[arg(long, value_parser = checked(check_ssaa))]
     ssaa: Option<u32>,
     #[command(flatten)]
@@ -289,8 +290,9 @@ struct RenderArgs {
     samples: u32,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard
     /// sprites; default 3 on the compute raster's rotated grid, 4 on the
-    /// sprites' K×K grid: docs/BENCHMARKS.md; 1 for accum, whose lens
-    /// positions then move the pixel's sample too). A scene of 3D Gaussians is
+    /// sprites' K×K grid: docs/BENCHMARKS.md; 1 for accum with at least
+    /// K² samples, whose lens positions then move the pixel's sample too).
+    /// A scene of 3D Gaussians is
     /// sampled at pixel centres as trained (default 1); K > 1 averages K×K
     /// cell centres.
     #[arg(long, value_parser = checked(check_ssaa))]
@@ -1437,14 +1439,19 @@ fn background_of(args: &RenderArgs) -> Result<Vec3> {
     })
 }
 
-/// The method and its options from the flags.
-fn method_of(args: &RenderArgs) -> Method {
-    args.method.with(
-        FastOptions {
-            weights: args.fast_weights,
-            window: args.fast_window,
-            gather: args.fast_gather,
-        },
+/// The method and its options from the flags (the fast method's checked
+/// here, before the cloud loads, as the frame checks them again).
+fn method_of(args: &RenderArgs) -> Result<Method> {
+    let fast = FastOptions {
+        weights: args.fast_weights,
+        window: args.fast_window,
+        gather: args.fast_gather,
+    };
+    if args.method == MethodKind::Fast {
+        fast.check()?;
+    }
+    Ok(args.method.with(
+        fast,
         RdbOptions {
             bins: args.rdb_bins,
             mode: args.rdb_mode,
@@ -1458,7 +1465,7 @@ fn method_of(args: &RenderArgs) -> Method {
             layers: args.layers.unwrap_or(pointlens::options::DEFAULT_LAYERS),
             ..LayeredOptions::default()
         },
-    )
+    ))
 }
 
 /// The camera flags, which win over the camera file and the path.
@@ -1492,7 +1499,7 @@ fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
         camera_file: args.camera.clone(),
         camera_flags: camera_flags(args),
         focus_pixel: args.focus_pixel,
-        method: method_of(args),
+        method: method_of(args)?,
         ssaa: args.ssaa,
         samples_per_pass: args.gbuffer.samples_per_pass,
         background: background_of(args)?,

@@ -133,7 +133,8 @@ impl FastOptions {
         if fields && (self.weights != FastWeights::Area || self.window != GatherWindow::Tiles) {
             return Err(Error::InvalidArgument(
                 "--fast-weights uniform and --fast-window fixed are options of the paper's rule \
-                 (--fast-gather tree or pixels), not of the default two-field gather"
+                 (--fast-gather tree or pixels), not of the two-field gather (--fast-gather \
+                 fields, the default)"
                     .into(),
             ));
         }
@@ -250,7 +251,8 @@ impl Default for LayeredOptions {
 pub enum Method {
     /// No depth of field: the resolved G-buffer color.
     Pinhole,
-    /// Zhao's fast approximation: a z-tested gather bounded by tile CoCs.
+    /// The fast method: the bounded two-field gather by default, or Zhao's
+    /// rule (a z-tested gather bounded by tile CoCs; [`FastGather`]).
     Fast(FastOptions),
     /// The ray distribution buffer: N×N lens bins per pixel.
     Rdb(RdbOptions),
@@ -399,17 +401,27 @@ impl Method {
                 if !digits.is_empty() {
                     return Err(bad());
                 }
+                // Weights, window, gather: each at most once, in that
+                // order (one name per method: short_name's).
                 let mut fast = FastOptions::default();
+                let mut next = 0;
                 for o in option.into_iter().flat_map(|o| o.split('-')) {
-                    if let Ok(w) = FastWeights::from_str(o, false) {
+                    let stage = if let Ok(w) = FastWeights::from_str(o, false) {
                         fast.weights = w;
+                        0
                     } else if let Ok(w) = GatherWindow::from_str(o, false) {
                         fast.window = w;
+                        1
                     } else if let Ok(g) = FastGather::from_str(o, false) {
                         fast.gather = g;
+                        2
                     } else {
                         return Err(bad());
+                    };
+                    if stage < next {
+                        return Err(bad());
                     }
+                    next = stage + 1;
                 }
                 fast.check().map_err(|_| {
                     Error::InvalidArgument(format!(
@@ -501,9 +513,11 @@ pub const DEFAULT_SSAA_COMPUTE: u32 = 3;
 /// Default K of a scene of 3D Gaussians: 1, the pixel centres, as trained.
 pub const DEFAULT_SSAA_GAUSSIANS: u32 = 1;
 
-/// Default K of `accum` on either raster: 1, where each lens position
-/// also moves the pixel's one sample (`camera::pixel_jitters`), so that S
-/// lens positions are S samples of the pixel. Against Mitsuba 3 in the
+/// Default K of `accum` with at least as many lens positions as the
+/// raster's default K² (S ≥ 9 on the compute raster, 16 on the sprites;
+/// fewer keep the raster's K): 1, where each lens position also moves the
+/// pixel's one sample (`camera::pixel_jitters`), so that S lens positions
+/// are S samples of the pixel, no fewer than the raster's. Against Mitsuba 3 in the
 /// same runs (docs/BENCHMARKS.md, "accum's default K"), accum 16 and 64 at
 /// K = 1 were faster at equal PSNR than at K = 3 in 9 of 12 cells (bunny,
 /// mug, LiDAR tile; 640×480 and 1920×1080) and at 1.5× Mitsuba or more in
@@ -516,10 +530,13 @@ pub const DEFAULT_SSAA_ACCUM: u32 = 1;
 /// `raster` (resolved: sprites or compute; see [`DEFAULT_SSAA_COMPUTE`]
 /// and [`DEFAULT_SSAA_ACCUM`]).
 pub fn default_ssaa(raster: Raster, method: &Method) -> u32 {
-    match (method, raster) {
-        (Method::Accum(_), _) => DEFAULT_SSAA_ACCUM,
-        (_, Raster::Compute) => DEFAULT_SSAA_COMPUTE,
-        (_, Raster::Sprites | Raster::Auto) => DEFAULT_SSAA_SPRITES,
+    let k = match raster {
+        Raster::Compute => DEFAULT_SSAA_COMPUTE,
+        Raster::Sprites | Raster::Auto => DEFAULT_SSAA_SPRITES,
+    };
+    match method {
+        Method::Accum(a) if a.samples >= k * k => DEFAULT_SSAA_ACCUM,
+        _ => k,
     }
 }
 

@@ -375,6 +375,11 @@ fn method_names_and_statistics() {
         "fast-tiles-trees",
         "fast-uniform",
         "fast-fixed-fields",
+        // One name per method: each option once, in short_name's order.
+        "fast-tree-pixels",
+        "fast-fields-tree",
+        "fast-tree-uniform",
+        "fast-uniform-uniform-tree",
     ] {
         assert!(BenchMethod::parse(bad).is_err(), "{bad}");
     }

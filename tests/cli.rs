@@ -378,15 +378,18 @@ fn focus_pixel_sets_the_printed_focus_distance() {
     let dir = scratch("cli-focus");
     let out = dir.join("f.png").display().to_string();
     let b = bunny();
-    let focus = |extra: &[&str]| -> f64 {
+    let focus_of = |method: &str, extra: &[&str]| -> Result<f64, String> {
         let mut args = vec!["render", &b, "-o", &out, "--width", "64", "--height", "48"];
-        args.extend(["--device", "llvmpipe", "--print-camera", "--method", "fast"]);
+        args.extend(["--device", "llvmpipe", "--print-camera", "--method", method]);
         args.extend(extra);
         let o = pointlens(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
+        if !o.status.success() {
+            return Err(stderr(&o));
+        }
         let cam: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        cam["focus_distance"].as_f64().unwrap()
+        Ok(cam["focus_distance"].as_f64().unwrap())
     };
+    let focus = |extra: &[&str]| focus_of("fast", extra).unwrap();
     let centre = focus(&[]);
     let at_pixel = focus(&["--focus-pixel", "32,24"]);
     // The default focuses on the model's centre; the pixel at the image
@@ -395,6 +398,18 @@ fn focus_pixel_sets_the_printed_focus_distance() {
         at_pixel > 0.0 && at_pixel < centre,
         "{at_pixel} vs {centre}"
     );
+    // Every method focuses alike: accum's default K (1) is not the probe's,
+    // which is the pinhole G-buffer's (3 here). A row across the bunny's
+    // silhouette, where one sample and nine see different surfaces.
+    for x in (6..60).step_by(6) {
+        let pixel = format!("{x},24");
+        let extra = ["--focus-pixel", pixel.as_str(), "--samples", "16"];
+        assert_eq!(
+            focus_of("accum", &extra),
+            focus_of("fast", &extra),
+            "pixel {pixel}"
+        );
+    }
 }
 
 #[test]

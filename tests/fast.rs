@@ -1,4 +1,6 @@
-//! Zhao's fast approximation (`--method fast`, DESIGN §4) on lavapipe.
+//! Zhao's fast approximation (`--method fast --fast-gather tree` or
+//! `pixels`, DESIGN §4: the paper's rule; the default two-field gather is
+//! tests/fields.rs) on lavapipe.
 
 mod common;
 

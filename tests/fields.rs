@@ -165,12 +165,13 @@ fn it_meets_its_floor_against_accum_and_beats_the_papers_fast() {
 
 /// A frame in tiles is the frame rendered whole (the texels of a tile are
 /// the whole frame's, `passes::fields::anchor`): every bundled scene,
-/// blurred up to 40 px in the background and focused in front of its
-/// centre so that near blur crosses the seams too, in 48-pixel tiles (the
-/// tiles' corners off the 64-pixel top-level texels). Tolerance 60 dB, as
-/// tests/tiles.rs holds every method: a tile's G-buffer holds less of its
-/// guard band's far edge than the whole frame's, whose top-level texels may
-/// reach a seam.
+/// its background blurred 100 px (more once focused in front of its
+/// centre, so that near blur crosses the seams too), in 3×3 tiles of
+/// 53–54 × 40 px (`--tile-px 54`: corners off the 64-pixel top-level
+/// texels). Measured: bunny and tile bit for bit, the mug 93.4 dB (a
+/// tile's G-buffer holds less of its guard band's far edge than the whole
+/// frame's, whose top-level texels may reach a seam); with the anchor at 0
+/// the bunny is 56.6 dB. Tolerance 85 dB, between the two.
 #[test]
 fn a_frame_in_tiles_is_the_whole_frame() {
     with_gpu(|ctx| {
@@ -207,7 +208,7 @@ fn a_frame_in_tiles_is_the_whole_frame() {
                 a.guard
             );
             assert!(
-                db >= 60.0,
+                db >= 85.0,
                 "{name}: the tiled frame is {db:.2} dB from the whole one"
             );
         }

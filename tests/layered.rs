@@ -138,7 +138,7 @@ fn layered_sees_the_background_through_a_blurred_occluder() {
                     ("layered4", &layered),
                     ("layered1", &single),
                     ("rdb9", &rdb),
-                    ("fast", &fast),
+                    ("fast-tree", &fast),
                 ],
             )
         };

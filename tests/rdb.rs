@@ -121,7 +121,7 @@ fn textured_plane(depth: f32, tilt: f32) -> pointlens::PointCloud {
 }
 
 #[test]
-fn with_partial_occlusion_rdb_is_closer_to_accum_than_fast() {
+fn with_partial_occlusion_rdb_is_closer_to_accum_than_the_papers_fast() {
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         // A blurred red foreground bar over a textured background in focus.

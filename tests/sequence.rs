@@ -721,8 +721,8 @@ fn render_without_ssaa_takes_three_on_the_compute_raster_four_on_the_sprites_and
     // The default K follows the raster (docs/BENCHMARKS.md, "The default
     // K follows the raster"): the compute raster's rotated grid at K = 3
     // sees edges more finely than the sprites' grid at 4. accum's is 1 on
-    // either, its lens positions moving the pixel's sample ("accum's
-    // default K").
+    // either when its lens positions are at least the raster's K² samples,
+    // each moving the pixel's sample ("accum's default K").
     let dir = scratch("seq-default-ssaa");
     let out = |name: &str| dir.join(name);
     let ssaa_of = |name: &str| -> u64 {
@@ -737,19 +737,28 @@ fn render_without_ssaa_takes_three_on_the_compute_raster_four_on_the_sprites_and
         ("sprites", &["--raster", "sprites"][..]),
         ("sprites-k3", &["--raster", "sprites", "--ssaa", "3"][..]),
         ("sprites-k4", &["--raster", "sprites", "--ssaa", "4"][..]),
-        ("accum", &["--method", "accum", "--samples", "8"][..]),
+        ("accum", &["--method", "accum", "--samples", "16"][..]),
         (
             "accum-k1",
-            &["--method", "accum", "--samples", "8", "--ssaa", "1"][..],
+            &["--method", "accum", "--samples", "16", "--ssaa", "1"][..],
         ),
         (
             "accum-k3",
-            &["--method", "accum", "--samples", "8", "--ssaa", "3"][..],
+            &["--method", "accum", "--samples", "16", "--ssaa", "3"][..],
         ),
         (
             "accum-sprites",
-            &["--method", "accum", "--samples", "8", "--raster", "sprites"][..],
+            &[
+                "--method",
+                "accum",
+                "--samples",
+                "16",
+                "--raster",
+                "sprites",
+            ][..],
         ),
+        // Fewer lens positions than the raster's K² samples keep its K.
+        ("accum8", &["--method", "accum", "--samples", "8"][..]),
     ] {
         let (b, png) = (bunny(), out(&format!("{name}.png")).display().to_string());
         let json = out(&format!("{name}.json")).display().to_string();
@@ -767,6 +776,7 @@ fn render_without_ssaa_takes_three_on_the_compute_raster_four_on_the_sprites_and
     assert_eq!(bytes(out("sprites.png")), bytes(out("sprites-k4.png")));
     assert_ne!(bytes(out("sprites.png")), bytes(out("sprites-k3.png")));
     assert_eq!((ssaa_of("accum"), ssaa_of("accum-sprites")), (1, 1));
+    assert_eq!(ssaa_of("accum8"), 3);
     assert_eq!(bytes(out("accum.png")), bytes(out("accum-k1.png")));
     assert_ne!(bytes(out("accum.png")), bytes(out("accum-k3.png")));
 }

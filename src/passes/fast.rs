@@ -1,10 +1,12 @@
-//! Zhao's fast approximation (DESIGN §4) as compute passes, each beside
-//! its GLSL file: `fast_coc` (CoC and weight per pixel), `fast_tile_max`
-//! (largest CoC per tile), `fast_tile_dilate` (each tile's gather radius),
-//! with `--fast-gather tree` (the default) `fast_tree` (the block tree, one
-//! dispatch per level), and `fast_gather` / `fast_gather_tree` (the
-//! z-tested, weighted gather, pixel by pixel or by blocks: the same
-//! contributors, docs/ARCHITECTURE.md).
+//! The fast method: its default gather is the bounded two-field gather
+//! (`passes::fields`); Zhao's rule (DESIGN §4, `--fast-gather tree` or
+//! `pixels`) is here as compute passes, each beside its GLSL file:
+//! `fast_coc` (CoC and weight per pixel), `fast_tile_max` (largest CoC per
+//! tile), `fast_tile_dilate` (each tile's gather radius), with
+//! `--fast-gather tree` `fast_tree` (the block tree, one dispatch per
+//! level), and `fast_gather` / `fast_gather_tree` (the z-tested, weighted
+//! gather, pixel by pixel or by blocks: the same contributors,
+//! docs/ARCHITECTURE.md).
 
 use std::sync::Arc;
 
@@ -137,15 +139,14 @@ fn widest_window_px(max_radius_px: f32, width: u32, height: u32) -> u32 {
 
 /// The pixel loop over the widest window it can get, against the device's
 /// loop limit (`passes::check_square_loop`): refused where llvmpipe would
-/// drop the rest of the window (the tree is the default and has no such
-/// loop).
+/// drop the rest of the window (the tree has no such loop).
 fn check_pixel_loop(ctx: &Context, max_radius_px: f32, width: u32, height: u32) -> Result<()> {
     let r = widest_window_px(max_radius_px, width, height) as u64;
     check_square_loop(
         ctx,
         r,
         "the fast gather's pixel loop over windows",
-        "use --fast-gather tree (the default)",
+        "use --fast-gather tree, the same rule by blocks (or the default two-field gather)",
     )
 }
 

@@ -127,7 +127,7 @@ impl ComputeRaster {
     }
 
     /// Records one raster pass as pass `name`: `count` splats of `splats`
-    /// through `push` (the sprite path's, unjittered, for a target of the
+    /// through `push` (the sprite path's, its jitter in the centre, for a target of the
     /// visibility's size) into `target`, cleared first, after `before`
     /// (the last access to its words: a resolve's read, or none), and the
     /// barrier that hands the words to the resolve's compute reads.

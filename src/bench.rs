@@ -586,12 +586,31 @@ fn pass_stats(runs: &[FrameTimings]) -> Vec<PassStats> {
 }
 
 impl BenchReport {
+    /// A cell's method as the table and the chart name it: with its K
+    /// where that is not the run's (accum's default, without `--ssaa`).
+    pub fn label(&self, c: &Cell) -> String {
+        match c.ssaa == self.ssaa {
+            true => c.method.clone(),
+            false => format!("{} (K = {})", c.method, c.ssaa),
+        }
+    }
+
     /// The summary table (Markdown): one row per cell.
     pub fn to_markdown(&self) -> String {
         let d = &self.device;
         let mut s = format!(
-            "Device: {} ({} {}, Vulkan {}); K = {}, {} runs after {} warm-up; milliseconds, median (min–max)\n\n",
-            d.name, d.driver, d.driver_info, d.api_version, self.ssaa, self.runs, self.warmup
+            "Device: {} ({} {}, Vulkan {}); K = {}{}, {} runs after {} warm-up; milliseconds, median (min–max)\n\n",
+            d.name,
+            d.driver,
+            d.driver_info,
+            d.api_version,
+            self.ssaa,
+            match self.cells.iter().any(|c| c.ssaa != self.ssaa) {
+                true => " (a method at its own default K names it)",
+                false => "",
+            },
+            self.runs,
+            self.warmup
         );
         let quality = self.quality_reference.is_some();
         s += "| model | points | resolution | method | lod px | splats | traversal | CoC px (points; background) | frame wall | GPU total | DOF passes | tree build | PNG encode |";
@@ -599,11 +618,7 @@ impl BenchReport {
         s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|";
         s += if quality { "---:|---:|\n" } else { "\n" };
         for c in &self.cells {
-            // A cell at another K than the run's (accum's default) says so.
-            let method = match c.ssaa == self.ssaa {
-                true => c.method.clone(),
-                false => format!("{} (K = {})", c.method, c.ssaa),
-            };
+            let method = self.label(c);
             let dof: f64 = c
                 .passes
                 .iter()

@@ -72,7 +72,7 @@ fn short_ms(ms: f64) -> String {
 pub fn write_chart(report: &BenchReport, path: &Path) -> Result<()> {
     register_font()?;
     let resolutions = unique(report.cells.iter().map(|c| (c.width, c.height)));
-    let methods = unique(report.cells.iter().map(|c| c.method.clone()));
+    let methods = unique(report.cells.iter().map(|c| report.label(c)));
     let models = unique(report.cells.iter().map(|c| c.model.clone()));
     if resolutions.is_empty() {
         return Err(Error::InvalidArgument("no cells to chart".into()));
@@ -130,7 +130,10 @@ pub fn write_chart(report: &BenchReport, path: &Path) -> Result<()> {
             }
             let group = models.len() as f64 + 1.0;
             for cell in &cells {
-                let i = methods.iter().position(|m| *m == cell.method).unwrap_or(0);
+                let i = methods
+                    .iter()
+                    .position(|m| *m == report.label(cell))
+                    .unwrap_or(0);
                 let k = models.iter().position(|m| *m == cell.model).unwrap_or(0);
                 let y = cell.frame_wall_ms.median.max(1e-3);
                 let (x0, y_top) = chart.backend_coord(&(i as f64, y));

@@ -254,6 +254,73 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
     assert_eq!(std::fs::read_to_string(&csv2).unwrap(), text);
 }
 
+/// Without `--ssaa` each method takes its default K: accum with at least
+/// the raster's K² lens positions 1, the others the raster's (3 on the
+/// compute raster); the report's K is theirs, and the table and chart name
+/// a cell at another K.
+#[test]
+fn bench_without_ssaa_takes_each_methods_default_k() {
+    let dir = scratch("bench-default-k");
+    let (json, chart) = (dir.join("b.json"), dir.join("b.png"));
+    let o = pointlens(&[
+        "bench",
+        "--width",
+        "24",
+        "--height",
+        "18",
+        "--methods",
+        "pinhole,accum16,accum4",
+        "--models",
+        "bunny",
+        "--runs",
+        "1",
+        "--warmup",
+        "0",
+        "--raster",
+        "compute",
+        "--device",
+        "llvmpipe",
+        "--validate",
+        "--json",
+        json.to_str().unwrap(),
+        "--chart",
+        chart.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["ssaa"], 3);
+    let k: Vec<(String, u64)> = report["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            (
+                c["method"].as_str().unwrap().to_string(),
+                c["ssaa"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        k,
+        [
+            ("pinhole".to_string(), 3),
+            ("accum16".to_string(), 1),
+            ("accum4".to_string(), 3)
+        ]
+    );
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        table.contains("K = 3 (a method at its own default K names it)"),
+        "{table}"
+    );
+    assert!(table.contains("| accum16 (K = 1) |"), "{table}");
+    assert!(
+        table.contains("| accum4 |") && table.contains("| pinhole |"),
+        "{table}"
+    );
+    assert!(read_image(&chart).is_ok());
+}
+
 #[test]
 fn bench_rejects_bad_input_with_one_line_and_writes_nothing() {
     let dir = scratch("bench-errors");

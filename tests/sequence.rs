@@ -619,6 +619,7 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
     };
     let methods = [
         Method::Pinhole,
+        Method::Fast(Default::default()),
         Method::paper_fast(Default::default(), Default::default()),
         rdb(RdbAtomics::Int64),
         rdb(RdbAtomics::Int32),

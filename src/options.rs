@@ -128,7 +128,7 @@ impl FastOptions {
 
     /// The one check of the options: the rule's weights and window are not
     /// the two-field gather's, which would ignore them.
-    pub fn check(self) -> Result<FastOptions> {
+    pub fn check(self) -> Result<()> {
         let fields = self.gather == FastGather::Fields;
         if fields && (self.weights != FastWeights::Area || self.window != GatherWindow::Tiles) {
             return Err(Error::InvalidArgument(
@@ -138,7 +138,7 @@ impl FastOptions {
                     .into(),
             ));
         }
-        Ok(self)
+        Ok(())
     }
 }
 

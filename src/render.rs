@@ -443,15 +443,10 @@ impl Renderer {
         self.raster = raster;
     }
 
-    /// The raster of a frame of `options`: `auto` is the compute raster
-    /// where the device has 64-bit buffer atomics, except that a limit on
-    /// the samples per pass asks for the sprite path's plans (the compute
-    /// raster takes every sample in one pass).
-    fn frame_raster(&self, options: &RenderOptions) -> Result<Raster> {
-        self.raster_with(options.samples_per_pass)
-    }
-
-    /// The raster of a frame with `samples_per_pass` (see `frame_raster`).
+    /// The raster of a frame with `samples_per_pass`: `auto` is the
+    /// compute raster where the device has 64-bit buffer atomics, except
+    /// that a limit on the samples per pass asks for the sprite path's
+    /// plans (the compute raster takes every sample in one pass).
     fn raster_with(&self, samples_per_pass: Option<u32>) -> Result<Raster> {
         Ok(match (self.raster, samples_per_pass) {
             (Raster::Auto, Some(_)) => Raster::Sprites,
@@ -785,7 +780,7 @@ impl Renderer {
             width: windows.iter().map(|w| w.width).max().unwrap_or(0),
             height: windows.iter().map(|w| w.height).max().unwrap_or(0),
         };
-        let raster = self.frame_raster(options)?;
+        let raster = self.raster_with(options.samples_per_pass)?;
         let plan_view = RasterView {
             frame: FrameView {
                 window: largest,

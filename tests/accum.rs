@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{camera, cloud, root, with_gpu};
+use common::{camera, cloud, options, root, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
@@ -22,12 +22,8 @@ fn accum(
 ) -> LinearImage {
     let scene = renderer.upload(cloud, splat).unwrap();
     let options = RenderOptions {
-        camera: cam,
-        method: Method::accum(samples),
         ssaa,
-        samples_per_pass: None,
-        background: Vec3::ZERO,
-        lod: pointlens::options::Lod::default(),
+        ..options(cam, Method::accum(samples))
     };
     renderer.render(&scene, &options).unwrap().image
 }
@@ -192,12 +188,8 @@ fn at_one_sample_a_pixel_the_lens_positions_anti_alias_the_image() {
             let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
             let render = |method: Method, ssaa: u32| {
                 let options = RenderOptions {
-                    camera: cam,
-                    method,
                     ssaa,
-                    samples_per_pass: None,
-                    background: Vec3::ZERO,
-                    lod: pointlens::options::Lod::default(),
+                    ..options(cam, method)
                 };
                 renderer.render(&scene, &options).unwrap().image
             };

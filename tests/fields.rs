@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{options, root, with_gpu};
+use common::{differing, options, pass_count, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
 use pointlens::camera::Camera;
@@ -188,21 +188,9 @@ fn a_frame_in_tiles_is_the_whole_frame() {
             let options = options(camera, FIELDS);
             let a = whole.render(scene, &options).unwrap();
             let b = tiled.render(tiled_scene, &options).unwrap();
-            let tiles = b
-                .timings
-                .passes
-                .iter()
-                .find(|p| p.name == "output")
-                .map(|p| p.count);
-            assert_eq!(tiles, Some(9), "{name}: 3 × 3 tiles");
+            assert_eq!(pass_count(&b, "output"), 9, "{name}: 3 × 3 tiles");
             let db = psnr(&a.image, &b.image).unwrap();
-            let differing = a
-                .image
-                .pixels
-                .iter()
-                .zip(&b.image.pixels)
-                .filter(|(x, y)| x != y)
-                .count();
+            let differing = differing(&a.image, &b.image);
             eprintln!(
                 "{name}: guard {} px, tiled vs whole {db:.2} dB, {differing} pixels differ",
                 a.guard

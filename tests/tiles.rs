@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::{pointlens, root, scratch, with_gpu};
+use common::{differing, pass_count, pointlens, root, scratch, with_gpu};
 use glam::Vec3;
 use pointlens::camera::{Camera, CameraSpec};
 use pointlens::image_io::{read_image, write_image, LinearImage};
@@ -73,12 +73,7 @@ fn render(renderer: &Renderer, scene: &Scene, options: &RenderOptions) -> Linear
 /// and their difference (×4) beside each other in a scratch folder, kept.
 fn assert_same_frame(name: &str, whole: &LinearImage, tiled: &LinearImage, min_db: f64) {
     let db = psnr(whole, tiled).unwrap();
-    let differing = whole
-        .pixels
-        .iter()
-        .zip(&tiled.pixels)
-        .filter(|(a, b)| a != b)
-        .count();
+    let differing = differing(whole, tiled);
     eprintln!(
         "{name}: tiled vs whole {db:.2} dB, {differing} of {} pixels differ",
         whole.pixels.len()
@@ -148,13 +143,11 @@ fn every_method_renders_the_same_frame_in_tiles() {
                 );
             }
             // The tiles' timings add up: 5 × 3 tiles drew a G-buffer each.
-            let frames = tiled
-                .timings
-                .passes
-                .iter()
-                .find(|p| p.name == "output")
-                .map(|p| p.count);
-            assert_eq!(frames, Some(15), "{name}: one output pass per tile");
+            assert_eq!(
+                pass_count(&tiled, "output"),
+                15,
+                "{name}: one output pass per tile"
+            );
             assert_same_frame(name, &whole.image, &tiled.image, floor);
         }
     });

@@ -740,3 +740,155 @@ fn one() -> u32 {
 fn square() -> String {
     "square".into()
 }
+
+/// What `pointlens bench` is asked, before the device's default matrix
+/// fills in what is not given (None).
+#[derive(Debug, Clone, Default)]
+pub struct BenchRequest {
+    /// Comma-separated methods (`BenchMethod::parse_list`).
+    pub methods: Option<String>,
+    /// Comma-separated models (`BenchModel::parse_list`).
+    pub models: Option<String>,
+    /// One resolution instead of the matrix's.
+    pub size: Option<(u32, u32)>,
+    /// Points of the synthetic model.
+    pub points: usize,
+    pub runs: Option<u32>,
+    pub warmup: Option<u32>,
+    pub ssaa: Option<u32>,
+    pub samples_per_pass: Option<u32>,
+    pub raster: Option<Raster>,
+    pub splat_shape: Option<SplatShape>,
+    pub quality: bool,
+    pub lod_px: Vec<f32>,
+    /// The bundled clouds' folder (default: ./data, else the source
+    /// tree's).
+    pub data_dir: Option<PathBuf>,
+}
+
+/// Runs the matrix `request` describes on the device `device`, the
+/// device's default matrix where it says nothing (said on stderr unless
+/// `quiet`), with a progress bar over the frames.
+pub fn measure(
+    request: &BenchRequest,
+    device: &crate::vk::ContextOptions,
+    quiet: bool,
+) -> Result<BenchReport> {
+    let ctx = Context::new(device)?;
+    let default = DefaultMatrix::for_device(ctx.info.device_type);
+    let r = request;
+    let chosen = r.methods.is_none() && r.models.is_none() && r.size.is_none() && r.runs.is_none();
+    if chosen && !quiet {
+        eprintln!(
+            "bench: no matrix given; for {} ({:?}): {} (choose with --methods, --models, --width/--height, --runs)",
+            ctx.info.describe(),
+            ctx.info.device_type,
+            default.describe()
+        );
+    }
+    let invalid = |msg: String| Err(Error::InvalidArgument(msg));
+    let methods = BenchMethod::parse_list(r.methods.as_deref().unwrap_or(default.methods))?;
+    let models = BenchModel::parse_list(r.models.as_deref().unwrap_or(default.models))?;
+    if r.points == 0 && models.contains(&BenchModel::Synthetic) {
+        return invalid("--points must be at least 1 for the synthetic model".into());
+    }
+    let resolutions = match r.size {
+        Some((0, _)) | Some((_, 0)) => {
+            return invalid("--width and --height must be at least 1".into())
+        }
+        Some(size) => vec![size],
+        None => default.resolutions.clone(),
+    };
+    for model in &models {
+        if let BenchModel::File(p) = model {
+            if !p.is_file() {
+                return invalid(format!("--models: {}: no such file", p.display()));
+            }
+        }
+    }
+    let data_dir = match &r.data_dir {
+        Some(d) => d.clone(),
+        None if Path::new("data/bunny_colored.ply").is_file() => PathBuf::from("data"),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("data"),
+    };
+    let options = BenchOptions {
+        methods,
+        models,
+        resolutions,
+        points: r.points,
+        runs: r.runs.unwrap_or(default.runs),
+        warmup: r.warmup.unwrap_or(default.warmup),
+        ssaa: r.ssaa,
+        samples_per_pass: r.samples_per_pass,
+        raster: r.raster.unwrap_or_default(),
+        splat_shape: r.splat_shape.unwrap_or_default(),
+        quality: r.quality,
+        lod_px: r.lod_px.clone(),
+        data_dir,
+    };
+    let bar = crate::console::progress(
+        frame_count(&options),
+        "{bar:30} {pos}/{len} frames, {elapsed} {msg}",
+        quiet,
+    );
+    let report = run(&ctx, &options, &mut |done, _, what| {
+        bar.set_position(done);
+        bar.set_message(what.to_string());
+    });
+    bar.finish_and_clear();
+    report
+}
+
+impl BenchReport {
+    /// A report written by `bench --json` (on this or another machine).
+    pub fn read_json(path: &Path) -> Result<BenchReport> {
+        let within =
+            |e: String| Error::InvalidArgument(format!("--from-json {}: {e}", path.display()));
+        let text = std::fs::read_to_string(path).map_err(|e| within(e.to_string()))?;
+        serde_json::from_str(&text).map_err(|e| within(format!("not a bench report: {e}")))
+    }
+}
+
+/// Where `pointlens bench` writes its report besides the table on stdout.
+#[derive(Debug, Clone, Default)]
+pub struct BenchOutputs {
+    /// Every measurement as JSON (`--json`).
+    pub json: Option<PathBuf>,
+    /// One row per cell and measure (`--csv`).
+    pub csv: Option<PathBuf>,
+    /// The median frame times as a bar chart, PNG (`--chart`).
+    pub chart: Option<PathBuf>,
+}
+
+impl BenchOutputs {
+    /// Checks, before anything is measured, that each file can be
+    /// written: its folder exists, and the chart is named .png.
+    pub fn check(&self) -> Result<()> {
+        for (path, flag) in [(&self.json, "--json"), (&self.csv, "--csv")] {
+            if let Some(p) = path {
+                crate::image_io::check_parent_dir(p, flag)?;
+            }
+        }
+        if let Some(p) = &self.chart {
+            crate::image_io::check_parent_dir(p, "--chart")?;
+            crate::image_io::check_png_path(p).map_err(|e| e.within("--chart"))?;
+        }
+        Ok(())
+    }
+
+    /// Writes `report` to each file asked for (atomically).
+    pub fn write(&self, report: &BenchReport) -> Result<()> {
+        if let Some(path) = &self.json {
+            let text = serde_json::to_string_pretty(report)
+                .map_err(|e| Error::InvalidArgument(format!("--json: {e}")))?;
+            crate::image_io::write_text_atomically(path, &text)?;
+        }
+        if let Some(path) = &self.csv {
+            crate::image_io::write_text_atomically(path, &report.to_csv())?;
+        }
+        if let Some(path) = &self.chart {
+            crate::chart::write_chart(report, path)?;
+        }
+        Ok(())
+    }
+}

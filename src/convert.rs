@@ -24,7 +24,7 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Seek, SeekFrom, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec3, IVec3};
 use las::point::Format;
@@ -483,6 +483,22 @@ pub struct Converted {
     pub nodes: usize,
     pub levels: i32,
     pub bytes: u64,
+}
+
+impl Converted {
+    /// What `pointlens convert` prints of the file it wrote at `output`
+    /// in `elapsed`.
+    pub fn summary(&self, output: &Path, elapsed: std::time::Duration) -> String {
+        format!(
+            "{}: {} points in {} nodes on {} levels, {:.1} MB, {:.2} s",
+            output.display(),
+            self.points,
+            self.nodes,
+            self.levels,
+            self.bytes as f64 / 1e6,
+            elapsed.as_secs_f64()
+        )
+    }
 }
 
 /// Writes `records` as a COPC file at `output` (through a temporary file
@@ -2037,4 +2053,100 @@ mod tests {
             assert_eq!(got, expected);
         }
     }
+}
+
+/// What `pointlens convert` is asked: a cloud to write as COPC.
+#[derive(Debug, Clone)]
+pub struct ConvertOptions {
+    /// PLY, LAS, LAZ or COPC.
+    pub input: PathBuf,
+    /// The COPC file, `.copc.laz`, replaced atomically.
+    pub output: PathBuf,
+    /// Memory for a PLY file read whole, MiB (`--memory-mb`).
+    pub memory_mb: u64,
+    /// Threads that compress (the file is the same on any number).
+    pub threads: usize,
+    /// Points of one part of the out-of-core sort.
+    pub part_points: u64,
+}
+
+impl ConvertOptions {
+    /// `input` to `output` with the machine's threads and
+    /// [`PART_POINTS`]; tests choose them through the environment
+    /// (`POINTLENS_CONVERT_THREADS`, `POINTLENS_CONVERT_PART_POINTS`) to
+    /// split a small file into many parts.
+    pub fn new(input: &Path, output: &Path, memory_mb: u64) -> ConvertOptions {
+        let env = |name: &str| std::env::var(name).ok();
+        ConvertOptions {
+            input: input.to_path_buf(),
+            output: output.to_path_buf(),
+            memory_mb,
+            threads: env("POINTLENS_CONVERT_THREADS")
+                .and_then(|v| v.parse::<usize>().ok())
+                .unwrap_or_else(crate::available_threads)
+                .max(1),
+            part_points: env("POINTLENS_CONVERT_PART_POINTS")
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(PART_POINTS),
+        }
+    }
+}
+
+/// `pointlens convert`: checks the names (a `.copc.laz` output in an
+/// existing folder, not the input, which holds no 3D Gaussians), makes
+/// SIGINT and SIGTERM remove the parts in writing, and converts:
+/// a LAS, LAZ or binary PLY file streamed, any other PLY read whole within
+/// `memory_mb` (`progress(done, total)` follows that reading).
+pub fn convert_file(
+    options: &ConvertOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Converted> {
+    let (input, output) = (&options.input, &options.output);
+    let invalid = |msg: String| Err(Error::InvalidArgument(msg));
+    if !output
+        .to_string_lossy()
+        .to_lowercase()
+        .ends_with(".copc.laz")
+    {
+        return invalid(format!(
+            "{}: convert writes COPC: name the output .copc.laz",
+            output.display()
+        ));
+    }
+    crate::image_io::check_parent_dir(output, "-o")?;
+    if input.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
+        return invalid(format!(
+            "{}: the output would replace the input",
+            output.display()
+        ));
+    }
+    if crate::input::kind_of(input) == crate::input::InputKind::Gaussians {
+        return invalid(format!(
+            "{}: it holds 3D Gaussians, which a COPC file of points cannot hold",
+            input.display()
+        ));
+    }
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    crate::job::watch_signals(false, stop)?;
+    let (threads, part_points) = (options.threads, options.part_points);
+    if crate::input::is_las(input) {
+        // Checked as `render` checks it first (one line on a bad file).
+        crate::input::las::check_las(input)?;
+        return convert_las(input, output, threads, part_points);
+    }
+    // A binary PLY file streams; an ASCII one, a pipe, or a file the
+    // direct reader declines is read whole.
+    if let Some(done) = convert_ply(input, output, threads, part_points)? {
+        return Ok(done);
+    }
+    // Perhaps by the general reader, which names what is wrong with the
+    // file.
+    crate::input::check_whole_read_fits(input, options.memory_mb, true, |_| {
+        "convert streams only a regular binary PLY file whose vertices are all \
+             well-formed; this one it must read whole"
+            .into()
+    })?;
+    let cloud = crate::input::load_cloud(input, None, progress)?;
+    let records = Records::of_cloud(&cloud, input)?;
+    write_copc(&records, output, threads)
 }

@@ -27,19 +27,18 @@ use glam::{DVec3, Vec3};
 
 use crate::camera::{self, Camera, CameraSpec, Coordinates};
 use crate::cloud::PointCloud;
-use crate::color::{ColorMode, ColorRanges};
 use crate::error::{Error, Result};
 use crate::gaussian_render::{GaussianRenderer, GpuGaussians};
 use crate::image_io::{
     check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_image,
     write_png_rgba, write_text_atomically, ExrChannel, LinearImage,
 };
-use crate::input::copc::{CopcClouds, NodeEntry};
 use crate::options::{check_lod, Lod, Method};
-use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene, SplatSize};
+use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene};
 use crate::report::FrameReport;
+use crate::scene::{self, HostScene, SceneKind, SceneSpec, Scenes};
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
-use crate::tree::Widening;
+use crate::vk::{Context, ContextOptions};
 
 /// What is rendered: one image, or a sequence of numbered ones.
 #[derive(Debug, Clone)]
@@ -60,6 +59,19 @@ impl Shot {
             Shot::Motion(m) => m.frames(),
             Shot::Path { path, .. } => path.frames(),
         }
+    }
+
+    /// The shot of the flags: `--path FILE` (its keyframes read), else
+    /// `--frames N` with its motion, else one image.
+    pub fn of(path: Option<&Path>, motion: Option<Motion>) -> Result<Shot> {
+        Ok(match (path, motion) {
+            (Some(file), _) => Shot::Path {
+                file: file.to_path_buf(),
+                path: CameraPath::from_json_file(file)?,
+            },
+            (None, Some(motion)) => Shot::Motion(motion),
+            (None, None) => Shot::Single,
+        })
     }
 
     /// Whether the shot numbers its frames (any but [`Shot::Single`]).
@@ -155,6 +167,13 @@ pub enum JobEvent<'a> {
     /// A frame's camera, as it will be rendered (focus resolved), in the
     /// job's coordinates: before the frame renders.
     Camera { number: u32, spec: &'a CameraSpec },
+    /// The reading of a file read whole: `done` of `total` points.
+    Loading { done: u64, total: u64 },
+    /// The scene is on the device and `frames` frames follow.
+    Planned { frames: usize },
+    /// Something the user should know: a frame that shows nothing of the
+    /// scene, or how many did.
+    Warning(&'a str),
     /// A frame written.
     Written {
         number: u32,
@@ -193,6 +212,11 @@ impl RenderJob {
     /// of every frame's file and of the timings file, EXR passes (EXR only)
     /// and the level of detail.
     pub fn new(spec: JobSpec) -> Result<RenderJob> {
+        // The fast method's options, checked before any cloud is read
+        // (the frame checks them again).
+        if let Method::Fast(fast) = spec.method {
+            fast.check()?;
+        }
         check_output_path(&spec.output)?;
         if let Shot::Motion(motion) = &spec.shot {
             motion.check()?;
@@ -376,6 +400,61 @@ impl RenderJob {
         })
     }
 
+    /// The whole job on the scene `scene` describes: its flags checked
+    /// against its kind ([`scene::check_flags`]), SIGINT and SIGTERM
+    /// watched ([`watch_signals`]), the file read, every frame's camera
+    /// planned, the device `device` opened and the scene uploaded, the
+    /// frames rendered and written in order ([`scene::DeviceScene::render_frame`]),
+    /// the timings written and the validation layer's count checked.
+    /// `events` is told the reading's progress, the frames to come, each
+    /// frame's camera and file, and warnings (a frame that shows nothing
+    /// of the scene).
+    pub fn run(
+        &self,
+        scene: &SceneSpec,
+        device: &ContextOptions,
+        events: &mut Events<'_>,
+    ) -> Result<Outcome> {
+        let kind = crate::input::kind_of(&scene.input);
+        scene::check_flags(kind, &self.spec, scene)?;
+        if kind == SceneKind::Gaussians {
+            self.gaussian_lens()?;
+        }
+        // SIGINT or SIGTERM ends a sequence after the frame being rendered
+        // (its file complete); a second one, or one during a single image,
+        // ends the process at once, removing the file being written.
+        let stop = Arc::new(AtomicBool::new(false));
+        watch_signals(self.is_sequence(), stop.clone())?;
+        let t_load = Instant::now();
+        let host = HostScene::open(scene, &mut |done, total| {
+            // Progress only: an observer's error waits for the next event.
+            let _ = events(JobEvent::Loading { done, total });
+        })?;
+        let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+        let plan = self.plan(host.framing())?;
+        if plan.frames.is_empty() {
+            log::warn!(
+                "nothing to render: the {} frames' files exist",
+                plan.skipped
+            );
+            return Ok(Outcome::default());
+        }
+        let ctx = Context::new(device)?;
+        log::info!("device: {}", ctx.info.describe());
+        let on_device = host.upload(&ctx, scene)?;
+        events(JobEvent::Planned {
+            frames: plan.frames.len(),
+        })?;
+        let outcome = self.run_frames(&ctx, &plan, &stop, events, |job, events| {
+            on_device.render_frame(self, job, &plan, load_ms, events)
+        })?;
+        self.write_timings(&outcome.reports)?;
+        // The device's scene goes before the validation layer's count.
+        drop(on_device);
+        ctx.check_validation()?;
+        Ok(outcome)
+    }
+
     /// Renders and writes the frames of `plan` in order on `renderer`:
     /// each frame's focus (`--focus-pixel`), its image and passes written
     /// atomically, its report (`load_ms`: the cloud's reading, for the
@@ -392,38 +471,53 @@ impl RenderJob {
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
     ) -> Result<Outcome> {
         self.run_frames(renderer.ctx(), plan, stop, events, |job, events| {
-            // A COPC file's scene is the nodes of the frame's camera: chosen
-            // again once `--focus-pixel` has moved the focus.
-            let scene = scenes.for_camera(renderer, &job.camera, self.spec.lod)?;
-            let options = self.frame_options(renderer, &scene, job.camera)?;
-            let scene = match options.camera == job.camera {
-                true => scene,
-                false => {
-                    // One scene on the device at a time.
-                    drop(scene);
-                    scenes.for_camera(renderer, &options.camera, self.spec.lod)?
-                }
-            };
-            let scene = &*scene;
-            let spec = options.camera.to_spec_in(plan.coordinates, plan.origin);
-            events(JobEvent::Camera {
-                number: job.number,
-                spec: &spec,
-            })?;
-            let measure = write_frame(renderer, scene, &options, &job.output, self.spec.written)?;
-            let report = FrameReport {
-                load_ms,
-                ..measure.into_report(renderer, &self.spec, &options, scene)
-            };
-            Ok((spec, report))
+            self.point_frame(renderer, scenes, job, plan, load_ms, events)
         })
+    }
+
+    /// Renders and writes frame `job` of a cloud's `scenes`, its camera
+    /// told to `events` first: the camera as rendered and the report.
+    pub fn point_frame(
+        &self,
+        renderer: &Renderer,
+        scenes: Scenes<'_>,
+        job: &FrameJob,
+        plan: &Plan,
+        load_ms: f64,
+        events: &mut Events<'_>,
+    ) -> Result<(CameraSpec, FrameReport)> {
+        // A COPC file's scene is the nodes of the frame's camera: chosen
+        // again once `--focus-pixel` has moved the focus.
+        let scene = scenes.for_camera(renderer, &job.camera, self.spec.lod)?;
+        let options = self.frame_options(renderer, &scene, job.camera)?;
+        let scene = match options.camera == job.camera {
+            true => scene,
+            false => {
+                // One scene on the device at a time.
+                drop(scene);
+                scenes.for_camera(renderer, &options.camera, self.spec.lod)?
+            }
+        };
+        let scene = &*scene;
+        let spec = options.camera.to_spec_in(plan.coordinates, plan.origin);
+        events(JobEvent::Camera {
+            number: job.number,
+            spec: &spec,
+        })?;
+        let measure = write_frame(renderer, scene, &options, &job.output, self.spec.written)?;
+        let report = FrameReport {
+            load_ms,
+            ..measure.into_report(renderer, &self.spec, &options, scene)
+        };
+        Ok((spec, report))
     }
 
     /// Runs `frame` on each frame of `plan` in order — it renders and
     /// writes the frame, tells `events` its camera first, and returns the
     /// camera as rendered and the report — and tells `events` each file
-    /// written. After the frame in flight when `stop` is set, the error
-    /// says how far the job got.
+    /// written, and a warning for frames that drew nothing of the scene
+    /// (the first by its number, the count at the end). After the frame in
+    /// flight when `stop` is set, the error says how far the job got.
     fn run_frames<F>(
         &self,
         ctx: &crate::vk::Context,
@@ -436,6 +530,7 @@ impl RenderJob {
         F: FnMut(&FrameJob, &mut Events<'_>) -> Result<(CameraSpec, FrameReport)>,
     {
         let mut outcome = Outcome::default();
+        let mut empty_frames = 0usize;
         for (done, job) in plan.frames.iter().enumerate() {
             if stop.load(Ordering::SeqCst) {
                 return Err(Error::Interrupted {
@@ -447,6 +542,12 @@ impl RenderJob {
             let started = Instant::now();
             let (spec, report) = frame(job, events)?;
             log_memory(ctx, job, started);
+            if report.drew_nothing() {
+                empty_frames += 1;
+                if empty_frames == 1 {
+                    events(JobEvent::Warning(&empty_frame_warning(job.number, &report)))?;
+                }
+            }
             events(JobEvent::Written {
                 number: job.number,
                 output: &job.output,
@@ -455,6 +556,12 @@ impl RenderJob {
             })?;
             outcome.cameras.push((job.number, spec));
             outcome.reports.push(report);
+        }
+        if empty_frames > 1 {
+            events(JobEvent::Warning(&format!(
+                "{empty_frames} of {} frames showed nothing of the scene",
+                plan.frames.len()
+            )))?;
         }
         Ok(outcome)
     }
@@ -467,29 +574,11 @@ impl RenderJob {
             .unwrap_or(crate::options::DEFAULT_SSAA_GAUSSIANS)
     }
 
-    /// Checks that the job asks for nothing a Gaussian scene cannot give
-    /// (docs/ARCHITECTURE.md, "3D Gaussian scenes"): `pinhole`, `layered`
-    /// (one sample a pixel) or `accum`, no `--focus-pixel`, no depth or
-    /// CoC pass, no transparent background. The lens points of its method
-    /// (the centre for `layered`).
+    /// The lens points of a Gaussian scene's method (the centre for
+    /// `pinhole` and `layered`, the lens samples of `accum`); any other
+    /// method is refused. (What else a Gaussian scene cannot do is in
+    /// [`scene::FLAGS`].)
     pub fn gaussian_lens(&self) -> Result<Vec<glam::Vec2>> {
-        let refuse = |what: &str| {
-            Err(Error::InvalidArgument(format!(
-                "a scene of 3D Gaussians renders without {what} in this version"
-            )))
-        };
-        if self.spec.focus_pixel.is_some() {
-            return refuse("--focus-pixel");
-        }
-        if self.spec.written.passes.z || self.spec.written.passes.coc {
-            return refuse("--passes (its depth and CoC are not one surface's)");
-        }
-        if self.spec.written.transparent {
-            return refuse("a transparent --background");
-        }
-        if matches!(self.spec.method, Method::Layered(_)) && self.gaussian_ssaa() > 1 {
-            return refuse("--ssaa above 1 with --method layered");
-        }
         match self.spec.method {
             Method::Pinhole | Method::Layered(_) => Ok(vec![glam::Vec2::ZERO]),
             Method::Accum(a) => {
@@ -503,68 +592,65 @@ impl RenderJob {
         }
     }
 
-    /// Renders the plan's frames of a Gaussian scene (`plan` made from its
-    /// centres), each image written as the point frames are, and `events`
-    /// told the same.
-    #[allow(clippy::too_many_arguments)]
-    pub fn render_gaussians(
+    /// Renders and writes frame `job` of a Gaussian scene (`plan` made
+    /// from its centres), its camera told to `events` first, as the point
+    /// frames are: the camera as rendered and the report.
+    pub fn gaussian_frame(
         &self,
         renderer: &GaussianRenderer,
         scene: &GpuGaussians,
+        job: &FrameJob,
         plan: &Plan,
-        stop: &AtomicBool,
         load_ms: f64,
-        events: &mut dyn FnMut(JobEvent) -> Result<()>,
-    ) -> Result<Outcome> {
+        events: &mut Events<'_>,
+    ) -> Result<(CameraSpec, FrameReport)> {
         let lens = self.gaussian_lens()?;
-        self.run_frames(renderer.ctx(), plan, stop, events, |job, events| {
-            let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
-            events(JobEvent::Camera {
-                number: job.number,
-                spec: &spec,
-            })?;
-            let frame = match self.spec.method {
-                Method::Layered(_) => {
-                    renderer.render_layered(scene, &job.camera, self.spec.background)?
-                }
-                _ => renderer.render(
-                    scene,
-                    &job.camera,
-                    &lens,
-                    self.gaussian_ssaa(),
-                    self.spec.background,
-                )?,
-            };
-            let t_encode = Instant::now();
-            write_image(&frame.image, &job.output)?;
-            let report = FrameReport {
-                load_ms,
-                encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
-                counts: vec![
-                    (
-                        crate::report::GAUSSIAN_TILE_ENTRIES.into(),
-                        frame.entries as u64,
-                    ),
-                    ("gaussians.retries".into(), frame.retries as u64),
-                ],
-                gaussians: true,
-                ..FrameReport::new(
-                    &renderer.ctx().info,
-                    match self.spec.method {
-                        // Its layers are depth layers, not --layers.
-                        Method::Layered(_) => "layered".into(),
-                        m => m.short_name(),
-                    },
-                    (job.camera.width, job.camera.height),
-                    self.gaussian_ssaa(),
-                    scene.len() as usize,
-                    frame.guard,
-                    &frame.timings,
-                    Default::default(),
-                )
-            };
-            Ok((spec, report))
-        })
+        let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
+        events(JobEvent::Camera {
+            number: job.number,
+            spec: &spec,
+        })?;
+        let frame = match self.spec.method {
+            Method::Layered(_) => {
+                renderer.render_layered(scene, &job.camera, self.spec.background)?
+            }
+            _ => renderer.render(
+                scene,
+                &job.camera,
+                &lens,
+                self.gaussian_ssaa(),
+                self.spec.background,
+            )?,
+        };
+        let t_encode = Instant::now();
+        write_image(&frame.image, &job.output)?;
+        let report = FrameReport {
+            load_ms,
+            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
+            counts: vec![
+                (
+                    crate::report::GAUSSIAN_TILE_ENTRIES.into(),
+                    frame.entries as u64,
+                ),
+                ("gaussians.retries".into(), frame.retries as u64),
+            ],
+            gaussians: true,
+            ..FrameReport::new(
+                &renderer.ctx().info,
+                match self.spec.method {
+                    // Its layers are depth layers, not --layers.
+                    Method::Layered(_) => "layered".into(),
+                    m => m.short_name(),
+                },
+                (job.camera.width, job.camera.height),
+                self.gaussian_ssaa(),
+                scene.len() as usize,
+                frame.guard,
+                &frame.timings,
+                Default::default(),
+            )
+        };
+        Ok((spec, report))
     }
 
     /// The options of one frame through `camera`, its focus on what
@@ -698,122 +784,6 @@ impl FrameMeasure {
     }
 }
 
-/// Where each frame's scene comes from.
-#[derive(Clone, Copy)]
-pub enum Scenes<'a> {
-    /// One scene for every frame (a cloud read whole).
-    One(&'a Scene),
-    /// A COPC file rendered by node: each frame's scene holds the nodes
-    /// its camera needs.
-    ByNode(&'a CopcScenes),
-}
-
-/// A frame's scene: the one scene, or the scene of a frame's nodes.
-pub enum SceneRef<'a> {
-    Borrowed(&'a Scene),
-    Shared(Arc<Scene>),
-}
-
-impl std::ops::Deref for SceneRef<'_> {
-    type Target = Scene;
-
-    fn deref(&self) -> &Scene {
-        match self {
-            SceneRef::Borrowed(s) => s,
-            SceneRef::Shared(s) => s,
-        }
-    }
-}
-
-impl<'a> Scenes<'a> {
-    /// The scene of a frame through `camera` at level of detail `lod`.
-    pub fn for_camera(
-        self,
-        renderer: &Renderer,
-        camera: &Camera,
-        lod: Lod,
-    ) -> Result<SceneRef<'a>> {
-        match self {
-            Scenes::One(scene) => Ok(SceneRef::Borrowed(scene)),
-            Scenes::ByNode(copc) => Ok(SceneRef::Shared(copc.scene_for(renderer, camera, lod)?)),
-        }
-    }
-}
-
-/// The scenes of a COPC file rendered by node
-/// ([`crate::input::copc::CopcClouds`]): a frame's nodes become a cloud,
-/// colored as the whole file is, and a splat hierarchy, kept while the
-/// next frame needs the same nodes.
-pub struct CopcScenes {
-    pub clouds: CopcClouds,
-    pub splat: SplatSize,
-    /// `--color` and the ranges it stretches over (the root node's).
-    pub color: Option<(ColorMode, ColorRanges)>,
-    last: std::sync::Mutex<Option<(Vec<NodeEntry>, Arc<Scene>)>>,
-}
-
-impl CopcScenes {
-    pub fn new(
-        clouds: CopcClouds,
-        splat: SplatSize,
-        color: Option<(ColorMode, ColorRanges)>,
-    ) -> CopcScenes {
-        CopcScenes {
-            clouds,
-            splat,
-            color,
-            last: std::sync::Mutex::new(None),
-        }
-    }
-
-    /// The scene of the nodes a frame through `camera` needs. The frustum
-    /// is widened by the background's CoC (what the blurring methods'
-    /// guard bands hold) and `--splat-px`.
-    pub fn scene_for(&self, renderer: &Renderer, camera: &Camera, lod: Lod) -> Result<Arc<Scene>> {
-        let widening = Widening {
-            background_coc_px: camera.coc_px(f32::INFINITY),
-            splat_px: match self.splat {
-                SplatSize::Pixels(p) => p,
-                _ => 0.0,
-            },
-        };
-        let decide = |centre, r, spacing| {
-            crate::tree::sphere_decision(camera, lod, widening, centre, r, spacing)
-        };
-        let selection = self.clouds.select(camera, lod, &decide)?;
-        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
-        let same = last.as_ref().filter(|(nodes, _)| *nodes == selection.nodes);
-        log::info!(
-            "COPC: {} nodes, {} of {} points{}{}",
-            selection.nodes.len(),
-            selection.points,
-            self.clouds.total_points(),
-            if selection.capped {
-                " (stopped by --point-budget)"
-            } else {
-                ""
-            },
-            if same.is_some() {
-                " (the last frame's)"
-            } else {
-                ""
-            }
-        );
-        if let Some((_, scene)) = same {
-            return Ok(scene.clone());
-        }
-        // The last frame's scene goes before this one is built.
-        *last = None;
-        let mut cloud = self.clouds.cloud(&selection.nodes)?;
-        if let Some((mode, ranges)) = &self.color {
-            crate::color::apply_over(&mut cloud, *mode, ranges)?;
-        }
-        let scene = Arc::new(renderer.upload(&cloud, self.splat)?);
-        *last = Some((selection.nodes, scene.clone()));
-        Ok(scene)
-    }
-}
-
 /// Renders one frame and writes it to `output` (atomically): PNG pixels
 /// encoded on the device (RGBA on the host when transparent), EXR with
 /// R, G, B, A and the passes asked for.
@@ -903,6 +873,19 @@ fn output_depths(g: &HostGBuffer, width: u32, height: u32) -> Vec<f32> {
         depth.extend(g.eye[row..row + width as usize].iter().map(|e| e[2]));
     }
     depth
+}
+
+/// The warning of the first frame that drew nothing of the scene.
+fn empty_frame_warning(number: u32, report: &FrameReport) -> String {
+    let what = match report.gaussians {
+        true => "no Gaussian",
+        false => "no point",
+    };
+    format!(
+        "frame {number}: {what} of the scene is in view, only the background: check the \
+         camera (a camera file's \"origin\" places it in the coordinates of the cloud it was \
+         made for)"
+    )
 }
 
 fn invalid(msg: impl Into<String>) -> Error {

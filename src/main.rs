@@ -1,41 +1,33 @@
-//! `pointlens`: the command-line front end, a thin layer over the library.
+//! `pointlens`: the command-line front end. It only parses: each command's
+//! flags become the library's options (`JobSpec` and `SceneSpec`,
+//! `BenchRequest`, `ConvertOptions`), and one call of the library does the
+//! work (docs/ARCHITECTURE.md, "The command line").
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::AtomicBool;
-use std::sync::Arc;
-use std::time::Instant;
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::Result;
 use clap::{Args, Parser, Subcommand};
-use glam::{DVec3, Vec3};
 
-use indicatif::{ProgressBar, ProgressStyle};
-use pointlens::bench::{self, BenchMethod, BenchModel, BenchOptions};
+use pointlens::bench::{self, BenchOutputs, BenchRequest};
 use pointlens::camera::{self, CameraSpec};
-use pointlens::chart;
-use pointlens::gaussian_render::GaussianRenderer;
-use pointlens::image_io::{
-    check_output_path, check_parent_dir, check_png_path, read_image, srgb_to_linear, write_image,
-    write_text_atomically,
+use pointlens::console::{self, emit, progress, RenderConsole};
+use pointlens::convert::{convert_file, ConvertOptions};
+use pointlens::flags::{
+    checked, checked_f32, frame_range, method_kind, parse_background, parse_dvec3, parse_passes,
+    parse_pixel, parse_vec3, Background,
 };
-use pointlens::input::copc::CopcClouds;
-use pointlens::input::load_cloud;
-use pointlens::job::{
-    self, CopcScenes, JobEvent, JobSpec, Outcome, Passes, Plan, RenderJob, Scenes, Shot, Written,
-};
-use pointlens::metrics;
+use pointlens::job::{JobSpec, Passes, RenderJob, Shot, Written};
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
     check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastGather, FastOptions,
     FastWeights, GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics,
     RdbMode, RdbOptions, SplatShape,
 };
-use pointlens::render::{Renderer, SplatSize};
-use pointlens::sequence::{CameraPath, FrameRange, Motion};
-use pointlens::vk::{Context, ContextOptions};
-use pointlens::PointCloud;
+use pointlens::scene::SceneSpec;
+use pointlens::sequence::{FrameRange, Motion};
+use pointlens::synth::SynthKind;
+use pointlens::vk::ContextOptions;
 
 #[derive(Parser)]
 #[command(
@@ -64,34 +56,13 @@ struct Cli {
     quiet: bool,
 }
 
-/// Worked examples of `render --help`.
-const RENDER_EXAMPLES: &str = "\
-Examples:
-  Depth of field, focused on what pixel 320,240 sees:
-    pointlens render data/bunny_colored.ply -o bunny.png --focus-pixel 320,240
-  A camera of a real lens (50 mm at f/2 on a 36 mm wide sensor, scene in metres):
-    pointlens render scan.ply -o out.png --focal-length-mm 50 --sensor-width-mm 36 \\
-        --f-number 2 --units-per-mm 0.001 --eye 0,0,2 --target 0,0,0 --focus-distance 2
-  A turntable of 120 frames with a focus pull, as numbered PNGs:
-    pointlens render data/bunny_colored.ply -o turn/bunny_%04d.png --frames 120 \\
-        --orbit 360 --focus-from 0.15 --focus-to 0.3
-  A camera path (JSON keyframes) to EXR with depth and CoC passes:
-    pointlens render scan.ply -o shot/f_%04d.exr --path path.json --passes z,coc
-  A LiDAR tile, camera in the file's coordinates (UTM metres):
-    pointlens render tile.laz -o tile.png --coordinates file \\
-        --eye 637000,851000,700 --target 637200,851200,400
-  One machine's share of a sequence on a render farm (frames 101-200, resumable):
-    pointlens render scene.ply -o shot/f_%04d.png --path path.json \\
-        --frame-range 101-200 --skip-existing
-See docs/SEQUENCES.md for sequences and render farms.";
-
 #[derive(Subcommand)]
 enum Command {
     /// Render a point cloud to a PNG (sRGB, 8-bit) or EXR (linear float)
     /// image, or a sequence of them.
     // Negative numbers are values (`--height -3` is a bad height, not an
     // unknown flag `-3`).
-    #[command(after_help = RENDER_EXAMPLES, allow_negative_numbers = true)]
+    #[command(after_help = console::RENDER_EXAMPLES, allow_negative_numbers = true)]
     Render(Box<RenderArgs>),
     /// Compare two images (PNG or EXR) of the same size: PSNR (dB) and max
     /// absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
@@ -300,38 +271,33 @@ struct RenderArgs {
     #[command(flatten)]
     gbuffer: GBufferArgs,
     /// Vertical field of view, degrees.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     fovy_deg: Option<f32>,
     /// Lens aperture radius, scene units.
-    #[arg(long, conflicts_with = "f_number", allow_negative_numbers = true)]
+    #[arg(long, conflicts_with = "f_number")]
     aperture_radius: Option<f32>,
     /// f-number N: aperture radius f / 2N (needs --focal-length-mm and
     /// --units-per-mm, or those fields of the camera file).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     f_number: Option<f32>,
     /// Focal length, mm: with a sensor size gives the field of view, with
     /// --f-number and --units-per-mm the aperture.
-    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    #[arg(long, value_name = "MM")]
     focal_length_mm: Option<f32>,
     /// Sensor height, mm, fitted to the image's height (Blender's vertical
     /// fit): vertical field of view 2·atan(h / 2f).
-    #[arg(
-        long,
-        value_name = "MM",
-        conflicts_with = "sensor_width_mm",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "MM", conflicts_with = "sensor_width_mm")]
     sensor_height_mm: Option<f32>,
     /// Sensor width, mm, fitted to the image's width (Blender's horizontal
     /// fit): vertical field of view 2·atan(w·H / (2f·W)).
-    #[arg(long, value_name = "MM", allow_negative_numbers = true)]
+    #[arg(long, value_name = "MM")]
     sensor_width_mm: Option<f32>,
     /// Scene units per millimetre (0.001 for a scene in metres), to take
     /// the focal length into scene units.
-    #[arg(long, value_name = "U", allow_negative_numbers = true)]
+    #[arg(long, value_name = "U")]
     units_per_mm: Option<f32>,
     /// Depth of the plane in focus along the view axis, scene units.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     focus_distance: Option<f32>,
     /// A sequence of N frames (numbered 1 to N) changed by --orbit,
     /// --focus-from/--focus-to, --aperture-from/--aperture-to.
@@ -339,37 +305,21 @@ struct RenderArgs {
     frames: Option<u32>,
     /// Turn the eye about the target by DEG over the sequence, around the
     /// up axis: frame i at DEG·(i−1)/N (360 loops without a repeated frame).
-    #[arg(
-        long,
-        value_name = "DEG",
-        requires = "frames",
-        conflicts_with = "path",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "DEG", requires = "frames", conflicts_with = "path")]
     orbit: Option<f64>,
     /// Focus pull: focus distance at frame 1 (linear to --focus-to at frame N).
     #[arg(long, value_name = "S", requires_all = ["frames", "focus_to"],
-          conflicts_with_all = ["focus_distance", "focus_pixel", "path"], allow_negative_numbers = true)]
+          conflicts_with_all = ["focus_distance", "focus_pixel", "path"])]
     focus_from: Option<f32>,
     /// Focus distance at frame N.
-    #[arg(
-        long,
-        value_name = "S",
-        requires = "focus_from",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "S", requires = "focus_from")]
     focus_to: Option<f32>,
     /// Aperture pull: aperture radius at frame 1 (linear to --aperture-to).
     #[arg(long, value_name = "R", requires_all = ["frames", "aperture_to"],
-          conflicts_with_all = ["aperture_radius", "f_number", "path"], allow_negative_numbers = true)]
+          conflicts_with_all = ["aperture_radius", "f_number", "path"])]
     aperture_from: Option<f32>,
     /// Aperture radius at frame N.
-    #[arg(
-        long,
-        value_name = "R",
-        requires = "aperture_from",
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "R", requires = "aperture_from")]
     aperture_to: Option<f32>,
     /// Eye-dome lighting: shading from depth alone (as Potree and
     /// CloudCompare), applied before the blur; STRENGTH 1 is Potree's
@@ -426,10 +376,10 @@ struct RenderArgs {
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     up: Option<[f32; 3]>,
     /// Every splat a square of side W in scene units, facing the camera.
-    #[arg(long, conflicts_with = "splat_px", allow_negative_numbers = true)]
+    #[arg(long, conflicts_with = "splat_px")]
     splat_size: Option<f32>,
     /// Every splat a P×P pixel square.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long)]
     splat_px: Option<f32>,
     /// Background color R,G,B, sRGB values in [0, 1] (default black), or
     /// `transparent`: alpha is the coverage (blurred with the image) and
@@ -444,12 +394,12 @@ struct RenderArgs {
     /// Level of detail: draw a node of the splat hierarchy as one splat
     /// when it projects to at most P pixels (0: every point, no culling;
     /// default 1).
-    #[arg(long, value_name = "P", allow_negative_numbers = true,
+    #[arg(long, value_name = "P",
           value_parser = checked_f32(check_lod_px))]
     lod_px: Option<f32>,
     /// Blur-aware detail: a node may also stop where it projects to at most
     /// F times its circle of confusion (detail finer than the blur).
-    #[arg(long, value_name = "F", allow_negative_numbers = true,
+    #[arg(long, value_name = "F",
           value_parser = checked_f32(check_lod_blur))]
     lod_blur: Option<f32>,
     /// Focus on the nearest surface seen at output pixel X,Y.
@@ -473,787 +423,6 @@ struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     timings_json: Option<PathBuf>,
 }
-
-/// A clap value parser for a number with the library's range check, so
-/// that the flag and the library give the same message.
-fn checked(
-    check: fn(u32) -> pointlens::Result<u32>,
-) -> impl Fn(&str) -> Result<u32, String> + Clone + Send + Sync + 'static {
-    move |s| {
-        let n = s
-            .trim()
-            .parse::<u32>()
-            .map_err(|_| format!("'{s}' is not a whole number"))?;
-        check(n).map_err(|e| e.to_string())
-    }
-}
-
-/// [`checked`] for a real number.
-fn checked_f32(
-    check: fn(f32) -> pointlens::Result<f32>,
-) -> impl Fn(&str) -> Result<f32, String> + Clone + Send + Sync + 'static {
-    move |s| {
-        let v = s
-            .trim()
-            .parse::<f32>()
-            .map_err(|_| format!("'{s}' is not a number"))?;
-        check(v).map_err(|e| e.to_string())
-    }
-}
-
-/// `--frame-range`: the library's parser.
-fn frame_range(s: &str) -> Result<FrameRange, String> {
-    FrameRange::parse(s).map_err(|e| e.to_string())
-}
-
-/// `--method`: the library's parser, whose error names the methods.
-fn method_kind(s: &str) -> Result<MethodKind, String> {
-    MethodKind::parse(s).map_err(|e| e.to_string())
-}
-
-/// `--background`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Background {
-    Transparent,
-    Srgb([f32; 3]),
-}
-
-fn parse_background(s: &str) -> Result<Background, String> {
-    if s.trim().eq_ignore_ascii_case("transparent") {
-        return Ok(Background::Transparent);
-    }
-    parse_vec3(s)
-        .map(Background::Srgb)
-        .map_err(|e| format!("{e} (or 'transparent')"))
-}
-
-/// `--passes`: the EXR channels beside R, G, B, A.
-fn parse_passes(s: &str) -> Result<Passes, String> {
-    let mut passes = Passes::default();
-    for name in s.split(',') {
-        match name.trim().to_ascii_lowercase().as_str() {
-            "z" => passes.z = true,
-            "coc" => passes.coc = true,
-            other => return Err(format!("unknown pass '{other}' (known: z, coc)")),
-        }
-    }
-    Ok(passes)
-}
-
-fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
-    parse_triple(s)
-}
-
-/// [`parse_vec3`] in double precision (positions in file coordinates).
-fn parse_dvec3(s: &str) -> Result<[f64; 3], String> {
-    parse_triple(s)
-}
-
-/// `X,Y,Z`: three finite numbers, each parsed as `T` itself.
-fn parse_triple<T: std::str::FromStr + Copy + Default + Into<f64>>(
-    s: &str,
-) -> Result<[T; 3], String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
-        return Err(format!("expected X,Y,Z, got '{s}'"));
-    }
-    let mut v = [T::default(); 3];
-    for (slot, p) in v.iter_mut().zip(parts) {
-        *slot = p
-            .trim()
-            .parse::<T>()
-            .ok()
-            .filter(|x| (*x).into().is_finite())
-            .ok_or_else(|| format!("'{p}' is not a finite number in '{s}'"))?;
-    }
-    Ok(v)
-}
-
-fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    match parts[..] {
-        [x, y] => match (x.trim().parse(), y.trim().parse()) {
-            (Ok(x), Ok(y)) => Ok([x, y]),
-            _ => Err(format!("expected pixel X,Y, got '{s}'")),
-        },
-        _ => Err(format!("expected pixel X,Y, got '{s}'")),
-    }
-}
-
-fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
-        Ok(cli) => cli,
-        Err(e) => {
-            use clap::error::ErrorKind;
-            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
-                let _ = e.print();
-                return ExitCode::SUCCESS;
-            }
-            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-                // `pointlens` alone: the help, and a failure status.
-                let _ = e.print();
-                return ExitCode::from(2);
-            }
-            // One line: clap's message up to its usage block, its lines
-            // joined (a list of missing arguments follows its first line).
-            let text = e.render().to_string();
-            let message: Vec<&str> = text
-                .lines()
-                .map(str::trim)
-                .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
-                .collect();
-            let message = match message.join(" ") {
-                m if m.is_empty() => "invalid arguments".to_string(),
-                m => m,
-            };
-            eprintln!("{message} (see 'pointlens --help')");
-            return ExitCode::from(2);
-        }
-    };
-    init_logging(cli.verbose, cli.quiet);
-    let quiet = cli.quiet;
-    let result = match cli.command {
-        _ if cli.list_devices => list_devices(),
-        Some(Command::Render(args)) => render(*args, quiet),
-        Some(Command::Compare { a, b, diff }) => compare(&a, &b, diff.as_deref()),
-        Some(Command::Info {
-            input,
-            origin,
-            memory,
-        }) => info(&input, origin, memory, quiet),
-        Some(Command::Bench(args)) => bench(*args, quiet),
-        Some(Command::Synth {
-            points,
-            gaussians,
-            output,
-        }) => match gaussians {
-            Some(n) => synth_gaussians(n, &output, quiet),
-            None => synth(points.unwrap_or(0), &output, quiet),
-        },
-        Some(Command::Convert {
-            input,
-            output,
-            memory,
-        }) => convert(&input, &output, memory, quiet),
-        None => Err(anyhow::anyhow!("no command given (see 'pointlens --help')")),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            // One line: the chain joined, innermost cause last, without the
-            // causes a message already quotes.
-            let mut msg = String::new();
-            for cause in e.chain().map(|c| c.to_string()) {
-                if !msg.contains(&cause) {
-                    if !msg.is_empty() {
-                        msg += ": ";
-                    }
-                    msg += &cause;
-                }
-            }
-            eprintln!("error: {msg}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-/// `print!` that does not panic when stdout is a closed pipe
-/// (`pointlens compare a b | head -1`): see [`emit`].
-macro_rules! out {
-    ($($arg:tt)*) => {
-        emit(&format!($($arg)*))
-    };
-}
-
-/// Writes `text` to stdout. A closed pipe is not a failure: the reader
-/// wanted no more, so the text is dropped and the command goes on (a render
-/// still writes its image); any other failure is an error.
-fn emit(text: &str) -> pointlens::Result<()> {
-    let mut stdout = std::io::stdout().lock();
-    match stdout
-        .write_all(text.as_bytes())
-        .and_then(|()| stdout.flush())
-    {
-        Ok(()) => Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(source) => Err(pointlens::Error::System {
-            what: "writing to standard output",
-            source,
-        }),
-    }
-}
-
-/// Logging through `log` to stderr: warnings by default, -v info, -vv
-/// debug, -q errors only; `RUST_LOG` wins when set.
-fn init_logging(verbose: u8, quiet: bool) {
-    let level = match (quiet, verbose) {
-        (true, _) => "error",
-        (false, 0) => "warn",
-        (false, 1) => "info",
-        (false, _) => "debug",
-    };
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
-        .format(|buf, record| {
-            let level = record.level().as_str().to_ascii_lowercase();
-            writeln!(buf, "pointlens: {level}: {}", record.args())
-        })
-        .init();
-}
-
-/// A progress bar on stderr (drawn only when stderr is a terminal), or
-/// none with `-q`.
-fn progress(len: u64, template: &str, quiet: bool) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    ProgressBar::new(len)
-        .with_style(ProgressStyle::with_template(template).expect("a valid template"))
-}
-
-fn list_devices() -> Result<()> {
-    let devices = Context::list_devices()?;
-    if devices.is_empty() {
-        bail!("the Vulkan loader reports no device");
-    }
-    for d in devices {
-        let mark = if d.default { "*" } else { " " };
-        let unusable = d
-            .unusable
-            .map(|u| format!(", unusable: {u}"))
-            .unwrap_or_default();
-        out!(
-            "{mark} {}: {} [{}, Vulkan {}, {} MiB device-local{unusable}]\n",
-            d.index,
-            d.description,
-            d.kind,
-            d.api_version,
-            d.heap_bytes >> 20
-        )?;
-    }
-    out!(
-        "(* the default; choose another with --device N, its number here, \
-         or --device NAME, any part of its name or driver)\n"
-    )?;
-    Ok(())
-}
-
-fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
-    for (path, flag) in [(&args.json, "--json"), (&args.csv, "--csv")] {
-        if let Some(p) = path {
-            check_parent_dir(p, flag)?;
-        }
-    }
-    if let Some(p) = &args.chart {
-        check_parent_dir(p, "--chart")?;
-        check_png_path(p).context("--chart")?;
-    }
-    let report = match &args.from_json {
-        Some(path) => read_bench_report(path)?,
-        None => measure(&args, quiet)?,
-    };
-    out!("{}", report.to_markdown())?;
-    if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&report)?;
-        write_text_atomically(path, &text)?;
-    }
-    if let Some(path) = &args.csv {
-        write_text_atomically(path, &report.to_csv())?;
-    }
-    if let Some(path) = &args.chart {
-        chart::write_chart(&report, path)?;
-    }
-    Ok(())
-}
-
-fn read_bench_report(path: &Path) -> Result<bench::BenchReport> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("--from-json {}", path.display()))?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("--from-json {}: not a bench report", path.display()))
-}
-
-/// Runs the matrix the flags describe.
-fn measure(args: &BenchArgs, quiet: bool) -> Result<bench::BenchReport> {
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    let default = bench::DefaultMatrix::for_device(ctx.info.device_type);
-    let chosen = args.methods.is_none()
-        && args.models.is_none()
-        && args.width.is_none()
-        && args.runs.is_none();
-    if chosen && !quiet {
-        eprintln!(
-            "bench: no matrix given; for {} ({:?}): {} (choose with --methods, --models, --width/--height, --runs)",
-            ctx.info.describe(),
-            ctx.info.device_type,
-            default.describe()
-        );
-    }
-    let methods = BenchMethod::parse_list(args.methods.as_deref().unwrap_or(default.methods))?;
-    let models = BenchModel::parse_list(args.models.as_deref().unwrap_or(default.models))?;
-    if args.points == 0 && models.contains(&BenchModel::Synthetic) {
-        bail!("--points must be at least 1 for the synthetic model");
-    }
-    let resolutions = match (args.width, args.height) {
-        (Some(0), _) | (_, Some(0)) => bail!("--width and --height must be at least 1"),
-        (Some(w), Some(h)) => vec![(w, h)],
-        _ => default.resolutions.clone(),
-    };
-    for model in &models {
-        if let BenchModel::File(p) = model {
-            if !p.is_file() {
-                bail!("--models: {}: no such file", p.display());
-            }
-        }
-    }
-    let data_dir = match &args.data {
-        Some(d) => d.clone(),
-        None if Path::new("data/bunny_colored.ply").is_file() => PathBuf::from("data"),
-        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("data"),
-    };
-    let options = BenchOptions {
-        methods,
-        models,
-        resolutions,
-        points: args.points,
-        runs: args.runs.unwrap_or(default.runs),
-        warmup: args.warmup.unwrap_or(default.warmup),
-        ssaa: args.ssaa,
-        samples_per_pass: args.gbuffer.samples_per_pass,
-        raster: args.gbuffer.raster.unwrap_or_default(),
-        splat_shape: args.gbuffer.splat_shape.unwrap_or_default(),
-        quality: args.quality,
-        lod_px: args
-            .lod_px
-            .split(',')
-            .map(|p| {
-                let v = p
-                    .trim()
-                    .parse::<f32>()
-                    .map_err(|_| anyhow::anyhow!("--lod-px: '{p}' is not a number"))?;
-                Ok(check_lod_px(v)?)
-            })
-            .collect::<anyhow::Result<Vec<f32>>>()?,
-        data_dir,
-    };
-    let bar = progress(
-        bench::frame_count(&options),
-        "{bar:30} {pos}/{len} frames, {elapsed} {msg}",
-        quiet,
-    );
-    let report = bench::run(&ctx, &options, &mut |done, _, what| {
-        bar.set_position(done);
-        bar.set_message(what.to_string());
-    });
-    bar.finish_and_clear();
-    Ok(report?)
-}
-
-/// Loads a cloud of any format, with a progress bar on stderr while a
-/// LAS/LAZ file streams in (drawn only when stderr is a terminal).
-fn load(input: &Path, origin: Option<[f64; 3]>, quiet: bool) -> Result<PointCloud> {
-    let bar = progress(0, "loading {bar:30} {pos}/{len} points, {elapsed}", quiet);
-    let started = Instant::now();
-    let cloud = load_cloud(input, origin.map(DVec3::from_array), &mut |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
-    });
-    bar.finish_and_clear();
-    let cloud = cloud?;
-    log::info!(
-        "{}: {} points loaded in {:.2} s",
-        input.display(),
-        cloud.len(),
-        started.elapsed().as_secs_f64()
-    );
-    Ok(cloud)
-}
-
-fn info(input: &Path, origin: Option<[f64; 3]>, memory: MemoryArgs, quiet: bool) -> Result<()> {
-    // `info` reads every point, COPC too.
-    let advice = match pointlens::input::copc::is_copc(input) {
-        true => |_: &Path| "render reads a COPC file by node, at any size".to_string(),
-        false => pointlens::input::convert_advice,
-    };
-    pointlens::input::check_whole_read_fits(input, memory.memory_mb, false, advice)?;
-    if pointlens::input::gaussians::is_gaussian_file(input) {
-        let scene = pointlens::input::gaussians::load_gaussians(input)?;
-        let (lo, hi) = scene.positions.iter().fold(
-            (
-                glam::Vec3::splat(f32::INFINITY),
-                glam::Vec3::splat(f32::NEG_INFINITY),
-            ),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
-        let v = |v: glam::Vec3| format!("{} {} {}", v.x, v.y, v.z);
-        out!(
-            "file: {}\ngaussians: {}\nsh_degree: {}\nbounds_min: {}\nbounds_max: {}\nextent: {}\n",
-            input.display(),
-            scene.len(),
-            scene.sh_degree,
-            v(lo),
-            v(hi),
-            v(hi - lo)
-        )?;
-        return Ok(());
-    }
-    let cloud = load(input, origin, quiet)?;
-    let (spacing, limited) =
-        pointlens::tree::spacing_summary(&cloud.positions, pointlens::available_threads());
-    out!("{}", cloud.info_text(input, spacing))?;
-    out!(
-        "isolated_points: {limited} (splats limited to {} times their neighbours' median spacing)\n",
-        pointlens::tree::ISOLATED_LIMIT
-    )?;
-    Ok(())
-}
-
-fn convert(input: &Path, output: &Path, memory: MemoryArgs, quiet: bool) -> Result<()> {
-    let name = output.to_string_lossy().to_lowercase();
-    if !name.ends_with(".copc.laz") {
-        bail!(
-            "{}: convert writes COPC: name the output .copc.laz",
-            output.display()
-        );
-    }
-    check_parent_dir(output, "-o")?;
-    if input.canonicalize().ok() == output.canonicalize().ok() && output.exists() {
-        bail!("{}: the output would replace the input", output.display());
-    }
-    if pointlens::input::gaussians::is_gaussian_file(input) {
-        bail!(
-            "{}: it holds 3D Gaussians, which a COPC file of points cannot hold",
-            input.display()
-        );
-    }
-    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
-    let t = Instant::now();
-    // Tests make parts small to split a small file into many, and choose
-    // the threads (the file is the same on any number).
-    let threads = std::env::var("POINTLENS_CONVERT_THREADS")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .unwrap_or_else(pointlens::available_threads)
-        .max(1);
-    let part_points = std::env::var("POINTLENS_CONVERT_PART_POINTS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(pointlens::convert::PART_POINTS);
-    let done = match pointlens::input::is_las(input) {
-        true => {
-            // Checked as `render` checks it first (one line on a bad file).
-            pointlens::input::las::check_las(input)?;
-            pointlens::convert::convert_las(input, output, threads, part_points)?
-        }
-        // A binary PLY file streams; an ASCII one, a pipe, or a file the
-        // direct reader declines is read whole.
-        false => match pointlens::convert::convert_ply(input, output, threads, part_points)? {
-            Some(done) => done,
-            None => {
-                // Perhaps by the general reader, which names what is wrong
-                // with the file.
-                pointlens::input::check_whole_read_fits(input, memory.memory_mb, true, |_| {
-                    "convert streams only a regular binary PLY file whose vertices are all \
-                         well-formed; this one it must read whole"
-                        .into()
-                })?;
-                let cloud = load(input, None, quiet)?;
-                let records = pointlens::convert::Records::of_cloud(&cloud, input)?;
-                pointlens::convert::write_copc(&records, output, threads)?
-            }
-        },
-    };
-    out!(
-        "{}: {} points in {} nodes on {} levels, {:.1} MB, {:.2} s\n",
-        output.display(),
-        done.points,
-        done.nodes,
-        done.levels,
-        done.bytes as f64 / 1e6,
-        t.elapsed().as_secs_f64()
-    )?;
-    Ok(())
-}
-
-/// `synth --gaussians N`.
-fn synth_gaussians(count: u64, output: &Path, quiet: bool) -> Result<()> {
-    if count == 0 {
-        bail!("--gaussians must be at least 1");
-    }
-    if !output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("ply"))
-    {
-        bail!("{}: Gaussians are written as .ply", output.display());
-    }
-    check_parent_dir(output, "-o")?;
-    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
-    let bar = progress(count, "{bar:30} {pos}/{len} Gaussians, {elapsed}", quiet);
-    let t = Instant::now();
-    let written =
-        pointlens::synth::write_gaussians(output, count, &mut |done| bar.set_position(done));
-    bar.finish_and_clear();
-    written?;
-    let bytes = std::fs::metadata(output).map_or(0, |m| m.len());
-    out!(
-        "{}: {count} Gaussians, {:.1} MB, {:.2} s\n",
-        output.display(),
-        bytes as f64 / 1e6,
-        t.elapsed().as_secs_f64()
-    )?;
-    Ok(())
-}
-
-fn synth(points: u64, output: &Path, quiet: bool) -> Result<()> {
-    if points == 0 {
-        bail!("--points must be at least 1");
-    }
-    check_parent_dir(output, "-o")?;
-    let need = pointlens::synth::least_file_bytes(output, points);
-    if let Some(free) = pointlens::synth::free_bytes(output) {
-        if need > free {
-            bail!(
-                "{}: {points} points need at least {:.1} GB, the disk has {:.1} GB free",
-                output.display(),
-                need as f64 / 1e9,
-                free as f64 / 1e9
-            );
-        }
-    }
-    // A signal removes the file in writing, as `render`'s do.
-    job::watch_signals(false, Arc::new(AtomicBool::new(false)))?;
-    let bar = progress(points, "{bar:30} {pos}/{len} points, {elapsed}", quiet);
-    let t = Instant::now();
-    let written = if pointlens::input::las::has_las_extension(output) {
-        pointlens::synth::write_las(output, points, &mut |done| bar.set_position(done))
-    } else {
-        pointlens::synth::write_ply(output, points, &mut |done| bar.set_position(done))
-    };
-    bar.finish_and_clear();
-    written?;
-    let bytes = std::fs::metadata(output).map_or(0, |m| m.len());
-    out!(
-        "{}: {points} points, {:.1} MB, {:.2} s\n",
-        output.display(),
-        bytes as f64 / 1e6,
-        t.elapsed().as_secs_f64()
-    )?;
-    Ok(())
-}
-
-fn compare(a: &Path, b: &Path, diff: Option<&Path>) -> Result<()> {
-    if let Some(d) = diff {
-        check_output_path(d)?;
-    }
-    let (ia, ib) = (read_image(a)?, read_image(b)?);
-    let psnr = metrics::psnr(&ia, &ib)?;
-    let ssim = metrics::ssim(&ia, &ib)?;
-    let max = metrics::max_abs_error(&ia, &ib)?;
-    if let Some(d) = diff {
-        let heat = metrics::difference_image(&ia, &ib, max.max(1.0 / 255.0))?;
-        write_image(&heat, d)?;
-    }
-    // Identical images: "psnr: inf" (Rust formats infinity so).
-    out!("psnr: {psnr:.4}\nssim: {ssim:.6}\nmax_abs_error: {max:.6}\n")?;
-    Ok(())
-}
-
-/// `pointlens render`: the flags as a [`JobSpec`], then the library's job
-/// (`pointlens::job`): checks, signals, the cloud, every frame's camera,
-/// the scene, the frames, the timings.
-fn render(args: RenderArgs, quiet: bool) -> Result<()> {
-    if pointlens::input::gaussians::is_gaussian_file(&args.input) {
-        return render_gaussians(args, quiet);
-    }
-    let shot = shot_of(&args)?;
-    let splat = splat_of(&args)?;
-    let job = RenderJob::new(job_spec(&args, shot)?)?;
-
-    // SIGINT or SIGTERM ends a sequence after the frame being rendered
-    // (its file complete); a second one, or one during a single image,
-    // ends the process at once, removing the file being written.
-    let stop = Arc::new(AtomicBool::new(false));
-    job::watch_signals(job.is_sequence(), stop.clone())?;
-
-    let t_load = Instant::now();
-    let (copc, cloud, ranges) = open_input(&args, quiet)?;
-    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
-    let plan = job.plan(&cloud)?;
-    if !has_frames(&plan) {
-        return Ok(());
-    }
-    let ctx = render_device(&args)?;
-    let mut renderer = Renderer::new(&ctx)?;
-    renderer.set_raster(args.gbuffer.raster.unwrap_or_default());
-    renderer.set_edl(args.edl);
-    renderer.set_tile_px(args.tile_px);
-    renderer.set_splat_shape(args.gbuffer.splat_shape.unwrap_or_default())?;
-    let frames = FramesArgs {
-        print_camera: args.print_camera,
-        timings: args.timings,
-        quiet,
-    };
-    // The GPU's scenes, dropped before the validation check below.
-    let (mut scene, mut by_node) = (None, None);
-    let scenes = match copc {
-        Some(clouds) => {
-            drop(cloud);
-            let color = args.color.map(|mode| (mode, ranges));
-            Scenes::ByNode(by_node.insert(CopcScenes::new(clouds, splat, color)))
-        }
-        None => {
-            // The hierarchy holds the points from its leaves on.
-            let one = scene.insert(renderer.upload_owned(cloud, splat)?);
-            Scenes::One(one)
-        }
-    };
-    let outcome = render_frames(&job, &renderer, scenes, &plan, load_ms, &stop, frames)?;
-    if args.print_camera && job.is_sequence() {
-        out!("{}\n", job::camera_path(&outcome).to_json())?;
-    }
-    job.write_timings(&outcome.reports)?;
-    drop(scene);
-    drop(by_node);
-    drop(renderer);
-    Ok(ctx.check_validation()?)
-}
-
-/// Whether `plan` has frames to render; when not (every file exists, with
-/// `--skip-existing`), says so.
-fn has_frames(plan: &Plan) -> bool {
-    if plan.frames.is_empty() {
-        log::warn!(
-            "nothing to render: the {} frames' files exist",
-            plan.skipped
-        );
-    }
-    !plan.frames.is_empty()
-}
-
-/// `render`'s device (`--device`, `--validate`), named in the log.
-fn render_device(args: &RenderArgs) -> Result<Arc<Context>> {
-    let ctx = Context::new(&ContextOptions::from_env(
-        args.validate,
-        args.device.clone(),
-    ))?;
-    log::info!("device: {}", ctx.info.describe());
-    Ok(ctx)
-}
-
-/// `render` of a scene of 3D Gaussians (docs/ARCHITECTURE.md, "3D
-/// Gaussian scenes"): the cameras framed on the Gaussians' centres, each
-/// frame rendered by [`GaussianRenderer`]; flags about points are refused.
-fn render_gaussians(args: RenderArgs, quiet: bool) -> Result<()> {
-    let point_flags = [
-        ("--splat-size", args.splat_size.is_some()),
-        ("--splat-px", args.splat_px.is_some()),
-        ("--color", args.color.is_some()),
-        ("--edl", args.edl.is_some()),
-        ("--lod-blur", args.lod_blur.is_some()),
-        ("--tile-px", args.tile_px.is_some()),
-        ("--origin", args.origin.is_some()),
-        (
-            "--samples-per-pass",
-            args.gbuffer.samples_per_pass.is_some(),
-        ),
-        ("--raster", args.gbuffer.raster.is_some()),
-        ("--lod-px", args.lod_px.is_some()),
-        ("--point-budget", args.point_budget.is_some()),
-        ("--splat-shape", args.gbuffer.splat_shape.is_some()),
-        ("--layers", args.layers.is_some()),
-    ];
-    if let Some((flag, _)) = point_flags.iter().find(|(_, given)| *given) {
-        bail!(
-            "{}: {flag} is about points, and the file holds 3D Gaussians",
-            args.input.display()
-        );
-    }
-    let shot = shot_of(&args)?;
-    let job = RenderJob::new(job_spec(&args, shot)?)?;
-    job.gaussian_lens()?;
-    let stop = Arc::new(AtomicBool::new(false));
-    job::watch_signals(job.is_sequence(), stop.clone())?;
-    pointlens::input::gaussians::check_fits(&args.input, args.memory.memory_mb)?;
-    let t_load = Instant::now();
-    let scene = pointlens::input::gaussians::load_gaussians(&args.input)?;
-    let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
-    // The cameras are framed on the centres.
-    let centres = PointCloud {
-        colors: vec![Vec3::ZERO; scene.positions.len()],
-        positions: scene.positions.clone(),
-        ..PointCloud::default()
-    };
-    let plan = job.plan(&centres)?;
-    drop(centres);
-    if !has_frames(&plan) {
-        return Ok(());
-    }
-    let ctx = render_device(&args)?;
-    let renderer = GaussianRenderer::new(&ctx)?;
-    let gpu = renderer.upload(&scene)?;
-    drop(scene);
-    let how = FramesArgs {
-        print_camera: args.print_camera,
-        timings: args.timings,
-        quiet,
-    };
-    let outcome = show_frames(&job, &plan, how, &mut |events| {
-        job.render_gaussians(&renderer, &gpu, &plan, &stop, load_ms, events)
-    })?;
-    if args.print_camera && job.is_sequence() {
-        out!("{}\n", job::camera_path(&outcome).to_json())?;
-    }
-    job.write_timings(&outcome.reports)?;
-    drop(gpu);
-    drop(renderer);
-    Ok(ctx.check_validation()?)
-}
-
-/// `render`'s input: a COPC file opened to be read by node, each frame
-/// the nodes it needs (with its root node's points as the cloud the
-/// cameras are framed on), or any other file read whole; colored by
-/// `--color` over the ranges returned (the whole cloud's, or the COPC root
-/// node's, for every frame).
-fn open_input(
-    args: &RenderArgs,
-    quiet: bool,
-) -> Result<(
-    Option<CopcClouds>,
-    PointCloud,
-    pointlens::color::ColorRanges,
-)> {
-    let copc = match pointlens::input::copc::is_copc(&args.input) {
-        true => Some(CopcClouds::open(
-            &args.input,
-            args.origin.map(DVec3::from_array),
-            args.point_budget
-                .unwrap_or(pointlens::input::copc::DEFAULT_POINT_BUDGET),
-            args.memory.memory_mb,
-        )?),
-        false => None,
-    };
-    let mut cloud = match &copc {
-        Some(copc) => copc.preview()?,
-        None => {
-            pointlens::input::check_whole_read_fits(
-                &args.input,
-                args.memory.memory_mb,
-                false,
-                pointlens::input::convert_advice,
-            )?;
-            load(&args.input, args.origin, quiet)?
-        }
-    };
-    let ranges = pointlens::color::ColorRanges::of(&cloud);
-    if let Some(mode) = args.color {
-        pointlens::color::apply_over(&mut cloud, mode, &ranges)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
-    }
-    Ok((copc, cloud, ranges))
-}
-
 /// How the G-buffer is rasterised: flags of `render` and `bench`.
 #[derive(clap::Args, Debug, Clone, Copy)]
 struct GBufferArgs {
@@ -1291,218 +460,227 @@ struct MemoryArgs {
     memory_mb: u64,
 }
 
-/// What `render` prints as the frames go.
-#[derive(Clone, Copy)]
-struct FramesArgs {
-    print_camera: bool,
-    timings: bool,
-    quiet: bool,
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // Help and version on stdout; a mistake in one line on stderr.
+        Err(e) => return ExitCode::from(console::show_parse_error(&e)),
+    };
+    console::init_logging(cli.verbose, cli.quiet);
+    let result = match cli.command {
+        _ if cli.list_devices => console::devices_text()
+            .and_then(|text| emit(&text))
+            .map_err(anyhow::Error::from),
+        Some(command) => run(command, cli.quiet),
+        None => Err(anyhow::anyhow!("no command given (see 'pointlens --help')")),
+    };
+    if let Err(e) = result {
+        let chain: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+        eprintln!("error: {}", console::error_line(&chain));
+        return ExitCode::FAILURE;
+    }
+    ExitCode::SUCCESS
 }
 
-/// Renders the plan's frames with a progress bar (sequences), the camera
-/// (`--print-camera` of one image) and each frame's timings on stderr.
-fn render_frames(
-    job: &RenderJob,
-    renderer: &Renderer,
-    scenes: Scenes<'_>,
-    plan: &Plan,
-    load_ms: f64,
-    stop: &AtomicBool,
-    how: FramesArgs,
-) -> Result<Outcome> {
-    show_frames(job, plan, how, &mut |events| {
-        job.render(renderer, scenes, plan, stop, load_ms, events)
-    })
-}
-
-/// Runs `render` (the frames of `plan`) with a progress bar (sequences),
-/// the camera (`--print-camera` of one image) and each frame's timings on
-/// stderr, as `render` tells its events.
-fn show_frames(
-    job: &RenderJob,
-    plan: &Plan,
-    how: FramesArgs,
-    render: &mut dyn FnMut(&mut job::Events<'_>) -> pointlens::Result<Outcome>,
-) -> Result<Outcome> {
-    let sequence = job.is_sequence();
-    let bar = match sequence {
-        true => progress(
-            plan.frames.len() as u64,
-            "{bar:30} {pos}/{len} frames, {msg}, {elapsed} elapsed, ETA {eta}",
-            how.quiet,
+/// Runs the command the flags name.
+fn run(command: Command, quiet: bool) -> Result<()> {
+    match command {
+        Command::Render(args) => render(*args, quiet),
+        Command::Compare { a, b, diff } => Ok(emit(&pointlens::metrics::compare_files(
+            &a,
+            &b,
+            diff.as_deref(),
+        )?)?),
+        Command::Info {
+            input,
+            origin,
+            memory,
+        } => {
+            let origin = origin.map(glam::DVec3::from_array);
+            let text = console::loading(quiet, |progress| {
+                pointlens::scene::info_text(&input, origin, memory.memory_mb, progress)
+            })?;
+            Ok(emit(&text)?)
+        }
+        Command::Bench(args) => bench(*args, quiet),
+        Command::Synth {
+            points,
+            gaussians,
+            output,
+        } => synth(points, gaussians, &output, quiet),
+        Command::Convert {
+            input,
+            output,
+            memory,
+        } => convert(
+            ConvertOptions::new(&input, &output, memory.memory_mb),
+            quiet,
         ),
-        false => ProgressBar::hidden(),
+    }
+}
+
+/// `pointlens render`: the flags as a job and a scene, then the library's
+/// job (`RenderJob::run`), its events shown by [`RenderConsole`].
+fn render(args: RenderArgs, quiet: bool) -> Result<()> {
+    let scene = scene_spec(&args)?;
+    let job = RenderJob::new(job_spec(&args)?)?;
+    let mut console = RenderConsole::new(args.print_camera, args.timings, job.is_sequence(), quiet);
+    let device = ContextOptions::from_env(args.validate, args.device.clone());
+    let outcome = job.run(&scene, &device, &mut |event| console.on(event));
+    console.finish(&outcome)?;
+    Ok(outcome.map(drop)?)
+}
+
+/// `pointlens bench`: a report measured (or read with --from-json),
+/// printed as a table and written as JSON, CSV and a chart where asked.
+fn bench(args: BenchArgs, quiet: bool) -> Result<()> {
+    let outputs = BenchOutputs {
+        json: args.json.clone(),
+        csv: args.csv.clone(),
+        chart: args.chart.clone(),
     };
-    // Frames that drew nothing of the scene: the first is named, the
-    // count told at the end.
-    let mut empty_frames = 0usize;
-    let outcome = render(&mut |event| {
-        match event {
-            JobEvent::Camera { spec, .. } if how.print_camera && !sequence => {
-                emit(&format!("{}\n", spec.to_json()))?;
-            }
-            JobEvent::Camera { .. } => {}
-            JobEvent::Written {
-                number,
-                seconds,
-                report,
-                ..
-            } => {
-                bar.set_message(format!("{seconds:.2} s/frame"));
-                bar.inc(1);
-                if report.drew_nothing() {
-                    empty_frames += 1;
-                    let what = match report.gaussians {
-                        true => "no Gaussian",
-                        false => "no point",
-                    };
-                    if empty_frames == 1 {
-                        bar.suspend(|| {
-                            log::warn!(
-                                "frame {number}: {what} of the scene is in view, only the \
-                                 background: check the camera (a camera file's \"origin\" \
-                                 places it in the coordinates of the cloud it was made for)"
-                            )
-                        });
-                    }
-                }
-                if how.timings {
-                    if sequence {
-                        eprintln!("frame {number}:");
-                    }
-                    eprint!("{}", report.text());
-                }
-            }
+    outputs.check()?;
+    let report = match &args.from_json {
+        Some(path) => bench::BenchReport::read_json(path)?,
+        None => {
+            let device = ContextOptions::from_env(args.validate, args.device.clone());
+            bench::measure(&bench_request(&args)?, &device, quiet)?
         }
-        Ok(())
-    });
-    match &outcome {
-        Err(pointlens::Error::Interrupted { .. }) => bar.abandon(),
-        _ => bar.finish_and_clear(),
-    }
-    if empty_frames > 1 {
-        log::warn!(
-            "{empty_frames} of {} frames showed nothing of the scene",
-            plan.frames.len()
-        );
-    }
-    Ok(outcome?)
-}
-
-/// The shot the flags ask for: `--path`, `--frames` with its motion, or
-/// one image.
-fn shot_of(args: &RenderArgs) -> Result<Shot> {
-    if let Some(file) = &args.path {
-        return Ok(Shot::Path {
-            file: file.clone(),
-            path: CameraPath::from_json_file(file)?,
-        });
-    }
-    let Some(frames) = args.frames else {
-        return Ok(Shot::Single);
     };
-    Ok(Shot::Motion(Motion {
-        frames,
-        orbit_deg: args.orbit,
-        focus: args.focus_from.zip(args.focus_to).map(|(a, b)| [a, b]),
-        aperture: args
-            .aperture_from
-            .zip(args.aperture_to)
-            .map(|(a, b)| [a, b]),
-    }))
+    emit(&report.to_markdown())?;
+    Ok(outputs.write(&report)?)
 }
 
-/// `--splat-size` / `--splat-px` (each a positive number), else sizes from
-/// the points' spacing.
-fn splat_of(args: &RenderArgs) -> Result<SplatSize> {
-    if let Some(w) = args.splat_size.filter(|w| !(w.is_finite() && *w > 0.0)) {
-        bail!("--splat-size must be a positive number, not {w}");
-    }
-    if let Some(p) = args.splat_px.filter(|p| !(p.is_finite() && *p > 0.0)) {
-        bail!("--splat-px must be a positive number, not {p}");
-    }
-    Ok(match (args.splat_size, args.splat_px) {
-        (Some(w), _) => SplatSize::World(w),
-        (_, Some(p)) => SplatSize::Pixels(p),
-        _ => SplatSize::Spacing,
+/// `pointlens convert`, with a progress bar while a PLY file is read
+/// whole.
+fn convert(options: ConvertOptions, quiet: bool) -> Result<()> {
+    let t = std::time::Instant::now();
+    let done = console::loading(quiet, |progress| convert_file(&options, progress))?;
+    Ok(emit(&format!(
+        "{}\n",
+        done.summary(&options.output, t.elapsed())
+    ))?)
+}
+
+/// `pointlens synth --points N` or `--gaussians N`.
+fn synth(points: Option<u64>, gaussians: Option<u64>, output: &Path, quiet: bool) -> Result<()> {
+    let (kind, count) = match gaussians {
+        Some(n) => (SynthKind::Gaussians, n),
+        None => (SynthKind::Points, points.unwrap_or(0)),
+    };
+    let t = std::time::Instant::now();
+    let template = format!("{{bar:30}} {{pos}}/{{len}} {kind}, {{elapsed}}");
+    let bar = progress(count, &template, quiet);
+    let bytes = pointlens::synth::write_file(kind, count, output, &mut |d| bar.set_position(d));
+    bar.finish_and_clear();
+    let (out, mb, s) = (
+        output.display(),
+        bytes? as f64 / 1e6,
+        t.elapsed().as_secs_f64(),
+    );
+    Ok(emit(&format!(
+        "{out}: {count} {kind}, {mb:.1} MB, {s:.2} s\n"
+    ))?)
+}
+
+/// The bench's flags as a request (the device fills in the rest).
+fn bench_request(args: &BenchArgs) -> Result<BenchRequest> {
+    Ok(BenchRequest {
+        methods: args.methods.clone(),
+        models: args.models.clone(),
+        size: args.width.zip(args.height),
+        points: args.points,
+        runs: args.runs,
+        warmup: args.warmup,
+        ssaa: args.ssaa,
+        samples_per_pass: args.gbuffer.samples_per_pass,
+        raster: args.gbuffer.raster,
+        splat_shape: args.gbuffer.splat_shape,
+        quality: args.quality,
+        lod_px: pointlens::flags::lod_px_list(&args.lod_px).map_err(anyhow::Error::msg)?,
+        data_dir: args.data.clone(),
     })
 }
 
-/// `--background` in linear light (black when transparent or not given).
-fn background_of(args: &RenderArgs) -> Result<Vec3> {
-    Ok(match args.background {
-        Some(Background::Srgb(c)) if c.iter().any(|v| !(0.0..=1.0).contains(v)) => {
-            bail!("--background takes sRGB values in [0, 1], got {c:?}")
-        }
-        Some(Background::Srgb(c)) => Vec3::from_array(c.map(srgb_to_linear)),
-        Some(Background::Transparent) | None => Vec3::ZERO,
+/// How `render` reads and draws its input.
+fn scene_spec(args: &RenderArgs) -> Result<SceneSpec> {
+    Ok(SceneSpec {
+        input: args.input.clone(),
+        origin: args.origin.map(glam::DVec3::from_array),
+        memory_mb: args.memory.memory_mb,
+        point_budget: args.point_budget,
+        splat: pointlens::flags::splat_size(args.splat_size, args.splat_px)?,
+        color: args.color,
+        edl: args.edl,
+        tile_px: args.tile_px,
+        raster: args.gbuffer.raster,
+        splat_shape: args.gbuffer.splat_shape,
     })
 }
 
-/// The method and its options from the flags (the fast method's checked
-/// here, before the cloud loads, as the frame checks them again).
-fn method_of(args: &RenderArgs) -> Result<Method> {
+/// The method and its options from the flags.
+fn method_of(args: &RenderArgs) -> Method {
     let fast = FastOptions {
         weights: args.fast_weights,
         window: args.fast_window,
         gather: args.fast_gather,
     };
-    if args.method == MethodKind::Fast {
-        fast.check()?;
-    }
-    Ok(args.method.with(
-        fast,
-        RdbOptions {
-            bins: args.rdb_bins,
-            mode: args.rdb_mode,
-            memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
-            atomics: args.rdb_atomics,
-        },
-        AccumOptions {
-            samples: args.samples,
-        },
-        LayeredOptions {
-            layers: args.layers.unwrap_or(pointlens::options::DEFAULT_LAYERS),
-            ..LayeredOptions::default()
-        },
-    ))
-}
-
-/// The camera flags, which win over the camera file and the path.
-fn camera_flags(args: &RenderArgs) -> CameraSpec {
-    CameraSpec {
-        coordinates: args.coordinates,
-        width: args.width,
-        height: args.height,
-        eye: args.eye,
-        target: args.target,
-        up: args.up,
-        fovy_deg: args.fovy_deg,
-        focal_length_mm: args.focal_length_mm,
-        sensor_height_mm: args.sensor_height_mm,
-        sensor_width_mm: args.sensor_width_mm,
-        aperture_radius: args.aperture_radius,
-        f_number: args.f_number,
-        units_per_mm: args.units_per_mm,
-        focus_distance: args.focus_distance,
-        ..CameraSpec::default()
-    }
+    let rdb = RdbOptions {
+        bins: args.rdb_bins,
+        mode: args.rdb_mode,
+        memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
+        atomics: args.rdb_atomics,
+    };
+    let layered = LayeredOptions {
+        layers: args.layers.unwrap_or(pointlens::options::DEFAULT_LAYERS),
+        ..LayeredOptions::default()
+    };
+    let accum = AccumOptions {
+        samples: args.samples,
+    };
+    args.method.with(fast, rdb, accum, layered)
 }
 
 /// Everything `render` asks of the job.
-fn job_spec(args: &RenderArgs, shot: Shot) -> Result<JobSpec> {
+fn job_spec(args: &RenderArgs) -> Result<JobSpec> {
+    let pair = |a: Option<f32>, b: Option<f32>| a.zip(b).map(|(a, b)| [a, b]);
     Ok(JobSpec {
-        shot,
+        shot: Shot::of(
+            args.path.as_deref(),
+            args.frames.map(|frames| Motion {
+                frames,
+                orbit_deg: args.orbit,
+                focus: pair(args.focus_from, args.focus_to),
+                aperture: pair(args.aperture_from, args.aperture_to),
+            }),
+        )?,
         output: args.output.clone(),
         frame_range: args.frame_range,
         skip_existing: args.skip_existing,
         camera_file: args.camera.clone(),
-        camera_flags: camera_flags(args),
+        // The camera flags win over the camera file and the path.
+        camera_flags: CameraSpec {
+            coordinates: args.coordinates,
+            width: args.width,
+            height: args.height,
+            eye: args.eye,
+            target: args.target,
+            up: args.up,
+            fovy_deg: args.fovy_deg,
+            focal_length_mm: args.focal_length_mm,
+            sensor_height_mm: args.sensor_height_mm,
+            sensor_width_mm: args.sensor_width_mm,
+            aperture_radius: args.aperture_radius,
+            f_number: args.f_number,
+            units_per_mm: args.units_per_mm,
+            focus_distance: args.focus_distance,
+            ..CameraSpec::default()
+        },
         focus_pixel: args.focus_pixel,
-        method: method_of(args)?,
+        method: method_of(args),
         ssaa: args.ssaa,
         samples_per_pass: args.gbuffer.samples_per_pass,
-        background: background_of(args)?,
+        background: Background::linear_of(args.background)?,
         lod: Lod {
             px: args.lod_px.unwrap_or(pointlens::options::DEFAULT_LOD_PX),
             blur: args.lod_blur,

@@ -383,3 +383,73 @@ pub fn write_gaussians(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -
         file.sync_all().map_err(io)
     })
 }
+
+/// What `pointlens synth` writes: `count` points (PLY, or LAS / LAZ by the
+/// extension), or `count` 3D Gaussians (PLY).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SynthKind {
+    Points,
+    Gaussians,
+}
+
+impl std::fmt::Display for SynthKind {
+    /// What is counted: "points" or "Gaussians".
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str(match self {
+            SynthKind::Points => "points",
+            SynthKind::Gaussians => "Gaussians",
+        })
+    }
+}
+
+/// `pointlens synth`: checks the count, the output's name and folder and,
+/// for points, the free disk; makes SIGINT and SIGTERM remove the file in
+/// writing; writes `count` items of `kind` to `output`, `progress(done)`
+/// as they go. Returns the file's size in bytes.
+pub fn write_file(
+    kind: SynthKind,
+    count: u64,
+    output: &Path,
+    progress: &mut dyn FnMut(u64),
+) -> Result<u64> {
+    let invalid = |msg: String| Err(Error::InvalidArgument(msg));
+    let what = match kind {
+        SynthKind::Points => "--points",
+        SynthKind::Gaussians => "--gaussians",
+    };
+    if count == 0 {
+        return invalid(format!("{what} must be at least 1"));
+    }
+    let ply = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    if kind == SynthKind::Gaussians && !ply {
+        return invalid(format!(
+            "{}: Gaussians are written as .ply",
+            output.display()
+        ));
+    }
+    crate::image_io::check_parent_dir(output, "-o")?;
+    if kind == SynthKind::Points {
+        let need = least_file_bytes(output, count);
+        if let Some(free) = free_bytes(output).filter(|&free| need > free) {
+            return invalid(format!(
+                "{}: {count} points need at least {:.1} GB, the disk has {:.1} GB free",
+                output.display(),
+                need as f64 / 1e9,
+                free as f64 / 1e9
+            ));
+        }
+    }
+    // A signal removes the file in writing, as `render`'s do.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    crate::job::watch_signals(false, stop)?;
+    match kind {
+        SynthKind::Gaussians => write_gaussians(output, count, progress)?,
+        SynthKind::Points if crate::input::las::has_las_extension(output) => {
+            write_las(output, count, progress)?
+        }
+        SynthKind::Points => write_ply(output, count, progress)?,
+    }
+    Ok(std::fs::metadata(output).map_or(0, |m| m.len()))
+}

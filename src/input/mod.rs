@@ -198,6 +198,30 @@ fn shell_word(s: &str) -> String {
 /// spheres stay finite.
 pub const MAX_COORDINATE: f32 = 1e18;
 
+/// What a file holds, by its magic bytes (and, for a PLY file, its
+/// header): the one place a scene's kind is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputKind {
+    /// Points read whole: PLY, LAS or LAZ.
+    Cloud,
+    /// A COPC file, read node by node ([`copc`]).
+    Copc,
+    /// 3D Gaussians in the reference code's PLY layout ([`gaussians`]).
+    Gaussians,
+}
+
+/// The kind of the file at `path` ([`InputKind`]). What cannot be read is
+/// a [`InputKind::Cloud`], whose reader names what is wrong with it.
+pub fn kind_of(path: &Path) -> InputKind {
+    if gaussians::is_gaussian_file(path) {
+        InputKind::Gaussians
+    } else if copc::is_copc(path) {
+        InputKind::Copc
+    } else {
+        InputKind::Cloud
+    }
+}
+
 /// Whether `path` holds a LAS or LAZ file: by its first four bytes where it
 /// is a regular file, else by its extension.
 pub fn is_las(path: &Path) -> bool {

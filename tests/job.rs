@@ -12,10 +12,11 @@ use common::{file_names, root, scratch, with_gpu};
 use glam::Vec3;
 use pointlens::camera::{self, CameraSpec};
 use pointlens::input::load_cloud;
-use pointlens::job::{JobEvent, JobSpec, Passes, RenderJob, Scenes, Shot, Written};
+use pointlens::job::{JobEvent, JobSpec, Passes, RenderJob, Shot, Written};
 use pointlens::options::{Lod, Method};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::report::FrameReport;
+use pointlens::scene::Scenes;
 use pointlens::sequence::{CameraPath, FrameRange, Motion};
 use pointlens::{Error, PointCloud};
 
@@ -314,6 +315,7 @@ fn a_sequence_through_the_job_equals_its_frames_rendered_alone() {
                             assert!(output.is_file(), "{} not written", output.display());
                             format!("written {number}")
                         }
+                        other => format!("{other:?}"),
                     });
                     Ok(())
                 },

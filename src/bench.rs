@@ -24,7 +24,7 @@ use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
 use crate::options::Lod;
 use crate::options::{AccumOptions, Method, Raster, SplatShape};
-use crate::render::{RenderOptions, Renderer, SplatSize};
+use crate::render::{RenderOptions, Renderer, Scene, SplatSize};
 pub use crate::report::{DeviceReport, LodReport, Upload};
 use crate::vk::{Context, FrameTimings};
 use clap::ValueEnum;
@@ -409,19 +409,7 @@ pub fn frame_count(options: &BenchOptions) -> u64 {
 
 /// Runs the matrix on `ctx`.
 pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Result<BenchReport> {
-    if options.runs == 0 {
-        return Err(Error::InvalidArgument("--runs must be at least 1".into()));
-    }
-    for &px in &options.lod_px {
-        crate::options::check_lod_px(px)?;
-    }
-    if options.methods.is_empty()
-        || options.models.is_empty()
-        || options.resolutions.is_empty()
-        || options.lod_px.is_empty()
-    {
-        return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
-    }
+    check_matrix(options)?;
     let mut renderer = Renderer::new(ctx)?;
     renderer.set_splat_shape(options.splat_shape)?;
     renderer.set_raster(options.raster);
@@ -475,30 +463,17 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     1 => what(m),
                     _ => what(&format!("{m} lod-px {lod_px}")),
                 };
-                let mut lod = None;
-                for _ in 0..options.warmup {
-                    progress(done, total, &what(&format!("{} (warm-up)", m.name)));
+                let mut step = |label: &str| {
+                    progress(done, total, &what(label));
                     done += 1;
-                    let r = renderer.render(&scene, &options_m)?;
-                    lod.get_or_insert(r.lod);
-                }
-                let mut timings = Vec::new();
-                let mut encode = Vec::new();
-                let mut last: Option<LinearImage> = None;
-                let mut samples_per_pass = 1;
-                for _ in 0..options.runs {
-                    progress(done, total, &what(&m.name));
-                    done += 1;
-                    let r = renderer.render(&scene, &options_m)?;
-                    lod.get_or_insert(r.lod);
-                    let t = Instant::now();
-                    encode_png(&r.image)?;
-                    encode.push(t.elapsed().as_secs_f64() * 1e3);
-                    timings.push(r.timings);
-                    samples_per_pass = r.samples_per_pass;
-                    last = Some(r.image);
-                }
-                let image = last.expect("runs ≥ 1");
+                };
+                let Measured {
+                    timings,
+                    encode,
+                    image,
+                    samples_per_pass,
+                    lod,
+                } = measure(&renderer, &scene, &options_m, options, &m.name, &mut step)?;
                 let quality = match &reference {
                     Some(reference) => Some(Quality {
                         psnr_db: psnr(reference, &image)?,
@@ -518,7 +493,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     camera: camera.to_spec(),
                     coc_px: coc,
                     lod_px,
-                    lod: lod.expect("runs ≥ 1"),
+                    lod,
                     runs: options.runs,
                     warmup: options.warmup,
                     frame_wall_ms: Stats::of(
@@ -538,7 +513,87 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     progress(done, total, "done");
     drop(renderer);
     ctx.check_validation()?;
-    Ok(BenchReport {
+    Ok(report(ctx, options, ssaa, cells))
+}
+
+/// Refuses a matrix that cannot run: no timed run, a `--lod-px` out of
+/// range, or an empty axis.
+fn check_matrix(options: &BenchOptions) -> Result<()> {
+    if options.runs == 0 {
+        return Err(Error::InvalidArgument("--runs must be at least 1".into()));
+    }
+    for &px in &options.lod_px {
+        crate::options::check_lod_px(px)?;
+    }
+    if options.methods.is_empty()
+        || options.models.is_empty()
+        || options.resolutions.is_empty()
+        || options.lod_px.is_empty()
+    {
+        return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
+    }
+    Ok(())
+}
+
+/// What one cell's timed frames gave.
+struct Measured {
+    /// Each timed frame's timings.
+    timings: Vec<FrameTimings>,
+    /// Each timed frame's PNG encoding, milliseconds.
+    encode: Vec<f64>,
+    /// The last frame.
+    image: LinearImage,
+    samples_per_pass: u32,
+    /// The splat hierarchy's work in the first frame.
+    lod: LodReport,
+}
+
+/// Renders one cell's frames (`frame` of `scene`): `options.warmup`
+/// untimed, then `options.runs` timed, each image then encoded as PNG
+/// (timed apart). `step` is called before each frame with what renders:
+/// `name`, "(warm-up)" added for the untimed.
+fn measure(
+    renderer: &Renderer,
+    scene: &Scene,
+    frame: &RenderOptions,
+    options: &BenchOptions,
+    name: &str,
+    step: &mut dyn FnMut(&str),
+) -> Result<Measured> {
+    let mut lod = None;
+    for _ in 0..options.warmup {
+        step(&format!("{name} (warm-up)"));
+        let r = renderer.render(scene, frame)?;
+        lod.get_or_insert(r.lod);
+    }
+    let mut timings = Vec::new();
+    let mut encode = Vec::new();
+    let mut last: Option<LinearImage> = None;
+    let mut samples_per_pass = 1;
+    for _ in 0..options.runs {
+        step(name);
+        let r = renderer.render(scene, frame)?;
+        lod.get_or_insert(r.lod);
+        let t = Instant::now();
+        encode_png(&r.image)?;
+        encode.push(t.elapsed().as_secs_f64() * 1e3);
+        timings.push(r.timings);
+        samples_per_pass = r.samples_per_pass;
+        last = Some(r.image);
+    }
+    Ok(Measured {
+        timings,
+        encode,
+        image: last.expect("runs ≥ 1"),
+        samples_per_pass,
+        lod: lod.expect("runs ≥ 1"),
+    })
+}
+
+/// The report of a run on `ctx` of `options` at K = `ssaa`, of its
+/// `cells`.
+fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) -> BenchReport {
+    BenchReport {
         pointlens_version: env!("CARGO_PKG_VERSION").to_string(),
         device: DeviceReport::of(&ctx.info),
         runs: options.runs,
@@ -558,7 +613,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
         cells,
-    })
+    }
 }
 
 /// Per-pass statistics over the runs, passes in recording order.

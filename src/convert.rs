@@ -1133,10 +1133,15 @@ fn convert_source(
         level += 1;
     }
     let parts = Parts::new(output, meta.record_len())?;
+    let conversion = Conversion {
+        parts: &parts,
+        meta: &meta,
+        cube,
+        threads,
+        fail,
+    };
 
     // 1. Distribution.
-    let started = std::time::Instant::now();
-    let mut stats = Stats::new();
     let distribution = Distribution {
         converter,
         meta: &meta,
@@ -1144,96 +1149,9 @@ fn convert_source(
         cube,
         level,
     };
-    // The batches go to the parts' files on a thread of their own while
-    // the next chunk decodes.
-    let (to_writer, batches) = std::sync::mpsc::sync_channel::<Batch>(threads.max(1) * 4);
-    let written = std::thread::scope(|scope| {
-        let writer = scope.spawn(|| -> Result<Stats> {
-            let mut stats = Stats::new();
-            for batch in batches {
-                stats.merge(&batch.stats);
-                parts.put_groups(&batch.records, &batch.groups)?;
-            }
-            Ok(stats)
-        });
-        let read = (|| -> Result<()> {
-            let mut raw = Vec::new();
-            loop {
-                let got = fill(&mut raw)?;
-                if got == 0 {
-                    return Ok(());
-                }
-                // Slices of the chunk converted and grouped by part on
-                // every core.
-                let per_slice =
-                    (got as usize).div_ceil(threads.max(1) * 4).max(1) * converter.from_len();
-                let slices: Vec<&[u8]> = raw.chunks(per_slice).collect();
-                for batch in crate::parallel_map(&slices, threads, |r| distribution.batch(r)) {
-                    let batch = batch.map_err(|p| {
-                        fail(format!(
-                            "a point at {p} lies outside the header's bounds ({lo} to {hi}): \
-                             fix the header's bounds first"
-                        ))
-                    })?;
-                    if to_writer.send(batch).is_err() {
-                        // The writer failed: its error is the one to tell.
-                        return Ok(());
-                    }
-                }
-            }
-        })();
-        drop(to_writer);
-        let written = writer.join().expect("the parts' writer panicked");
-        read.and(written)
-    })?;
-    stats.merge(&written);
-    if stats.points != total {
-        return Err(fail(format!(
-            "the header declares {total} points, the file holds {}",
-            stats.points
-        )));
-    }
-    log::info!(
-        "convert: {} points distributed in {:.2} s",
-        stats.points,
-        started.elapsed().as_secs_f64()
-    );
-    let started = std::time::Instant::now();
+    let stats = conversion.distribute(&distribution, fill, (lo, hi), total)?;
     // Too large a part splits into its children, until none is.
-    let mut queue = parts.flush_all()?;
-    let mut ready = Vec::new();
-    while let Some((key, count)) = queue.pop() {
-        if count <= part_points || key.level >= crate::input::copc::MAX_LEVEL {
-            ready.push(key);
-            continue;
-        }
-        log::debug!("convert: part {key:?} of {count} points splits");
-        // Its records regrouped a block at a time, on every core.
-        let split = Distribution {
-            converter: RecordConverter::new(&meta.format, &meta.format).expect("6 or 7"),
-            level: key.level + 1,
-            ..distribution
-        };
-        parts.take_in_blocks(key, PART_BUFFER_BYTES, |block| {
-            let per_slice = (block.len() / meta.record_len())
-                .div_ceil(threads.max(1) * 4)
-                .max(1)
-                * meta.record_len();
-            let slices: Vec<&[u8]> = block.chunks(per_slice).collect();
-            for batch in crate::parallel_map(&slices, threads, |r| split.batch(r)) {
-                let batch = batch.map_err(|p| fail(format!("a point at {p} moved while split")))?;
-                parts.put_groups(&batch.records, &batch.groups)?;
-            }
-            Ok(())
-        })?;
-        queue.extend(parts.flush_all()?);
-    }
-    ready.sort();
-    log::info!(
-        "convert: {} parts after {:.2} s of splitting",
-        ready.len(),
-        started.elapsed().as_secs_f64()
-    );
+    let ready = conversion.split(&distribution, part_points)?;
     let started = std::time::Instant::now();
 
     // 2. The parts, on every core.
@@ -1251,82 +1169,8 @@ fn convert_source(
             standard_gps_time: meta.standard_gps_time,
             laz_vlr: &laz_vlr,
         };
-        let out = std::sync::Mutex::new(InOrder {
-            out: CopcOut::begin(file, output, layout)?,
-            next: 0,
-            waiting: std::collections::BTreeMap::new(),
-        });
-        // A failed part stops the others from starting.
-        let failed = std::sync::atomic::AtomicBool::new(false);
-        // A part starts at most this many parts ahead of the next one to
-        // write, so that the built ones waiting their turn stay few.
-        let window = 2 * threads.max(1);
-        let turn = std::sync::Condvar::new();
-        let indexed: Vec<(usize, NodeKey)> = ready.iter().copied().enumerate().collect();
-        let built = crate::parallel_map(&indexed, threads, |&(index, key)| {
-            {
-                // Parts are handed out in order, so the next to write is
-                // being built by another thread.
-                let mut o = out.lock().unwrap_or_else(|e| e.into_inner());
-                while index >= o.next + window && !failed.load(std::sync::atomic::Ordering::Relaxed)
-                {
-                    o = turn.wait(o).unwrap_or_else(|e| e.into_inner());
-                }
-            }
-            if failed.load(std::sync::atomic::Ordering::Relaxed) {
-                return Ok(None);
-            }
-            let result = (|| -> Result<(NodeKey, bool)> {
-                let part = Records {
-                    bytes: parts.take(key)?,
-                    ..meta.clone_meta()
-                };
-                let mut nodes = Vec::new();
-                build_node(
-                    &part,
-                    key,
-                    key.cube_in(cube),
-                    part.all_points(),
-                    1,
-                    &mut nodes,
-                );
-                let own = nodes
-                    .iter()
-                    .position(|n| n.key == key)
-                    .expect("the part's node");
-                let own = nodes.swap_remove(own);
-                let chunks =
-                    compress_nodes(&part, &nodes, &laz_vlr, 1).map_err(|e| fail(e.to_string()))?;
-                let written = nodes
-                    .iter()
-                    .zip(chunks)
-                    .map(|(n, c)| (n.key, n.points.len() as u64, c))
-                    .collect();
-                out.lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .put(index, written)?;
-                turn.notify_all();
-                // The part's own node's points: candidates for the levels
-                // above, on disk until they are reached.
-                parts.put_own(key, &gather_records(&part, &own.points))?;
-                // Whether the part's node has children (its own node is
-                // out of `nodes`).
-                Ok((key, !nodes.is_empty()))
-            })();
-            if result.is_err() {
-                // Under the lock, so that no thread misses the wakeup.
-                let _o = out.lock().unwrap_or_else(|e| e.into_inner());
-                failed.store(true, std::sync::atomic::Ordering::Relaxed);
-                turn.notify_all();
-            }
-            result.map(Some)
-        });
-        let with_children: std::collections::HashMap<NodeKey, bool> = built
-            .into_iter()
-            .collect::<Result<Vec<_>>>()?
-            .into_iter()
-            .flatten()
-            .collect();
+        let out = CopcOut::begin(file, output, layout)?;
+        let (mut out, with_children) = conversion.build_parts(&ready, &laz_vlr, out)?;
         log::info!(
             "convert: parts built in {:.2} s",
             started.elapsed().as_secs_f64()
@@ -1335,27 +1179,7 @@ fn convert_source(
 
         // 3. The levels above the parts, from the parts' own nodes' points
         // up.
-        let mut above = std::collections::HashSet::new();
-        for key in &ready {
-            let mut k = *key;
-            while k.level > 0 {
-                k = k.parent();
-                above.insert(k);
-            }
-        }
-        let mut out = out.into_inner().unwrap_or_else(|e| e.into_inner()).out;
-        let mut top = Top {
-            parts: &parts,
-            meta: &meta,
-            root: cube,
-            above: &above,
-            with_children: &with_children,
-            laz_vlr: &laz_vlr,
-            out: &mut out,
-            threads,
-        };
-        let root = top.node(NodeKey::ROOT)?;
-        top.write(vec![(NodeKey::ROOT, root)])?;
+        conversion.build_top(&ready, &with_children, &laz_vlr, &mut out)?;
         log::info!(
             "convert: the top built in {:.2} s",
             started.elapsed().as_secs_f64()
@@ -1373,6 +1197,270 @@ fn convert_source(
         levels: counted.1,
         bytes: length,
     })
+}
+
+/// What the phases of an out-of-core conversion share: the parts on
+/// disk, the output's format and grid, the root cube, the cores and the
+/// input's errors.
+struct Conversion<'a> {
+    parts: &'a Parts,
+    meta: &'a Records,
+    cube: (DVec3, f64),
+    threads: usize,
+    fail: &'a (dyn Fn(String) -> Error + Sync),
+}
+
+impl Conversion<'_> {
+    /// Phase 1, the distribution: every record `fill` gives, converted
+    /// and put into its part's file at `distribution`'s level (grouped on
+    /// every core, written on a thread of their own); the points'
+    /// statistics, checked against the `total` the input declares.
+    /// `bounds` are the header's, which errors name.
+    fn distribute(
+        &self,
+        distribution: &Distribution,
+        fill: &mut dyn FnMut(&mut Vec<u8>) -> Result<u64>,
+        (lo, hi): (DVec3, DVec3),
+        total: u64,
+    ) -> Result<Stats> {
+        let (parts, threads, fail) = (self.parts, self.threads, self.fail);
+        let started = std::time::Instant::now();
+        let mut stats = Stats::new();
+        // The batches go to the parts' files on a thread of their own while
+        // the next chunk decodes.
+        let (to_writer, batches) = std::sync::mpsc::sync_channel::<Batch>(threads.max(1) * 4);
+        let written = std::thread::scope(|scope| {
+            let writer = scope.spawn(|| -> Result<Stats> {
+                let mut stats = Stats::new();
+                for batch in batches {
+                    stats.merge(&batch.stats);
+                    parts.put_groups(&batch.records, &batch.groups)?;
+                }
+                Ok(stats)
+            });
+            let read = (|| -> Result<()> {
+                let mut raw = Vec::new();
+                loop {
+                    let got = fill(&mut raw)?;
+                    if got == 0 {
+                        return Ok(());
+                    }
+                    // Slices of the chunk converted and grouped by part on
+                    // every core.
+                    let per_slice = (got as usize).div_ceil(threads.max(1) * 4).max(1)
+                        * distribution.converter.from_len();
+                    let slices: Vec<&[u8]> = raw.chunks(per_slice).collect();
+                    for batch in crate::parallel_map(&slices, threads, |r| distribution.batch(r)) {
+                        let batch = batch.map_err(|p| {
+                            fail(format!(
+                                "a point at {p} lies outside the header's bounds ({lo} to \
+                                 {hi}): fix the header's bounds first"
+                            ))
+                        })?;
+                        if to_writer.send(batch).is_err() {
+                            // The writer failed: its error is the one to tell.
+                            return Ok(());
+                        }
+                    }
+                }
+            })();
+            drop(to_writer);
+            let written = writer.join().expect("the parts' writer panicked");
+            read.and(written)
+        })?;
+        stats.merge(&written);
+        if stats.points != total {
+            return Err(fail(format!(
+                "the header declares {total} points, the file holds {}",
+                stats.points
+            )));
+        }
+        log::info!(
+            "convert: {} points distributed in {:.2} s",
+            stats.points,
+            started.elapsed().as_secs_f64()
+        );
+        Ok(stats)
+    }
+
+    /// The parts split until each holds at most `part_points` (or is at
+    /// the deepest level): too large a part's records regrouped into its
+    /// children, a block at a time on every core. The parts' keys, sorted.
+    fn split(&self, distribution: &Distribution, part_points: u64) -> Result<Vec<NodeKey>> {
+        let (parts, meta, threads, fail) = (self.parts, self.meta, self.threads, self.fail);
+        let started = std::time::Instant::now();
+        let mut queue = parts.flush_all()?;
+        let mut ready = Vec::new();
+        while let Some((key, count)) = queue.pop() {
+            if count <= part_points || key.level >= crate::input::copc::MAX_LEVEL {
+                ready.push(key);
+                continue;
+            }
+            log::debug!("convert: part {key:?} of {count} points splits");
+            // Its records regrouped a block at a time, on every core.
+            let split = Distribution {
+                converter: RecordConverter::new(&meta.format, &meta.format).expect("6 or 7"),
+                level: key.level + 1,
+                ..*distribution
+            };
+            parts.take_in_blocks(key, PART_BUFFER_BYTES, |block| {
+                let per_slice = (block.len() / meta.record_len())
+                    .div_ceil(threads.max(1) * 4)
+                    .max(1)
+                    * meta.record_len();
+                let slices: Vec<&[u8]> = block.chunks(per_slice).collect();
+                for batch in crate::parallel_map(&slices, threads, |r| split.batch(r)) {
+                    let batch =
+                        batch.map_err(|p| fail(format!("a point at {p} moved while split")))?;
+                    parts.put_groups(&batch.records, &batch.groups)?;
+                }
+                Ok(())
+            })?;
+            queue.extend(parts.flush_all()?);
+        }
+        ready.sort();
+        log::info!(
+            "convert: {} parts after {:.2} s of splitting",
+            ready.len(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(ready)
+    }
+
+    /// Phase 2: the parts `ready` built on every core, each at most a
+    /// window ahead of the next to write, their nodes written to `out` in
+    /// the parts' order; the first failure stops the parts not yet
+    /// started. `out`, and whether each part's node has children.
+    fn build_parts<'o>(
+        &self,
+        ready: &[NodeKey],
+        laz_vlr: &LazVlr,
+        out: CopcOut<'o>,
+    ) -> Result<(CopcOut<'o>, std::collections::HashMap<NodeKey, bool>)> {
+        let out = std::sync::Mutex::new(InOrder {
+            out,
+            next: 0,
+            waiting: std::collections::BTreeMap::new(),
+        });
+        // A failed part stops the others from starting.
+        let failed = std::sync::atomic::AtomicBool::new(false);
+        // A part starts at most this many parts ahead of the next one to
+        // write, so that the built ones waiting their turn stay few.
+        let window = 2 * self.threads.max(1);
+        let turn = std::sync::Condvar::new();
+        let indexed: Vec<(usize, NodeKey)> = ready.iter().copied().enumerate().collect();
+        let built = crate::parallel_map(&indexed, self.threads, |&(index, key)| {
+            {
+                // Parts are handed out in order, so the next to write is
+                // being built by another thread.
+                let mut o = out.lock().unwrap_or_else(|e| e.into_inner());
+                while index >= o.next + window && !failed.load(std::sync::atomic::Ordering::Relaxed)
+                {
+                    o = turn.wait(o).unwrap_or_else(|e| e.into_inner());
+                }
+            }
+            if failed.load(std::sync::atomic::Ordering::Relaxed) {
+                return Ok(None);
+            }
+            let result = self.build_part(index, key, laz_vlr, &out, &turn);
+            if result.is_err() {
+                // Under the lock, so that no thread misses the wakeup.
+                let _o = out.lock().unwrap_or_else(|e| e.into_inner());
+                failed.store(true, std::sync::atomic::Ordering::Relaxed);
+                turn.notify_all();
+            }
+            result.map(Some)
+        });
+        let with_children: std::collections::HashMap<NodeKey, bool> = built
+            .into_iter()
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .flatten()
+            .collect();
+        let out = out.into_inner().unwrap_or_else(|e| e.into_inner()).out;
+        Ok((out, with_children))
+    }
+
+    /// Builds part `key` (the `index`th to write) as an octree in memory:
+    /// its nodes below its own compressed and handed to `out` (`turn`
+    /// told), its own node's points stored for the levels above. The key,
+    /// and whether its node has children.
+    fn build_part(
+        &self,
+        index: usize,
+        key: NodeKey,
+        laz_vlr: &LazVlr,
+        out: &std::sync::Mutex<InOrder<'_>>,
+        turn: &std::sync::Condvar,
+    ) -> Result<(NodeKey, bool)> {
+        let part = Records {
+            bytes: self.parts.take(key)?,
+            ..self.meta.clone_meta()
+        };
+        let mut nodes = Vec::new();
+        build_node(
+            &part,
+            key,
+            key.cube_in(self.cube),
+            part.all_points(),
+            1,
+            &mut nodes,
+        );
+        let own = nodes
+            .iter()
+            .position(|n| n.key == key)
+            .expect("the part's node");
+        let own = nodes.swap_remove(own);
+        let chunks =
+            compress_nodes(&part, &nodes, laz_vlr, 1).map_err(|e| (self.fail)(e.to_string()))?;
+        let written = nodes
+            .iter()
+            .zip(chunks)
+            .map(|(n, c)| (n.key, n.points.len() as u64, c))
+            .collect();
+        out.lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .put(index, written)?;
+        turn.notify_all();
+        // The part's own node's points: candidates for the levels above,
+        // on disk until they are reached.
+        self.parts
+            .put_own(key, &gather_records(&part, &own.points))?;
+        // Whether the part's node has children (its own node is out of
+        // `nodes`).
+        Ok((key, !nodes.is_empty()))
+    }
+
+    /// Phase 3: the levels above the parts `ready`, sampled from the
+    /// parts' own nodes' points up ([`Top`]) and written to `out`.
+    fn build_top(
+        &self,
+        ready: &[NodeKey],
+        with_children: &std::collections::HashMap<NodeKey, bool>,
+        laz_vlr: &LazVlr,
+        out: &mut CopcOut<'_>,
+    ) -> Result<()> {
+        let mut above = std::collections::HashSet::new();
+        for key in ready {
+            let mut k = *key;
+            while k.level > 0 {
+                k = k.parent();
+                above.insert(k);
+            }
+        }
+        let mut top = Top {
+            parts: self.parts,
+            meta: self.meta,
+            root: self.cube,
+            above: &above,
+            with_children,
+            laz_vlr,
+            out,
+            threads: self.threads,
+        };
+        let root = top.node(NodeKey::ROOT)?;
+        top.write(vec![(NodeKey::ROOT, root)])
+    }
 }
 
 /// The octree's levels above the parts, sampled from the bottom up

@@ -392,24 +392,7 @@ impl GaussianRenderer {
         u: Vec2,
     ) -> &'r Buffer {
         let n = scene.count;
-        let (right, up, forward) = camera.basis();
-        let eye = camera.eye;
-        let l = camera.aperture_radius * u;
-        let lens_world = eye + right * l.x + up * l.y;
-        let push = ProjectPush {
-            right: right.extend(eye.x).to_array(),
-            up: up.extend(eye.y).to_array(),
-            forward: forward.extend(eye.z).to_array(),
-            lens_world: lens_world.extend(camera.focus_distance).to_array(),
-            lens: l.to_array(),
-            f_px: camera.f_px(),
-            count: n,
-            width: chain.width,
-            height: chain.height,
-            sh_degree: scene.sh_degree,
-            sh_stride: scene.sh_stride,
-            sh_split: scene.sh_split,
-        };
+        let push = project_push(scene, chain, camera, u);
         frame.pass("gaussians: project", |rec| {
             let binds = [
                 Bind::StorageBuffer(&scene.gaussians),
@@ -446,6 +429,19 @@ impl GaussianRenderer {
             SortedIn::Input => &chain.order,
             SortedIn::Scratch => &chain.depth_scratch.values,
         };
+        self.record_tiles(frame, chain, depth_order, n)
+    }
+
+    /// Records the tile stages of a chain of `n` Gaussians whose depth
+    /// order is in `depth_order`: the tile list, its sort and each tile's
+    /// range. The buffer that holds the sorted entries' values.
+    fn record_tiles<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        chain: &'r Chain,
+        depth_order: &'r Buffer,
+        n: u32,
+    ) -> &'r Buffer {
         let tiles_push = |stage| TilesPush {
             stage,
             count: n,
@@ -658,31 +654,7 @@ impl GaussianRenderer {
         };
         let chain = Chain::new(ctx, scene.count, capacity, width, height)?;
         let layers = gaussian_layers(camera, depths, self.layer_count);
-        let storage = vk::ImageUsageFlags::STORAGE;
-        let gbuffer: Vec<GBufferLayer> = (0..layers.count)
-            .map(|_| {
-                Ok(GBufferLayer {
-                    color: Image::new_2d(
-                        ctx,
-                        "gaussian layer",
-                        vk::Format::R16G16B16A16_SFLOAT,
-                        width,
-                        height,
-                        1,
-                        storage,
-                    )?,
-                    eye: Image::new_2d(
-                        ctx,
-                        "gaussian layer eye",
-                        vk::Format::R32G32B32A32_SFLOAT,
-                        width,
-                        height,
-                        1,
-                        storage,
-                    )?,
-                })
-            })
-            .collect::<Result<_>>()?;
+        let gbuffer = layer_images(ctx, layers.count, width, height)?;
         let dof = self.layered.prepare_gaussian_layers(ctx, &view, layers)?;
         let result_readback = readback(
             ctx,
@@ -716,25 +688,7 @@ impl GaussianRenderer {
             let layer = |l: usize| &gbuffer[if l < gbuffer.len() { l } else { 0 }];
             binds.extend((0..MAX_LAYERS as usize).map(|l| Bind::StorageImage(&layer(l).color)));
             binds.extend((0..MAX_LAYERS as usize).map(|l| Bind::StorageImage(&layer(l).eye)));
-            let push = LayersPush {
-                background: background.extend(0.0).to_array(),
-                background_encoded: [
-                    linear_to_srgb(background.x),
-                    linear_to_srgb(background.y),
-                    linear_to_srgb(background.z),
-                    0.0,
-                ],
-                width,
-                height,
-                capacity,
-                entries_index: COUNT_ENTRIES,
-                layers: layers.count,
-                layer_lo: layers.lo,
-                layer_width: layers.width,
-                f_px: camera.f_px(),
-                aperture_radius: camera.aperture_radius,
-                focus_distance: camera.focus_distance,
-            };
+            let push = layers_push(camera, background, &layers, (width, height), capacity);
             rec.dispatch(&self.layers, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
         });
         let input = DofInput {
@@ -779,6 +733,98 @@ impl GaussianRenderer {
             },
             entries,
         ))
+    }
+}
+
+/// The push constants of `project` for lens point `u` (unit disk) of
+/// `camera`: its basis and eye, the lens point in the world, and the
+/// scene's count and SH layout.
+fn project_push(scene: &GpuGaussians, chain: &Chain, camera: &Camera, u: Vec2) -> ProjectPush {
+    let (right, up, forward) = camera.basis();
+    let eye = camera.eye;
+    let l = camera.aperture_radius * u;
+    let lens_world = eye + right * l.x + up * l.y;
+    ProjectPush {
+        right: right.extend(eye.x).to_array(),
+        up: up.extend(eye.y).to_array(),
+        forward: forward.extend(eye.z).to_array(),
+        lens_world: lens_world.extend(camera.focus_distance).to_array(),
+        lens: l.to_array(),
+        f_px: camera.f_px(),
+        count: scene.count,
+        width: chain.width,
+        height: chain.height,
+        sh_degree: scene.sh_degree,
+        sh_stride: scene.sh_stride,
+        sh_split: scene.sh_split,
+    }
+}
+
+/// The images of `count` G-buffer layers of `width` × `height` (the
+/// frame with its guard band): premultiplied colour and coverage, and eye
+/// position.
+fn layer_images(
+    ctx: &Arc<Context>,
+    count: u32,
+    width: u32,
+    height: u32,
+) -> Result<Vec<GBufferLayer>> {
+    let storage = vk::ImageUsageFlags::STORAGE;
+    (0..count)
+        .map(|_| {
+            Ok(GBufferLayer {
+                color: Image::new_2d(
+                    ctx,
+                    "gaussian layer",
+                    vk::Format::R16G16B16A16_SFLOAT,
+                    width,
+                    height,
+                    1,
+                    storage,
+                )?,
+                eye: Image::new_2d(
+                    ctx,
+                    "gaussian layer eye",
+                    vk::Format::R32G32B32A32_SFLOAT,
+                    width,
+                    height,
+                    1,
+                    storage,
+                )?,
+            })
+        })
+        .collect()
+}
+
+/// The push constants of the `layers` pass (the Gaussians composited
+/// into depth layers): `camera`'s lens, `background`, the layers' signed
+/// CoC range, the frame's size with its guard band and a tile list of
+/// `capacity` entries.
+fn layers_push(
+    camera: &Camera,
+    background: Vec3,
+    layers: &Slices,
+    (width, height): (u32, u32),
+    capacity: u32,
+) -> LayersPush {
+    LayersPush {
+        background: background.extend(0.0).to_array(),
+        background_encoded: [
+            linear_to_srgb(background.x),
+            linear_to_srgb(background.y),
+            linear_to_srgb(background.z),
+            0.0,
+        ],
+        width,
+        height,
+        capacity,
+        entries_index: COUNT_ENTRIES,
+        layers: layers.count,
+        layer_lo: layers.lo,
+        layer_width: layers.width,
+        f_px: camera.f_px(),
+        aperture_radius: camera.aperture_radius,
+        focus_distance: camera.focus_distance,
     }
 }
 

@@ -217,31 +217,7 @@ pub fn resolve_for(
             auto_frame_eye(target, back, up, width, height, fovy_deg, pts, near)
         }
     };
-    // Beyond ±1e18 the squares of distances overflow f32 and every test
-    // after this one would fail for a reason it does not name (an eye at
-    // 1e20 used to be "up is parallel to the view direction").
-    for (name, at, automatic) in [
-        ("target", target, spec.target.is_none()),
-        ("eye", eye, spec.eye.is_none()),
-    ] {
-        if !at.is_finite() || at.abs().max_element() > MAX_COORDINATE {
-            let why = match (name, automatic) {
-                ("eye", true) => format!(
-                    ": the automatic eye stands that far to fit the cloud's extent in a \
-                     {fovy_deg:e}° field of view; widen it (fovy_deg, or a shorter \
-                     focal_length_mm for the sensor), or give an eye"
-                ),
-                _ => String::new(),
-            };
-            return Err(camera_error(
-                name,
-                format!(
-                    "{at} is beyond ±{MAX_COORDINATE:e} scene units (the lens maths would \
-                     overflow single precision){why}"
-                ),
-            ));
-        }
-    }
+    check_within_range(spec, target, eye, fovy_deg)?;
     if eye == target {
         return Err(camera_error(
             "eye",
@@ -279,16 +255,7 @@ pub fn resolve_for(
     };
     camera.aperture_radius = match (spec.aperture_radius, spec.f_number) {
         (Some(r), _) => r,
-        (None, Some(n)) => {
-            let msg = "f_number needs focal_length_mm and units_per_mm";
-            let f_mm = spec
-                .focal_length_mm
-                .ok_or_else(|| camera_error("focal_length_mm", msg))?;
-            let units = spec
-                .units_per_mm
-                .ok_or_else(|| camera_error("units_per_mm", msg))?;
-            f_mm * units / (2.0 * n)
-        }
+        (None, Some(n)) => f_number_aperture(spec, n)?,
         (None, None) => auto_aperture(
             &camera,
             framing_points(points, cloud_min, cloud_max),
@@ -296,6 +263,52 @@ pub fn resolve_for(
         ),
     };
     Ok(camera)
+}
+
+/// Refuses a target or eye (`automatic` where not given) that is not
+/// finite or lies beyond ±[`MAX_COORDINATE`]: there the squares of
+/// distances overflow f32 and every check after this one would fail for a
+/// reason it does not name (an eye at 1e20 used to be "up is parallel to
+/// the view direction"). An automatic eye's error names the field of view
+/// `fovy_deg` that put it there.
+fn check_within_range(spec: &CameraSpec, target: Vec3, eye: Vec3, fovy_deg: f32) -> Result<()> {
+    for (name, at, automatic) in [
+        ("target", target, spec.target.is_none()),
+        ("eye", eye, spec.eye.is_none()),
+    ] {
+        if !at.is_finite() || at.abs().max_element() > MAX_COORDINATE {
+            let why = match (name, automatic) {
+                ("eye", true) => format!(
+                    ": the automatic eye stands that far to fit the cloud's extent in a \
+                     {fovy_deg:e}° field of view; widen it (fovy_deg, or a shorter \
+                     focal_length_mm for the sensor), or give an eye"
+                ),
+                _ => String::new(),
+            };
+            return Err(camera_error(
+                name,
+                format!(
+                    "{at} is beyond ±{MAX_COORDINATE:e} scene units (the lens maths would \
+                     overflow single precision){why}"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The aperture radius of f-number `n`: R = f / 2N with f =
+/// `focal_length_mm` · `units_per_mm`, each required (the error names the
+/// missing one).
+fn f_number_aperture(spec: &CameraSpec, n: f32) -> Result<f32> {
+    let msg = "f_number needs focal_length_mm and units_per_mm";
+    let f_mm = spec
+        .focal_length_mm
+        .ok_or_else(|| camera_error("focal_length_mm", msg))?;
+    let units = spec
+        .units_per_mm
+        .ok_or_else(|| camera_error("units_per_mm", msg))?;
+    Ok(f_mm * units / (2.0 * n))
 }
 
 /// The automatic aperture radius: R such that the larger CoC at the nearest

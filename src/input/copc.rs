@@ -318,84 +318,7 @@ impl CopcFile {
         let total = self.header.number_of_points();
         let mut found_key = false;
         for entry in bytes.chunks_exact(ENTRY_BYTES as usize) {
-            let i = |at: usize| i32::from_le_bytes(entry[at..at + 4].try_into().expect("4 bytes"));
-            let k = NodeKey {
-                level: i(0),
-                x: i(4),
-                y: i(8),
-                z: i(12),
-            };
-            let data_offset = u64::from_le_bytes(entry[16..24].try_into().expect("8 bytes"));
-            let (byte_size, count) = (i(24), i(28));
-            if !k.is_valid() || !k.within(&key) {
-                return Err(self.fail(format!(
-                    "the COPC hierarchy page of node {} holds the key {}, which is not in \
-                     the octree below it",
-                    key_name(key),
-                    key_name(k)
-                )));
-            }
-            found_key |= k == key;
-            let slot = match count {
-                -1 => {
-                    if k == key {
-                        return Err(self.fail(format!(
-                            "the COPC hierarchy page of node {} refers to itself (a cycle)",
-                            key_name(key)
-                        )));
-                    }
-                    Slot::Page(data_offset, u64::try_from(byte_size).unwrap_or(0))
-                }
-                0 => Slot::Node(NodeEntry {
-                    key: k,
-                    offset: 0,
-                    byte_size: 0,
-                    point_count: 0,
-                }),
-                n if n > 0 => {
-                    let n = n as u64;
-                    let fits = u64::try_from(byte_size)
-                        .ok()
-                        .filter(|&b| b > 0)
-                        .and_then(|b| data_offset.checked_add(b))
-                        .is_some_and(|e| e <= self.file_len);
-                    if !fits {
-                        return Err(self.fail(format!(
-                            "node {} of the COPC hierarchy puts its {n} points at byte \
-                             {data_offset} ({byte_size} bytes), outside the file's {} bytes",
-                            key_name(k),
-                            self.file_len
-                        )));
-                    }
-                    h.points += n;
-                    if h.points > total {
-                        return Err(self.fail(format!(
-                            "the COPC hierarchy's nodes hold more points than the header's \
-                             {total} (at node {}): counts that lie",
-                            key_name(k)
-                        )));
-                    }
-                    Slot::Node(NodeEntry {
-                        key: k,
-                        offset: data_offset,
-                        byte_size: byte_size as u64,
-                        point_count: n,
-                    })
-                }
-                n => {
-                    return Err(self.fail(format!(
-                        "node {} of the COPC hierarchy has a point count of {n}",
-                        key_name(k)
-                    )))
-                }
-            };
-            if k != key && h.slots.contains_key(&k) {
-                return Err(self.fail(format!(
-                    "node {} appears twice in the COPC hierarchy",
-                    key_name(k)
-                )));
-            }
-            h.slots.insert(k, slot);
+            found_key |= self.read_entry(h, key, entry, total)? == key;
         }
         if !found_key {
             // The page says nothing of its own key: the node has no points.
@@ -410,6 +333,97 @@ impl CopcFile {
             );
         }
         Ok(())
+    }
+
+    /// Reads one 32-byte `entry` of the page of node `key` into `h`,
+    /// checking it: a key in the octree below `key`, a page that is not
+    /// `key`'s own, points inside the file and no more in all than the
+    /// header's `total`, a key not seen before. The entry's key.
+    fn read_entry(
+        &self,
+        h: &mut Hierarchy,
+        key: NodeKey,
+        entry: &[u8],
+        total: u64,
+    ) -> Result<NodeKey> {
+        let i = |at: usize| i32::from_le_bytes(entry[at..at + 4].try_into().expect("4 bytes"));
+        let k = NodeKey {
+            level: i(0),
+            x: i(4),
+            y: i(8),
+            z: i(12),
+        };
+        let data_offset = u64::from_le_bytes(entry[16..24].try_into().expect("8 bytes"));
+        let (byte_size, count) = (i(24), i(28));
+        if !k.is_valid() || !k.within(&key) {
+            return Err(self.fail(format!(
+                "the COPC hierarchy page of node {} holds the key {}, which is not in \
+                 the octree below it",
+                key_name(key),
+                key_name(k)
+            )));
+        }
+        let slot = match count {
+            -1 => {
+                if k == key {
+                    return Err(self.fail(format!(
+                        "the COPC hierarchy page of node {} refers to itself (a cycle)",
+                        key_name(key)
+                    )));
+                }
+                Slot::Page(data_offset, u64::try_from(byte_size).unwrap_or(0))
+            }
+            0 => Slot::Node(NodeEntry {
+                key: k,
+                offset: 0,
+                byte_size: 0,
+                point_count: 0,
+            }),
+            n if n > 0 => {
+                let n = n as u64;
+                let fits = u64::try_from(byte_size)
+                    .ok()
+                    .filter(|&b| b > 0)
+                    .and_then(|b| data_offset.checked_add(b))
+                    .is_some_and(|e| e <= self.file_len);
+                if !fits {
+                    return Err(self.fail(format!(
+                        "node {} of the COPC hierarchy puts its {n} points at byte \
+                         {data_offset} ({byte_size} bytes), outside the file's {} bytes",
+                        key_name(k),
+                        self.file_len
+                    )));
+                }
+                h.points += n;
+                if h.points > total {
+                    return Err(self.fail(format!(
+                        "the COPC hierarchy's nodes hold more points than the header's \
+                         {total} (at node {}): counts that lie",
+                        key_name(k)
+                    )));
+                }
+                Slot::Node(NodeEntry {
+                    key: k,
+                    offset: data_offset,
+                    byte_size: byte_size as u64,
+                    point_count: n,
+                })
+            }
+            n => {
+                return Err(self.fail(format!(
+                    "node {} of the COPC hierarchy has a point count of {n}",
+                    key_name(k)
+                )))
+            }
+        };
+        if k != key && h.slots.contains_key(&k) {
+            return Err(self.fail(format!(
+                "node {} appears twice in the COPC hierarchy",
+                key_name(k)
+            )));
+        }
+        h.slots.insert(k, slot);
+        Ok(k)
     }
 
     /// The entry of node `key` (None: no such node), reading the pages on

@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use glam::{Quat, Vec3};
-use ply_rs_bw::ply::{Encoding, Header, PropertyType};
+use ply_rs_bw::ply::{ElementDef, Encoding, Header, PropertyType};
 
 use super::ply::{
     ascii_scalar, ascii_tokens, binary_scalar, open_ply, ply_error, read_file, read_header,
@@ -146,177 +146,257 @@ pub fn load_gaussians(path: &Path) -> Result<GaussianScene> {
         .elements
         .get("vertex")
         .ok_or_else(|| fail("no 'vertex' element in the header".into()))?;
-    // Every property's place: byte offset (binary) or token (ASCII).
     let binary = !matches!(header.encoding, Encoding::Ascii);
-    let mut places = std::collections::HashMap::new();
-    let mut at = 0;
-    for (name, p) in &vertex.properties {
-        let PropertyType::Scalar(ty) = &p.data_type else {
-            return Err(fail(format!(
-                "the vertex property '{name}' is a list: 3D Gaussians have scalars only"
-            )));
-        };
-        places.insert(name.as_str(), (at, ty.clone()));
-        at += if binary { scalar_bytes(ty) } else { 1 };
-    }
-    let stride = at;
-    let rest = (0..)
-        .take_while(|k| places.contains_key(format!("f_rest_{k}").as_str()))
-        .count();
-    let extra = vertex
-        .properties
-        .keys()
-        .filter(|n| n.starts_with("f_rest_"))
-        .count();
-    let sh_degree = match (sh_degree(rest), rest == extra) {
-        (Some(d), true) => d,
-        _ => {
-            return Err(fail(format!(
-                "{extra} f_rest_* properties (f_rest_0 to f_rest_{} in a row): SH degrees 1, 2 \
-                 and 3 have 9, 24 and 45",
-                rest.max(1) - 1
-            )))
-        }
-    };
-    let names = property_names(rest);
-    let missing: Vec<&str> = names
-        .iter()
-        .map(String::as_str)
-        .filter(|n| !places.contains_key(n))
-        .collect();
-    if !missing.is_empty() {
-        return Err(fail(format!(
-            "3D Gaussians without the properties {}",
-            missing.join(", ")
-        )));
-    }
-    let fields: Vec<(usize, ply_rs_bw::ply::ScalarType)> =
-        names.iter().map(|n| places[n.as_str()].clone()).collect();
+    let layout = VertexLayout::of(vertex, binary, path)?;
 
     // The records, after the elements before the vertices.
     let payload = &bytes[payload_at..];
-    let count = vertex.count;
-    let mut values = vec![0f32; names.len()];
     let mut scene = GaussianScene {
-        sh_degree,
+        sh_degree: layout.sh_degree,
         ..GaussianScene::default()
     };
-    let k_per_channel = rest / 3;
-    let mut read_one = |g: usize, values: &[f32]| -> Result<()> {
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-            return Err(fail(format!(
-                "Gaussian {g}: {} is {} (not finite)",
-                names[i], values[i]
-            )));
-        }
-        let v = |name_at: usize| values[name_at];
-        scene.positions.push(Vec3::new(v(0), v(1), v(2)));
-        let dc = 6 + rest;
-        // Opacity, scales, rotation after the SH.
-        let (o, s, r) = (dc, dc + 1, dc + 4);
-        if let Some(k) = (0..3).find(|&k| v(s + k) > MAX_LOG_SCALE) {
-            return Err(fail(format!(
-                "Gaussian {g}: scale_{k} = {} overflows once activated (exp) and squared; \
-                 at most {MAX_LOG_SCALE}",
-                v(s + k)
-            )));
-        }
-        scene
-            .scales
-            .push(Vec3::new(v(s).exp(), v(s + 1).exp(), v(s + 2).exp()));
-        let q = Quat::from_xyzw(v(r + 1), v(r + 2), v(r + 3), v(r));
-        if q.length_squared() == 0.0 {
-            return Err(fail(format!(
-                "Gaussian {g}: its rotation rot_0..3 is all zeros"
-            )));
-        }
-        scene.rotations.push(q.normalize());
-        scene.opacities.push(1.0 / (1.0 + (-v(o)).exp()));
-        // DC, then the rest, each [k][channel]; f_rest is channel-major.
-        scene.sh.extend_from_slice(&values[3..6]);
-        for k in 0..k_per_channel {
-            for c in 0..3 {
-                scene.sh.push(v(6 + c * k_per_channel + k));
-            }
-        }
-        Ok(())
-    };
+    let mut read_one =
+        |g: usize, values: &[f32]| push_gaussian(&mut scene, g, values, &layout, path);
     if binary {
-        let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
-        let mut input = std::io::Cursor::new(payload);
-        for element in header.elements.values() {
-            if element.name == "vertex" {
-                break;
-            }
-            if element.properties.is_empty() {
-                continue;
-            }
-            for _ in 0..element.count {
-                if !skip_binary_element(&mut input, element, big_endian)
-                    .map_err(|e| fail(e.to_string()))?
-                {
-                    return Err(fail(format!("truncated: the '{}' element", element.name)));
-                }
-            }
-        }
-        let start = input.position() as usize;
-        let block = &payload[start..];
-        match count.checked_mul(stride) {
-            Some(n) if n <= block.len() => {}
-            _ => {
-                return Err(fail(format!(
-                    "truncated: the header declares {count} Gaussians of {stride} bytes, the \
-                     file holds {} bytes of them",
-                    block.len()
-                )))
-            }
-        }
-        for (g, record) in block.chunks_exact(stride).take(count).enumerate() {
-            for (v, (at, ty)) in values.iter_mut().zip(&fields) {
-                *v = binary_scalar(&record[*at..], ty, big_endian).value() as f32;
-            }
-            read_one(g, &values)?;
-        }
+        read_binary(&header, payload, &layout, path, &mut read_one)?;
     } else {
-        let mut lines = payload
-            .split(|&b| b == b'\n')
-            .map(|l| l.strip_suffix(b"\r").unwrap_or(l));
-        for element in header.elements.values() {
-            if element.name == "vertex" {
-                break;
-            }
-            for _ in 0..element.count {
-                lines.next();
-            }
-        }
-        for g in 0..count {
-            let line = lines.next().ok_or_else(|| {
-                fail(format!(
-                    "truncated: the header declares {count} Gaussians, the file holds {g}"
-                ))
-            })?;
-            let tokens = ascii_tokens(line);
-            if tokens.len() != stride {
-                return Err(fail(format!(
-                    "Gaussian {g}: {} values on its line, {stride} properties declared",
-                    tokens.len()
-                )));
-            }
-            for ((v, (at, ty)), name) in values.iter_mut().zip(&fields).zip(&names) {
-                *v = ascii_scalar(tokens[*at], ty)
-                    .ok_or_else(|| {
-                        fail(format!(
-                            "Gaussian {g}: {name} is '{}', not a number of its type",
-                            String::from_utf8_lossy(tokens[*at])
-                        ))
-                    })?
-                    .value() as f32;
-            }
-            read_one(g, &values)?;
-        }
+        read_ascii(&header, payload, &layout, path, &mut read_one)?;
     }
     if scene.is_empty() {
         return Err(fail("the scene is empty (0 Gaussians)".into()));
     }
     Ok(scene)
+}
+
+/// Where a Gaussian's values lie in a vertex record, checked against the
+/// reference layout.
+struct VertexLayout {
+    /// Gaussians the header declares.
+    count: usize,
+    /// A record's bytes (binary) or tokens (ASCII).
+    stride: usize,
+    /// `f_rest_*` properties.
+    rest: usize,
+    sh_degree: u32,
+    /// The properties read, in [`property_names`]' order.
+    names: Vec<String>,
+    /// Each of `names`' byte offset (binary) or token (ASCII), and type.
+    fields: Vec<(usize, ply_rs_bw::ply::ScalarType)>,
+}
+
+impl VertexLayout {
+    /// The layout of `vertex`'s properties (`binary` or ASCII records):
+    /// scalars only, an SH degree's count of `f_rest_*` in a row, and
+    /// every property of [`property_names`]; errors name `path`.
+    fn of(vertex: &ElementDef, binary: bool, path: &Path) -> Result<VertexLayout> {
+        let fail = |msg: String| ply_error(path, msg);
+        // Every property's place: byte offset (binary) or token (ASCII).
+        let mut places = std::collections::HashMap::new();
+        let mut at = 0;
+        for (name, p) in &vertex.properties {
+            let PropertyType::Scalar(ty) = &p.data_type else {
+                return Err(fail(format!(
+                    "the vertex property '{name}' is a list: 3D Gaussians have scalars only"
+                )));
+            };
+            places.insert(name.as_str(), (at, ty.clone()));
+            at += if binary { scalar_bytes(ty) } else { 1 };
+        }
+        let stride = at;
+        let rest = (0..)
+            .take_while(|k| places.contains_key(format!("f_rest_{k}").as_str()))
+            .count();
+        let extra = vertex
+            .properties
+            .keys()
+            .filter(|n| n.starts_with("f_rest_"))
+            .count();
+        let sh_degree = match (sh_degree(rest), rest == extra) {
+            (Some(d), true) => d,
+            _ => {
+                return Err(fail(format!(
+                    "{extra} f_rest_* properties (f_rest_0 to f_rest_{} in a row): SH degrees \
+                     1, 2 and 3 have 9, 24 and 45",
+                    rest.max(1) - 1
+                )))
+            }
+        };
+        let names = property_names(rest);
+        let missing: Vec<&str> = names
+            .iter()
+            .map(String::as_str)
+            .filter(|n| !places.contains_key(n))
+            .collect();
+        if !missing.is_empty() {
+            return Err(fail(format!(
+                "3D Gaussians without the properties {}",
+                missing.join(", ")
+            )));
+        }
+        let fields = names.iter().map(|n| places[n.as_str()].clone()).collect();
+        Ok(VertexLayout {
+            count: vertex.count,
+            stride,
+            rest,
+            sh_degree,
+            names,
+            fields,
+        })
+    }
+}
+
+/// Activates Gaussian `g`'s `values` (in `layout.names`' order) and adds
+/// it to `scene`: a value that is not finite, a log-scale over
+/// [`MAX_LOG_SCALE`] and a rotation of zeros are errors naming `path`.
+fn push_gaussian(
+    scene: &mut GaussianScene,
+    g: usize,
+    values: &[f32],
+    layout: &VertexLayout,
+    path: &Path,
+) -> Result<()> {
+    let fail = |msg: String| ply_error(path, msg);
+    let (names, rest) = (&layout.names, layout.rest);
+    let k_per_channel = rest / 3;
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        return Err(fail(format!(
+            "Gaussian {g}: {} is {} (not finite)",
+            names[i], values[i]
+        )));
+    }
+    let v = |name_at: usize| values[name_at];
+    scene.positions.push(Vec3::new(v(0), v(1), v(2)));
+    let dc = 6 + rest;
+    // Opacity, scales, rotation after the SH.
+    let (o, s, r) = (dc, dc + 1, dc + 4);
+    if let Some(k) = (0..3).find(|&k| v(s + k) > MAX_LOG_SCALE) {
+        return Err(fail(format!(
+            "Gaussian {g}: scale_{k} = {} overflows once activated (exp) and squared; \
+             at most {MAX_LOG_SCALE}",
+            v(s + k)
+        )));
+    }
+    scene
+        .scales
+        .push(Vec3::new(v(s).exp(), v(s + 1).exp(), v(s + 2).exp()));
+    let q = Quat::from_xyzw(v(r + 1), v(r + 2), v(r + 3), v(r));
+    if q.length_squared() == 0.0 {
+        return Err(fail(format!(
+            "Gaussian {g}: its rotation rot_0..3 is all zeros"
+        )));
+    }
+    scene.rotations.push(q.normalize());
+    scene.opacities.push(1.0 / (1.0 + (-v(o)).exp()));
+    // DC, then the rest, each [k][channel]; f_rest is channel-major.
+    scene.sh.extend_from_slice(&values[3..6]);
+    for k in 0..k_per_channel {
+        for c in 0..3 {
+            scene.sh.push(v(6 + c * k_per_channel + k));
+        }
+    }
+    Ok(())
+}
+
+/// Reads the binary `payload`'s Gaussians (after the elements before the
+/// vertices), handing each one's index and values to `read_one`; a
+/// truncated file is an error naming `path`.
+fn read_binary(
+    header: &Header,
+    payload: &[u8],
+    layout: &VertexLayout,
+    path: &Path,
+    read_one: &mut dyn FnMut(usize, &[f32]) -> Result<()>,
+) -> Result<()> {
+    let fail = |msg: String| ply_error(path, msg);
+    let (count, stride) = (layout.count, layout.stride);
+    let mut values = vec![0f32; layout.names.len()];
+    let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
+    let mut input = std::io::Cursor::new(payload);
+    for element in header.elements.values() {
+        if element.name == "vertex" {
+            break;
+        }
+        if element.properties.is_empty() {
+            continue;
+        }
+        for _ in 0..element.count {
+            if !skip_binary_element(&mut input, element, big_endian)
+                .map_err(|e| fail(e.to_string()))?
+            {
+                return Err(fail(format!("truncated: the '{}' element", element.name)));
+            }
+        }
+    }
+    let start = input.position() as usize;
+    let block = &payload[start..];
+    match count.checked_mul(stride) {
+        Some(n) if n <= block.len() => {}
+        _ => {
+            return Err(fail(format!(
+                "truncated: the header declares {count} Gaussians of {stride} bytes, the \
+                 file holds {} bytes of them",
+                block.len()
+            )))
+        }
+    }
+    for (g, record) in block.chunks_exact(stride).take(count).enumerate() {
+        for (v, (at, ty)) in values.iter_mut().zip(&layout.fields) {
+            *v = binary_scalar(&record[*at..], ty, big_endian).value() as f32;
+        }
+        read_one(g, &values)?;
+    }
+    Ok(())
+}
+
+/// Reads the ASCII `payload`'s Gaussians (after the lines of the elements
+/// before the vertices), a line each, handing each one's index and values
+/// to `read_one`; a missing line, a line of another length and a token
+/// that is no number are errors naming `path`.
+fn read_ascii(
+    header: &Header,
+    payload: &[u8],
+    layout: &VertexLayout,
+    path: &Path,
+    read_one: &mut dyn FnMut(usize, &[f32]) -> Result<()>,
+) -> Result<()> {
+    let fail = |msg: String| ply_error(path, msg);
+    let (count, stride) = (layout.count, layout.stride);
+    let mut values = vec![0f32; layout.names.len()];
+    let mut lines = payload
+        .split(|&b| b == b'\n')
+        .map(|l| l.strip_suffix(b"\r").unwrap_or(l));
+    for element in header.elements.values() {
+        if element.name == "vertex" {
+            break;
+        }
+        for _ in 0..element.count {
+            lines.next();
+        }
+    }
+    for g in 0..count {
+        let line = lines.next().ok_or_else(|| {
+            fail(format!(
+                "truncated: the header declares {count} Gaussians, the file holds {g}"
+            ))
+        })?;
+        let tokens = ascii_tokens(line);
+        if tokens.len() != stride {
+            return Err(fail(format!(
+                "Gaussian {g}: {} values on its line, {stride} properties declared",
+                tokens.len()
+            )));
+        }
+        for ((v, (at, ty)), name) in values.iter_mut().zip(&layout.fields).zip(&layout.names) {
+            *v = ascii_scalar(tokens[*at], ty)
+                .ok_or_else(|| {
+                    fail(format!(
+                        "Gaussian {g}: {name} is '{}', not a number of its type",
+                        String::from_utf8_lossy(tokens[*at])
+                    ))
+                })?
+                .value() as f32;
+        }
+        read_one(g, &values)?;
+    }
+    Ok(())
 }

@@ -473,7 +473,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     image,
                     samples_per_pass,
                     lod,
-                } = measure(&renderer, &scene, &options_m, options, &m.name, &mut step)?;
+                } = measure_cell(&renderer, &scene, &options_m, options, &m.name, &mut step)?;
                 let quality = match &reference {
                     Some(reference) => Some(Quality {
                         psnr_db: psnr(reference, &image)?,
@@ -552,7 +552,7 @@ struct Measured {
 /// untimed, then `options.runs` timed, each image then encoded as PNG
 /// (timed apart). `step` is called before each frame with what renders:
 /// `name`, "(warm-up)" added for the untimed.
-fn measure(
+fn measure_cell(
     renderer: &Renderer,
     scene: &Scene,
     frame: &RenderOptions,

@@ -445,9 +445,14 @@ impl RenderJob {
         events(JobEvent::Planned {
             frames: plan.frames.len(),
         })?;
-        let outcome = self.run_frames(&ctx, &plan, &stop, events, |job, events| {
-            on_device.render_frame(self, job, &plan, load_ms, events)
-        })?;
+        let outcome = self.run_frames(
+            &ctx,
+            &plan,
+            &stop,
+            events,
+            WRITES_IN_FLIGHT,
+            |job, events| on_device.render_frame(self, job, &plan, load_ms, events),
+        )?;
         self.write_timings(&outcome.reports)?;
         // The device's scene goes before the validation layer's count.
         drop(on_device);
@@ -470,13 +475,14 @@ impl RenderJob {
         load_ms: f64,
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
     ) -> Result<Outcome> {
-        self.run_frames(renderer.ctx(), plan, stop, events, |job, events| {
+        self.run_frames(renderer.ctx(), plan, stop, events, 0, |job, events| {
             self.point_frame(renderer, scenes, job, plan, load_ms, events)
         })
     }
 
-    /// Renders and writes frame `job` of a cloud's `scenes`, its camera
-    /// told to `events` first: the camera as rendered and the report.
+    /// Renders frame `job` of a cloud's `scenes`, its camera told to
+    /// `events` first: the camera as rendered, the report and the write of
+    /// its file.
     pub fn point_frame(
         &self,
         renderer: &Renderer,
@@ -485,7 +491,7 @@ impl RenderJob {
         plan: &Plan,
         load_ms: f64,
         events: &mut Events<'_>,
-    ) -> Result<(CameraSpec, FrameReport)> {
+    ) -> Result<RenderedFrame> {
         // A COPC file's scene is the nodes of the frame's camera: chosen
         // again once `--focus-pixel` has moved the focus.
         let scene = scenes.for_camera(renderer, &job.camera, self.spec.lod)?;
@@ -504,66 +510,126 @@ impl RenderJob {
             number: job.number,
             spec: &spec,
         })?;
-        let measure = write_frame(renderer, scene, &options, &job.output, self.spec.written)?;
+        let (measure, write) =
+            render_frame(renderer, scene, &options, &job.output, self.spec.written)?;
         let report = FrameReport {
             load_ms,
             ..measure.into_report(renderer, &self.spec, &options, scene)
         };
-        Ok((spec, report))
+        Ok(RenderedFrame {
+            spec,
+            report,
+            write,
+        })
     }
 
-    /// Runs `frame` on each frame of `plan` in order — it renders and
-    /// writes the frame, tells `events` its camera first, and returns the
-    /// camera as rendered and the report — and tells `events` each file
-    /// written, and a warning for frames that drew nothing of the scene
-    /// (the first by its number, the count at the end). After the frame in
-    /// flight when `stop` is set, the error says how far the job got.
+    /// Runs `frame` on each frame of `plan` in order — it renders the
+    /// frame, tells `events` its camera first, and returns the camera as
+    /// rendered, the report and the write of its file — and writes the
+    /// files in frame order: with `in_flight` 0 each before the next frame
+    /// renders, else on a writer thread while the next frames render, at
+    /// most `in_flight` frames rendered and not yet written. Tells `events`
+    /// each file written, in frame order, and a warning for frames that
+    /// drew nothing of the scene (the first by its number, the count at the
+    /// end). Once `stop` is set, no frame is begun and no write that has
+    /// not begun begins; the one in progress completes, and the error says
+    /// how far the job got.
     fn run_frames<F>(
         &self,
         ctx: &crate::vk::Context,
         plan: &Plan,
         stop: &AtomicBool,
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
+        in_flight: usize,
         mut frame: F,
     ) -> Result<Outcome>
     where
-        F: FnMut(&FrameJob, &mut Events<'_>) -> Result<(CameraSpec, FrameReport)>,
+        F: FnMut(&FrameJob, &mut Events<'_>) -> Result<RenderedFrame>,
     {
-        let mut outcome = Outcome::default();
-        let mut empty_frames = 0usize;
-        for (done, job) in plan.frames.iter().enumerate() {
-            if stop.load(Ordering::SeqCst) {
-                return Err(Error::Interrupted {
-                    written: done,
-                    total: plan.frames.len(),
-                    next: job.number,
-                });
-            }
-            let started = Instant::now();
-            let (spec, report) = frame(job, events)?;
-            log_memory(ctx, job, started);
-            if report.drew_nothing() {
-                empty_frames += 1;
-                if empty_frames == 1 {
-                    events(JobEvent::Warning(&empty_frame_warning(job.number, &report)))?;
+        use std::sync::mpsc;
+        std::thread::scope(|scope| {
+            // Each write's result, in frame order: None where `stop` came
+            // before it began.
+            let (to_job, results) = mpsc::channel::<Option<Result<f64>>>();
+            let (to_writer, writes) = mpsc::sync_channel::<FileWrite>(in_flight.saturating_sub(1));
+            let writer = (in_flight > 0).then(|| {
+                let to_job = to_job.clone();
+                scope.spawn(move || {
+                    for write in writes {
+                        let result = (!stop.load(Ordering::SeqCst)).then(|| timed_ms(write));
+                        if to_job.send(result).is_err() {
+                            break;
+                        }
+                    }
+                })
+            });
+            let mut done = FilesWritten::default();
+            let mut waiting = std::collections::VecDeque::new();
+            let rendered = (|| {
+                for job in &plan.frames {
+                    if stop.load(Ordering::SeqCst) {
+                        break;
+                    }
+                    let started = Instant::now();
+                    let RenderedFrame {
+                        spec,
+                        report,
+                        write,
+                    } = frame(job, events)?;
+                    waiting.push_back((job, started, spec, report));
+                    match &writer {
+                        Some(_) => to_writer.send(write).expect("the writer takes writes"),
+                        None => to_job
+                            .send(Some(timed_ms(write)))
+                            .expect("the job's channel"),
+                    }
+                    while let Ok(result) = results.try_recv() {
+                        let (job, started, spec, report) =
+                            waiting.pop_front().expect("a frame a result");
+                        done.finish(ctx, events, job, started, spec, report, result)?;
+                    }
+                }
+                Ok(())
+            })();
+            drop(to_writer);
+            // The frames rendered and not yet written: completed (or, after
+            // `stop`, left unbegun) whatever else went wrong.
+            let mut first_error = rendered.err();
+            while let Some((job, started, spec, report)) = waiting.pop_front() {
+                let result = results.recv().unwrap_or(None);
+                if first_error.is_none() {
+                    first_error = done
+                        .finish(ctx, events, job, started, spec, report, result)
+                        .err();
+                } else if let Some(Err(e)) = result {
+                    log::error!("frame {}: {e}", job.number);
                 }
             }
-            events(JobEvent::Written {
-                number: job.number,
-                output: &job.output,
-                seconds: started.elapsed().as_secs_f64(),
-                report: &report,
-            })?;
-            outcome.cameras.push((job.number, spec));
-            outcome.reports.push(report);
-        }
-        if empty_frames > 1 {
-            events(JobEvent::Warning(&format!(
-                "{empty_frames} of {} frames showed nothing of the scene",
-                plan.frames.len()
-            )))?;
-        }
-        Ok(outcome)
+            if let Some(writer) = writer {
+                writer
+                    .join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            }
+            if let Some(e) = first_error {
+                return Err(e);
+            }
+            let written = done.outcome.reports.len();
+            if let Some(next) = plan.frames.get(written) {
+                return Err(Error::Interrupted {
+                    written,
+                    total: plan.frames.len(),
+                    next: next.number,
+                });
+            }
+            if done.empty_frames > 1 {
+                events(JobEvent::Warning(&format!(
+                    "{} of {} frames showed nothing of the scene",
+                    done.empty_frames,
+                    plan.frames.len()
+                )))?;
+            }
+            Ok(done.outcome)
+        })
     }
 
     /// K of a scene of 3D Gaussians: `--ssaa`, else
@@ -592,9 +658,9 @@ impl RenderJob {
         }
     }
 
-    /// Renders and writes frame `job` of a Gaussian scene (`plan` made
-    /// from its centres), its camera told to `events` first, as the point
-    /// frames are: the camera as rendered and the report.
+    /// Renders frame `job` of a Gaussian scene (`plan` made from its
+    /// centres), its camera told to `events` first, as the point frames
+    /// are: the camera as rendered, the report and the write of its file.
     pub fn gaussian_frame(
         &self,
         renderer: &GaussianRenderer,
@@ -603,7 +669,7 @@ impl RenderJob {
         plan: &Plan,
         load_ms: f64,
         events: &mut Events<'_>,
-    ) -> Result<(CameraSpec, FrameReport)> {
+    ) -> Result<RenderedFrame> {
         let lens = self.gaussian_lens()?;
         let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
         events(JobEvent::Camera {
@@ -622,11 +688,8 @@ impl RenderJob {
                 self.spec.background,
             )?,
         };
-        let t_encode = Instant::now();
-        write_image(&frame.image, &job.output)?;
         let report = FrameReport {
             load_ms,
-            encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
             counts: vec![
                 (
                     crate::report::GAUSSIAN_TILE_ENTRIES.into(),
@@ -650,7 +713,12 @@ impl RenderJob {
                 Default::default(),
             )
         };
-        Ok((spec, report))
+        let output = job.output.clone();
+        Ok(RenderedFrame {
+            spec,
+            report,
+            write: Box::new(move || write_image(&frame.image, &output)),
+        })
     }
 
     /// The options of one frame through `camera`, its focus on what
@@ -753,7 +821,6 @@ pub fn watch_signals(sequence: bool, stop: Arc<AtomicBool>) -> Result<()> {
 struct FrameMeasure {
     rendered: Rendered<()>,
     camera: Camera,
-    encode_ms: f64,
 }
 
 impl FrameMeasure {
@@ -769,7 +836,6 @@ impl FrameMeasure {
             samples_per_pass: r.samples_per_pass,
             counts: r.counts.clone(),
             lod: r.lod,
-            encode_ms: self.encode_ms,
             ..FrameReport::new(
                 &renderer.ctx().info,
                 spec.method.short_name(),
@@ -784,17 +850,19 @@ impl FrameMeasure {
     }
 }
 
-/// Renders one frame and writes it to `output` (atomically): PNG pixels
-/// encoded on the device (RGBA on the host when transparent), EXR with
-/// R, G, B, A and the passes asked for.
-fn write_frame(
+/// Renders one frame for the file `output`, and the write of that file
+/// (atomic): PNG pixels encoded on the device (RGBA on the host when
+/// transparent), EXR with R, G, B, A and the passes asked for.
+fn render_frame(
     renderer: &Renderer,
     scene: &Scene,
     options: &RenderOptions,
     output: &Path,
     written: Written,
-) -> Result<FrameMeasure> {
-    let (rendered, t_encode) = if !is_png_path(output)? {
+) -> Result<(FrameMeasure, FileWrite)> {
+    let path = output.to_path_buf();
+    let camera = options.camera;
+    let (rendered, write): (Rendered<()>, FileWrite) = if !is_png_path(output)? {
         let Passes { z, coc } = written.passes;
         let (rendered, gbuffer) = match z || coc {
             true => {
@@ -803,26 +871,27 @@ fn write_frame(
             }
             false => (renderer.render(scene, options)?, None),
         };
-        let t_encode = Instant::now();
-        let depth = gbuffer.map(|g| output_depths(&g, rendered.image.width, rendered.image.height));
-        write_exr(&rendered.image, depth, &options.camera, output, written)?;
-        (rendered.map(|_| ()), t_encode)
+        let (image, rendered) = split(rendered);
+        let write = move || {
+            let depth = gbuffer.map(|g| output_depths(&g, image.width, image.height));
+            write_exr(&image, depth, &camera, &path, written)
+        };
+        (rendered, Box::new(write))
     } else if written.transparent {
-        let rendered = renderer.render(scene, options)?;
-        let t_encode = Instant::now();
-        write_png_rgba(&rendered.image, output)?;
-        (rendered.map(|_| ()), t_encode)
+        let (image, rendered) = split(renderer.render(scene, options)?);
+        (rendered, Box::new(move || write_png_rgba(&image, &path)))
     } else {
-        let rendered = renderer.render_srgb8(scene, options)?;
-        let t_encode = Instant::now();
-        rendered.image.write_png(output)?;
-        (rendered.map(|_| ()), t_encode)
+        let (image, rendered) = split(renderer.render_srgb8(scene, options)?);
+        (rendered, Box::new(move || image.write_png(&path)))
     };
-    Ok(FrameMeasure {
-        rendered,
-        camera: options.camera,
-        encode_ms: t_encode.elapsed().as_secs_f64() * 1e3,
-    })
+    Ok((FrameMeasure { rendered, camera }, write))
+}
+
+/// A rendered frame's image, and the rest of it.
+fn split<I>(rendered: Rendered<I>) -> (I, Rendered<()>) {
+    let mut image = None;
+    let rest = rendered.map(|i| image = Some(i));
+    (image.expect("map takes the image"), rest)
 }
 
 /// Writes `image` as EXR: R, G, B, A (coverage when transparent, else 1),
@@ -873,6 +942,77 @@ fn output_depths(g: &HostGBuffer, width: u32, height: u32) -> Vec<f32> {
         depth.extend(g.eye[row..row + width as usize].iter().map(|e| e[2]));
     }
     depth
+}
+
+/// The most frames of a sequence rendered and not yet written while the
+/// next renders ([`RenderJob::run`]): a writer thread encodes and writes
+/// them in frame order as rendering goes on, each holding one frame's
+/// pixels.
+pub const WRITES_IN_FLIGHT: usize = 2;
+
+/// The write of a frame's file, on any thread.
+pub type FileWrite = Box<dyn FnOnce() -> Result<()> + Send>;
+
+/// A frame rendered, its file not yet written.
+pub struct RenderedFrame {
+    /// Its camera as rendered, in the plan's coordinates.
+    pub spec: CameraSpec,
+    /// Its report (`encode_ms` set once its file is written).
+    pub report: FrameReport,
+    /// Writes its file.
+    pub write: FileWrite,
+}
+
+/// `write`, and how long it took, ms.
+fn timed_ms(write: FileWrite) -> Result<f64> {
+    let started = Instant::now();
+    write()?;
+    Ok(started.elapsed().as_secs_f64() * 1e3)
+}
+
+/// The frames of [`RenderJob::run_frames`] whose files are written.
+#[derive(Default)]
+struct FilesWritten {
+    outcome: Outcome,
+    empty_frames: usize,
+}
+
+impl FilesWritten {
+    /// Frame `job`'s write ended with `result` (None: not begun, after a
+    /// signal): where its file is written, `events` is told so (and warned
+    /// if the frame drew nothing of the scene).
+    #[allow(clippy::too_many_arguments)]
+    fn finish(
+        &mut self,
+        ctx: &crate::vk::Context,
+        events: &mut Events<'_>,
+        job: &FrameJob,
+        started: Instant,
+        spec: CameraSpec,
+        mut report: FrameReport,
+        result: Option<Result<f64>>,
+    ) -> Result<()> {
+        let Some(result) = result else {
+            return Ok(());
+        };
+        report.encode_ms = result?;
+        log_memory(ctx, job, started);
+        if report.drew_nothing() {
+            self.empty_frames += 1;
+            if self.empty_frames == 1 {
+                events(JobEvent::Warning(&empty_frame_warning(job.number, &report)))?;
+            }
+        }
+        events(JobEvent::Written {
+            number: job.number,
+            output: &job.output,
+            seconds: started.elapsed().as_secs_f64(),
+            report: &report,
+        })?;
+        self.outcome.cameras.push((job.number, spec));
+        self.outcome.reports.push(report);
+        Ok(())
+    }
 }
 
 /// The warning of the first frame that drew nothing of the scene.

@@ -35,7 +35,6 @@ use crate::job::{FrameJob, JobEvent, RenderJob};
 use crate::options::Lod;
 use crate::options::{EdlOptions, Method, Raster, SplatShape, DEFAULT_LAYERS, DEFAULT_LOD_PX};
 use crate::render::{Renderer, Scene, SplatSize};
-use crate::report::FrameReport;
 use crate::tree::Widening;
 use crate::vk::Context;
 
@@ -418,10 +417,10 @@ impl DeviceScene {
         }
     }
 
-    /// Renders frame `frame` of `job` and writes its file, telling
-    /// `events` its camera first (`load_ms`: the file's reading, for the
-    /// report); returns the camera as rendered (in the plan's coordinates)
-    /// and the frame's report.
+    /// Renders frame `frame` of `job`, telling `events` its camera first
+    /// (`load_ms`: the file's reading, for the report): the camera as
+    /// rendered (in the plan's coordinates), the frame's report and the
+    /// write of its file.
     pub fn render_frame(
         &self,
         job: &RenderJob,
@@ -429,7 +428,7 @@ impl DeviceScene {
         plan: &crate::job::Plan,
         load_ms: f64,
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
-    ) -> Result<(crate::camera::CameraSpec, FrameReport)> {
+    ) -> Result<crate::job::RenderedFrame> {
         match self {
             DeviceScene::Cloud { renderer, scene } => {
                 job.point_frame(renderer, Scenes::One(scene), frame, plan, load_ms, events)

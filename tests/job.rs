@@ -371,3 +371,88 @@ fn a_sequence_through_the_job_equals_its_frames_rendered_alone() {
         assert_eq!(read, outcome.reports);
     });
 }
+
+/// `RenderJob::run` writes a sequence's files on a writer thread while
+/// the next frames render; `RenderJob::render` writes each before the next.
+/// The files are the same bytes for every method, PNG and EXR with passes
+/// alike, and `run` tells them written in frame order.
+#[test]
+fn frames_in_flight_write_the_bytes_of_frames_written_one_at_a_time() {
+    let dir = scratch("job-in-flight");
+    let bunny_path = root().join("data/bunny_colored.ply");
+    let cloud = bunny();
+    let device = pointlens::vk::ContextOptions {
+        validation: true,
+        device: Some("llvmpipe".into()),
+    };
+    let methods = [
+        Method::Pinhole,
+        Method::Fast(Default::default()),
+        Method::Rdb(Default::default()),
+        Method::Layered(Default::default()),
+        Method::Accum(pointlens::options::AccumOptions { samples: 4 }),
+    ];
+    for (i, method) in methods.into_iter().enumerate() {
+        let exr = i % 2 == 1;
+        let name = |kind: &str| match exr {
+            true => dir.join(format!("{kind}{i}_%d.exr")),
+            false => dir.join(format!("{kind}{i}_%d.png")),
+        };
+        let job_into = |output: PathBuf| {
+            RenderJob::new(JobSpec {
+                method,
+                camera_flags: CameraSpec {
+                    aperture_radius: Some(0.01),
+                    ..spec(Shot::Single, &output).camera_flags
+                },
+                written: Written {
+                    passes: Passes { z: exr, coc: exr },
+                    ..Written::default()
+                },
+                ..spec(orbit(4), &output)
+            })
+            .unwrap()
+        };
+        let in_flight = job_into(name("flight"));
+        let mut order = Vec::new();
+        let outcome = in_flight
+            .run(
+                &pointlens::scene::SceneSpec::of(&bunny_path),
+                &device,
+                &mut |event| {
+                    if let JobEvent::Written { number, .. } = event {
+                        order.push(number);
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+        assert_eq!(order, [1, 2, 3, 4], "{}", method.short_name());
+        assert_eq!(outcome.reports.len(), 4);
+        let one_at_a_time = job_into(name("one"));
+        let plan = one_at_a_time.plan(&cloud).unwrap();
+        with_gpu(|ctx| {
+            let renderer = Renderer::new(ctx).unwrap();
+            let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+            one_at_a_time
+                .render(
+                    &renderer,
+                    Scenes::One(&scene),
+                    &plan,
+                    &AtomicBool::new(false),
+                    0.0,
+                    &mut |_| Ok(()),
+                )
+                .unwrap();
+        });
+        for frame in &plan.frames {
+            let flight = in_flight.output_of(frame.number);
+            assert!(
+                bytes(&flight) == bytes(&frame.output),
+                "{}: frame {} differs",
+                method.short_name(),
+                frame.number
+            );
+        }
+    }
+}

@@ -29,8 +29,8 @@
 //! Every pixel costs a bounded number of taps, whatever its CoC.
 
 use crate::camera::Camera;
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::LinearImage;
-use crate::render::HostGBuffer;
 
 /// CoC radius (px) under which a surface spreads at full resolution.
 pub const B0: f32 = 3.0;

@@ -30,13 +30,14 @@ use crate::cloud::PointCloud;
 use crate::color::{ColorMode, ColorRanges};
 use crate::error::{Error, Result};
 use crate::gaussian_render::{GaussianRenderer, GpuGaussians};
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{
     check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_image,
     write_png_rgba, write_text_atomically, ExrChannel, LinearImage,
 };
 use crate::input::copc::{CopcClouds, NodeEntry};
 use crate::options::{check_lod, Lod, Method};
-use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene, SplatSize};
+use crate::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
 use crate::report::FrameReport;
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
 use crate::tree::Widening;

@@ -24,6 +24,7 @@ pub mod fields;
 pub mod gaussian_render;
 pub mod gaussians;
 pub mod gbuffer;
+pub mod host_gbuffer;
 pub mod image_io;
 pub mod input;
 pub mod job;

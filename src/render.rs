@@ -13,6 +13,7 @@ use crate::camera::Camera;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, PeelPlan, RasterView};
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{
     check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
@@ -352,20 +353,6 @@ pub struct Rendered<I = LinearImage> {
     /// The splat hierarchy's work for the frame (zero times when the
     /// frame's splats came from the cache).
     pub lod: LodReport,
-}
-
-/// A G-buffer read back to the host (guard band included), for CPU
-/// references and tests.
-#[derive(Debug, Clone)]
-pub struct HostGBuffer {
-    pub width: u32,
-    pub height: u32,
-    pub guard: u32,
-    /// Linear color, alpha = coverage.
-    pub color: Vec<[f32; 4]>,
-    /// (0, 0, z, coverage): eye depth (DESIGN §2's eye space; +inf for
-    /// background) and covered fraction; x and y are not kept.
-    pub eye: Vec<[f32; 4]>,
 }
 
 /// Owns the pipelines; renders any number of frames of any scene.
@@ -842,13 +829,7 @@ impl Renderer {
             return Ok((rendered, part.gbuffer));
         }
         let (width, height) = (options.camera.width, options.camera.height);
-        let mut assembled = keep_gbuffer.then(|| HostGBuffer {
-            width,
-            height,
-            guard: 0,
-            color: vec![[0.0; 4]; width as usize * height as usize],
-            eye: vec![[0.0; 4]; width as usize * height as usize],
-        });
+        let mut assembled = keep_gbuffer.then(|| HostGBuffer::zeroed(width, height));
         for (i, &window) in windows.iter().enumerate() {
             if i > 0 {
                 // The last tile's images go back to the pool for this one.
@@ -864,7 +845,7 @@ impl Renderer {
                 }
             }
             if let (Some(whole), Some(gbuffer)) = (&mut assembled, &part.gbuffer) {
-                whole.paste_interior(gbuffer, window);
+                whole.paste_interior(gbuffer, window.x, window.y);
             }
         }
         Ok((rendered, assembled))
@@ -997,21 +978,6 @@ struct TileRender<'a> {
     plan: &'a SamplePlan,
     raster: Raster,
     peel: PeelPlan,
-}
-
-impl HostGBuffer {
-    /// Copies the interior (guard band left out) of `part`, the G-buffer
-    /// of `window`, into this guard-less G-buffer of the whole frame.
-    fn paste_interior(&mut self, part: &HostGBuffer, window: Window) {
-        let g = part.guard as usize;
-        let w = window.width as usize;
-        for row in 0..window.height as usize {
-            let from = (row + g) * part.width as usize + g;
-            let to = (window.y as usize + row) * self.width as usize + window.x as usize;
-            self.color[to..to + w].copy_from_slice(&part.color[from..from + w]);
-            self.eye[to..to + w].copy_from_slice(&part.eye[from..from + w]);
-        }
-    }
 }
 
 /// The host-visible buffers a frame's results land in: the output pixels

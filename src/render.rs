@@ -22,10 +22,10 @@ use crate::passes::edl::Edl;
 use crate::passes::output::{OutputBuffers, OutputConvert, OutputFormat};
 use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
-use crate::passes::{DofInput, DofMethod, FrameView, Methods, Window};
+use crate::passes::{DofInput, DofMethod, FrameView, Methods, VeilRule, Window};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
-use crate::veil::{Veil, VeilRule, VeilSplat};
+use crate::veil::{Veil, VeilSplat};
 use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point

@@ -420,8 +420,9 @@ impl LayeredFrame<'_> {
     }
 
     /// Passes `layered.tiles`, `layered.prepare` and `layered.clear`: the
-    /// occluder tiles of the first layer, every layer's fragments sorted
-    /// into the depth slices (counted for [`DofFrame::counts`]), and the
+    /// occluder tiles of the first layer; every layer's covered pixels as
+    /// fragments, each tile listed for the depth slices it spreads in
+    /// (kept and discarded pixels counted for [`DofFrame::counts`]); the
     /// spread's buffers cleared.
     fn record_fragments<'r>(
         &'r self,
@@ -516,7 +517,7 @@ impl LayeredFrame<'_> {
     }
 
     /// Passes `layered.spread` and `layered.composite` of each band of
-    /// rows of a G-buffer `h` rows high, slice by slice from the last.
+    /// rows of a G-buffer `h` rows high, slice by slice, back to front.
     fn record_slices<'r>(&'r self, frame: &mut Frame<'r>, base: &LayeredPush, h: u32) {
         let images = &self.images;
         for band_y0 in (0..h).step_by(images.band_rows as usize) {

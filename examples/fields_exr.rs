@@ -9,8 +9,8 @@
 //! CAMERA.json is the frame's own camera (without the guard band).
 
 use pointlens::camera::Camera;
+use pointlens::host_gbuffer::HostGBuffer;
 use pointlens::image_io::{read_exr_channels, write_image};
-use pointlens::render::HostGBuffer;
 
 fn main() {
     let mut args = std::env::args().skip(1);

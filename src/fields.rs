@@ -1,5 +1,5 @@
-//! The bounded two-field gather (issue 28, item 5; docs/BENCHMARKS.md, "A
-//! gather worth having, measured in numpy"): the constants and tables its
+//! The bounded two-field gather (docs/BENCHMARKS.md, "A gather worth
+//! having: measured in numpy"): the constants and tables its
 //! shaders and its CPU reference share, and the reference itself.
 //!
 //! Per G-buffer pixel P: premultiplied colour c (alpha = coverage), eye
@@ -29,8 +29,8 @@
 //! Every pixel costs a bounded number of taps, whatever its CoC.
 
 use crate::camera::Camera;
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::LinearImage;
-use crate::render::HostGBuffer;
 
 /// CoC radius (px) under which a surface spreads at full resolution.
 pub const B0: f32 = 3.0;

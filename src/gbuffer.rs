@@ -526,6 +526,30 @@ impl GBuffer {
             self.layers.len() == 1 || lens.len() == 1,
             "depth-peeled layers are of one lens position"
         );
+        let before = self.record_first_layer(frame, passes, splats, count, lens, label);
+        if self.layers.len() == 1 {
+            return;
+        }
+        let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
+        if let Some(PeelTargets::Compute { target, scale }) = &self.peel_targets {
+            self.record_compute_peel(frame, passes, splats, count, lens_u, target, *scale);
+            return;
+        }
+        self.record_sprite_peel(frame, passes, splats, count, lens_u, before);
+    }
+
+    /// Records the first layer's rasters and resolves (band by band, lens
+    /// position by lens position, pass by pass of the plan), as
+    /// [`GBuffer::record`] tells; returns where its targets were last used.
+    fn record_first_layer<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        passes: &'r GBufferPasses,
+        splats: &'r Buffer,
+        count: u32,
+        lens: &[Vec2],
+        label: &str,
+    ) -> TargetsBefore {
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
         let samples = self.plan.samples_per_pass;
         let scale = self.plan.scale;
@@ -606,14 +630,23 @@ impl GBuffer {
                     .record(frame, &resolve_name, &self.resolve_images(sample, 0), &pass);
             }
         }
-        if self.layers.len() == 1 {
-            return;
-        }
-        let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
-        if let Some(PeelTargets::Compute { target, scale }) = &self.peel_targets {
-            self.record_compute_peel(frame, passes, splats, count, lens_u, target, *scale);
-            return;
-        }
+        before
+    }
+
+    /// Records every later layer as one depth peel by the sprite raster
+    /// (in the peel's own targets, or the first layer's where they have
+    /// its samples), culled first where the G-buffer has cull buffers,
+    /// and its resolve: passes `peel.raster` and `peel.resolve`. `before`:
+    /// where the first layer left its targets.
+    fn record_sprite_peel<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        passes: &'r GBufferPasses,
+        splats: &'r Buffer,
+        count: u32,
+        lens_u: Vec2,
+        mut before: TargetsBefore,
+    ) {
         let peel = match (&self.peel_targets, &self.targets) {
             (Some(PeelTargets::Sprites(p)), _) => p,
             (None, FirstTargets::Sprites(t)) => t,
@@ -623,6 +656,8 @@ impl GBuffer {
             before.sample = Access::NONE;
             before.depth = Access::NONE;
         }
+        let background = self.background.to_array();
+        let height = self.layers[0].color.height();
         let samples = peel.sample.samples();
         let push = self.view.push(
             Vec2::ZERO,

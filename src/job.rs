@@ -29,12 +29,13 @@ use crate::camera::{self, Camera, CameraSpec, Coordinates};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gaussian_render::{GaussianRenderer, GpuGaussians};
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{
     check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_image,
     write_png_rgba, write_text_atomically, ExrChannel, LinearImage,
 };
 use crate::options::{check_lod, Lod, Method};
-use crate::render::{HostGBuffer, RenderOptions, Rendered, Renderer, Scene};
+use crate::render::{RenderOptions, Rendered, Renderer, Scene};
 use crate::report::FrameReport;
 use crate::scene::{self, HostScene, SceneKind, SceneSpec, Scenes};
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};

@@ -26,6 +26,7 @@ pub mod flags;
 pub mod gaussian_render;
 pub mod gaussians;
 pub mod gbuffer;
+pub mod host_gbuffer;
 pub mod image_io;
 pub mod input;
 pub mod job;

@@ -4,9 +4,9 @@
 use glam::Vec2;
 
 use crate::camera::{rdb_bin, rdb_lens_table, Camera};
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::LinearImage;
 use crate::options::{FastWeights, RdbMode};
-use crate::render::HostGBuffer;
 
 /// The number of pixel centres (integer offsets) within distance c/2 of a
 /// pixel centre: the pixels a splat of CoC `c` spreads its light over.

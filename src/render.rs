@@ -13,6 +13,7 @@ use crate::camera::Camera;
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, PeelPlan, RasterView};
+use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{
     check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
@@ -21,10 +22,10 @@ use crate::passes::edl::Edl;
 use crate::passes::output::{OutputBuffers, OutputConvert, OutputFormat};
 use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
-use crate::passes::{DofInput, DofMethod, FrameView, Methods, Window};
+use crate::passes::{DofInput, DofMethod, FrameView, Methods, VeilRule, Window};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
-use crate::veil::{Veil, VeilRule, VeilSplat};
+use crate::veil::{Veil, VeilSplat};
 use crate::vk::{texel_bytes, Access, Buffer, Context, Frame, FrameTimings};
 
 /// A splat's default world diameter is this multiple of its local point
@@ -199,33 +200,74 @@ impl Scene {
             splat_px,
         );
         traversal.splats = drawn;
+        let view = self.scene_view(camera, &traversal.splats, key.point_size_max);
+        let (vertices, count) = self.upload_vertices(&traversal.splats)?;
+        let veiled_splats = veil.splats;
+        let veil_splats = self.upload_veil(&veil)?;
+        let splats = Arc::new(FrameSplats {
+            vertices,
+            count,
+            veil_splats,
+            veil,
+            view,
+            lod: LodReport {
+                lod_px: key.lod.px,
+                lod_blur: key.lod.blur,
+                nodes_visited: traversal.nodes_visited,
+                splats_emitted: count as u64,
+                inner_emitted: traversal.inner_emitted,
+                veiled: veiled_splats,
+                traversal_ms: traversal.ms,
+                splats_upload_ms: started.elapsed().as_secs_f64() * 1e3,
+                cached: false,
+            },
+        });
+        *last = Some((key, splats.clone()));
+        let lod = splats.lod;
+        Ok((splats, lod))
+    }
+
+    /// The eye-depth range of `splats` through `camera` and their largest
+    /// splat in pixels (those nearer than the clip range's near plane do
+    /// not count), at most `point_size_max`.
+    fn scene_view(&self, camera: &Camera, splats: &[Splat], point_size_max: f32) -> SceneView {
         let eye_from_world = camera.eye_from_world_transform();
-        let depths = depth_range_with(&eye_from_world, traversal.splats.iter().map(Splat::centre));
+        let depths = depth_range_with(&eye_from_world, splats.iter().map(Splat::centre));
         let (near, _) = clip_range(depths);
         let max_splat_px = match self.splat {
-            SplatSize::Pixels(p) => p.min(key.point_size_max),
+            SplatSize::Pixels(p) => p.min(point_size_max),
             _ => {
                 let f_px = camera.f_px();
                 let mut m = 1.0f32;
-                for v in &traversal.splats {
+                for v in splats {
                     let z = eye_from_world.apply(v.centre()).z;
                     if z >= near {
                         m = m.max(f_px * v.position_size[3] / z);
                     }
                 }
-                m.min(key.point_size_max)
+                m.min(point_size_max)
             }
         };
-        let count = u32::try_from(traversal.splats.len()).map_err(|_| {
+        SceneView {
+            depths,
+            max_splat_px,
+        }
+    }
+
+    /// The frame's `splats` in a vertex buffer on the GPU (one empty
+    /// vertex where there is none), and their count; an error where they
+    /// are more than a buffer of the device holds.
+    fn upload_vertices(&self, splats: &[Splat]) -> Result<(Buffer, u32)> {
+        let count = u32::try_from(splats.len()).map_err(|_| {
             Error::InvalidArgument(format!(
                 "{} splats in one frame exceed 2^32; raise --lod-px",
-                traversal.splats.len()
+                splats.len()
             ))
         })?;
-        let bytes: &[u8] = if traversal.splats.is_empty() {
+        let bytes: &[u8] = if splats.is_empty() {
             bytemuck::bytes_of(&EMPTY_VERTEX)
         } else {
-            bytemuck::cast_slice(vertices_of(&traversal.splats))
+            bytemuck::cast_slice(vertices_of(splats))
         };
         // A buffer larger than one allocation or than the device's memory
         // may not be made (lavapipe crashed on 2.4 GB in a 2 GiB heap
@@ -256,7 +298,14 @@ impl Scene {
                 bytes.len() >> 20
             ))
         })?;
-        let veiled_splats = veil.splats;
+        Ok((vertices, count))
+    }
+
+    /// The veil's splats in a storage buffer on the GPU (one empty splat
+    /// where there is none); an error where they are more than the
+    /// device's largest storage buffer.
+    fn upload_veil(&self, veil: &Veil) -> Result<Buffer> {
+        let info = &self.ctx.info;
         let veil_bytes = std::mem::size_of_val(veil.splats_in_view.as_slice()) as u64;
         if veil_bytes > info.max_storage_buffer_range {
             return Err(Error::InvalidArgument(format!(
@@ -267,7 +316,7 @@ impl Scene {
                 info.max_storage_buffer_range >> 20
             )));
         }
-        let veil_splats = Buffer::with_bytes(
+        Buffer::with_bytes(
             &self.ctx,
             "veil",
             match veil.is_empty() {
@@ -275,31 +324,7 @@ impl Scene {
                 false => bytemuck::cast_slice(&veil.splats_in_view),
             },
             vk::BufferUsageFlags::STORAGE_BUFFER,
-        )?;
-        let splats = Arc::new(FrameSplats {
-            vertices,
-            count,
-            veil_splats,
-            veil,
-            view: SceneView {
-                depths,
-                max_splat_px,
-            },
-            lod: LodReport {
-                lod_px: key.lod.px,
-                lod_blur: key.lod.blur,
-                nodes_visited: traversal.nodes_visited,
-                splats_emitted: count as u64,
-                inner_emitted: traversal.inner_emitted,
-                veiled: veiled_splats,
-                traversal_ms: traversal.ms,
-                splats_upload_ms: started.elapsed().as_secs_f64() * 1e3,
-                cached: false,
-            },
-        });
-        *last = Some((key, splats.clone()));
-        let lod = splats.lod;
-        Ok((splats, lod))
+        )
     }
 }
 
@@ -352,20 +377,6 @@ pub struct Rendered<I = LinearImage> {
     /// The splat hierarchy's work for the frame (zero times when the
     /// frame's splats came from the cache).
     pub lod: LodReport,
-}
-
-/// A G-buffer read back to the host (guard band included), for CPU
-/// references and tests.
-#[derive(Debug, Clone)]
-pub struct HostGBuffer {
-    pub width: u32,
-    pub height: u32,
-    pub guard: u32,
-    /// Linear color, alpha = coverage.
-    pub color: Vec<[f32; 4]>,
-    /// (0, 0, z, coverage): eye depth (DESIGN §2's eye space; +inf for
-    /// background) and covered fraction; x and y are not kept.
-    pub eye: Vec<[f32; 4]>,
 }
 
 /// Owns the pipelines; renders any number of frames of any scene.
@@ -739,6 +750,56 @@ impl Renderer {
         keep_gbuffer: bool,
         only: Option<Window>,
     ) -> Result<(Rendered<Pixels>, Option<HostGBuffer>)> {
+        self.check_frame(scene, options)?;
+        // What the frame before last left and the last one did not take is
+        // freed; the rest is this frame's to take (`vk::pool`).
+        self.ctx.next_frame();
+        let started = Instant::now();
+        let method = self.methods.get(&options.method);
+        let (splats, lod_report, view) =
+            self.raster_view(scene, &options.camera, options.lod, method.as_ref())?;
+        let view_ms = started.elapsed().as_secs_f64() * 1e3;
+
+        let windows = match only {
+            Some(window) => vec![window],
+            None => self.windows(&view.frame)?,
+        };
+        let (raster, plan, peel) = self.tile_plans(&view, &windows, options)?;
+        let tile = |window: Window| {
+            let view = RasterView {
+                frame: FrameView {
+                    window,
+                    ..view.frame
+                },
+                ..view
+            };
+            let tile = TileRender {
+                splats: &splats,
+                view,
+                method: method.as_ref(),
+                plan: &plan,
+                raster,
+                peel,
+            };
+            self.render_window(&tile, options, format, keep_gbuffer)
+        };
+        let rendered = Rendered {
+            image: Pixels::empty(format, &options.camera, windows.len()),
+            timings: FrameTimings {
+                passes: Vec::new(),
+                wall_ms: view_ms,
+            },
+            guard: view.frame.guard,
+            samples_per_pass: plan.samples_per_pixel_per_pass(),
+            counts: Vec::new(),
+            lod: lod_report,
+        };
+        self.assemble_tiles(rendered, &windows, &options.camera, keep_gbuffer, tile)
+    }
+
+    /// The checks of a frame's options against each other and the
+    /// renderer, and that `scene` is this renderer's.
+    fn check_frame(&self, scene: &Scene, options: &RenderOptions) -> Result<()> {
         check_ssaa(options.ssaa)?;
         if let Some(s) = options.samples_per_pass {
             check_samples_per_pass(s)?;
@@ -759,21 +820,18 @@ impl Renderer {
                     .into(),
             ));
         }
-        // What the frame before last left and the last one did not take is
-        // freed; the rest is this frame's to take (`vk::pool`).
-        self.ctx.next_frame();
-        let started = Instant::now();
-        let method = self.methods.get(&options.method);
-        let (splats, lod_report, view) =
-            self.raster_view(scene, &options.camera, options.lod, method.as_ref())?;
-        let view_ms = started.elapsed().as_secs_f64() * 1e3;
+        Ok(())
+    }
 
-        let windows = match only {
-            Some(window) => vec![window],
-            None => self.windows(&view.frame)?,
-        };
-        // One sample plan for every tile: the largest's (the tiles of a
-        // row or column differ by at most a pixel).
+    /// The raster, sample plan and peel plan every tile of a frame (`view`
+    /// of the whole frame, rendered in `windows`) shares: the largest
+    /// tile's (the tiles of a row or column differ by at most a pixel).
+    fn tile_plans(
+        &self,
+        view: &RasterView,
+        windows: &[Window],
+        options: &RenderOptions,
+    ) -> Result<(Raster, SamplePlan, PeelPlan)> {
         let largest = Window {
             x: 0,
             y: 0,
@@ -786,7 +844,7 @@ impl Renderer {
                 window: largest,
                 ..view.frame
             },
-            ..view
+            ..*view
         };
         let plan = self.gbuffer.plan(
             raster,
@@ -804,51 +862,32 @@ impl Renderer {
             pixels,
             self.sample_budget_bytes,
         );
-        let tile = |window: Window| {
-            let view = RasterView {
-                frame: FrameView {
-                    window,
-                    ..view.frame
-                },
-                ..view
-            };
-            let tile = TileRender {
-                splats: &splats,
-                view,
-                method: method.as_ref(),
-                plan: &plan,
-                raster,
-                peel,
-            };
-            self.render_window(&tile, options, format, keep_gbuffer)
-        };
-        let mut rendered = Rendered {
-            image: Pixels::empty(format, &options.camera, windows.len()),
-            timings: FrameTimings {
-                passes: Vec::new(),
-                wall_ms: view_ms,
-            },
-            guard: view.frame.guard,
-            samples_per_pass: plan.samples_per_pixel_per_pass(),
-            counts: Vec::new(),
-            lod: lod_report,
-        };
+        Ok((raster, plan, peel))
+    }
+
+    /// The frame `rendered` (its view's time, no pixels yet) with the
+    /// results of `tile` for each of `windows` (of a frame of `camera`):
+    /// the one window's own, or each window's pixels, timings, counts and,
+    /// with `keep_gbuffer`, its G-buffer's interior put in place, tile by
+    /// tile.
+    fn assemble_tiles(
+        &self,
+        mut rendered: Rendered<Pixels>,
+        windows: &[Window],
+        camera: &Camera,
+        keep_gbuffer: bool,
+        tile: impl Fn(Window) -> Result<WindowResult>,
+    ) -> Result<(Rendered<Pixels>, Option<HostGBuffer>)> {
         if let [window] = windows[..] {
             let mut part = tile(window)?;
-            part.timings.wall_ms += view_ms;
+            part.timings.wall_ms += rendered.timings.wall_ms;
             rendered.image = part.image;
             rendered.timings = part.timings;
             rendered.counts = part.counts;
             return Ok((rendered, part.gbuffer));
         }
-        let (width, height) = (options.camera.width, options.camera.height);
-        let mut assembled = keep_gbuffer.then(|| HostGBuffer {
-            width,
-            height,
-            guard: 0,
-            color: vec![[0.0; 4]; width as usize * height as usize],
-            eye: vec![[0.0; 4]; width as usize * height as usize],
-        });
+        let (width, height) = (camera.width, camera.height);
+        let mut assembled = keep_gbuffer.then(|| HostGBuffer::zeroed(width, height));
         for (i, &window) in windows.iter().enumerate() {
             if i > 0 {
                 // The last tile's images go back to the pool for this one.
@@ -864,7 +903,7 @@ impl Renderer {
                 }
             }
             if let (Some(whole), Some(gbuffer)) = (&mut assembled, &part.gbuffer) {
-                whole.paste_interior(gbuffer, window);
+                whole.paste_interior(gbuffer, window.x, window.y);
             }
         }
         Ok((rendered, assembled))
@@ -997,21 +1036,6 @@ struct TileRender<'a> {
     plan: &'a SamplePlan,
     raster: Raster,
     peel: PeelPlan,
-}
-
-impl HostGBuffer {
-    /// Copies the interior (guard band left out) of `part`, the G-buffer
-    /// of `window`, into this guard-less G-buffer of the whole frame.
-    fn paste_interior(&mut self, part: &HostGBuffer, window: Window) {
-        let g = part.guard as usize;
-        let w = window.width as usize;
-        for row in 0..window.height as usize {
-            let from = (row + g) * part.width as usize + g;
-            let to = (window.y as usize + row) * self.width as usize + window.x as usize;
-            self.color[to..to + w].copy_from_slice(&part.color[from..from + w]);
-            self.eye[to..to + w].copy_from_slice(&part.eye[from..from + w]);
-        }
-    }
 }
 
 /// The host-visible buffers a frame's results land in: the output pixels

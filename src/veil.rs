@@ -29,6 +29,7 @@ use glam::{Vec2, Vec3, Vec4};
 
 use crate::camera::Camera;
 use crate::gbuffer::{clip_range, depth_range_with};
+use crate::passes::VeilRule;
 use crate::tree::Splat;
 
 /// The relative margin over the near plane within which `accum` veils a
@@ -53,19 +54,6 @@ pub struct VeilSplat {
     pub half_side: f32,
     /// Its linear color and coverage (1).
     pub color: [f32; 4],
-}
-
-/// Which splats a method takes out of its G-buffer into the veil.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum VeilRule {
-    /// None (the pinhole image, which has no blur).
-    None,
-    /// Those in front of the focus plane with a CoC above
-    /// [`Camera::veil_coc_px`] (the methods that blur a G-buffer).
-    Blurred,
-    /// Those nearer than the near plane of the splats' depth range, which
-    /// no raster draws (`accum`).
-    BeyondNear,
 }
 
 /// The veil of one frame: its points nearest first, and how many splats

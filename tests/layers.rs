@@ -1,8 +1,9 @@
 //! The layering rules of docs/ARCHITECTURE.md ("Dependencies between
 //! modules"), read from the sources: the splat hierarchy imports nothing
 //! of the renderer or the loaders, the loaders nothing of the hierarchy,
-//! `options` no code module, `main.rs` only parses, and functions stay
-//! short enough to read.
+//! `options` no code module, no pass the modules that build its input,
+//! the CPU references nothing of the renderer, `main.rs` only parses, and
+//! functions stay short enough to read.
 
 use std::path::{Path, PathBuf};
 
@@ -102,6 +103,21 @@ fn options_import_no_code_module() {
             assert_eq!(module, "error", "{}:{line}", file.display());
         }
     }
+}
+
+#[test]
+fn no_pass_imports_the_modules_that_build_its_input() {
+    // A method gets the G-buffer as a `DofInput` and declares its veil
+    // rule in its own terms (`passes::VeilRule`).
+    assert_imports_none("passes", &["veil", "gbuffer"]);
+}
+
+#[test]
+fn the_cpu_references_know_no_renderer() {
+    let renderer = ["render", "passes", "vk", "gbuffer", "job"];
+    assert_imports_none("reference.rs", &renderer);
+    assert_imports_none("fields.rs", &renderer);
+    assert_imports_none("host_gbuffer.rs", &renderer);
 }
 
 /// Every function of `file`: (name, first line, number of lines), from

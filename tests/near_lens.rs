@@ -13,8 +13,8 @@ use pointlens::camera::{Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::options::{FastOptions, FastWeights, GatherWindow, Lod, Method, RdbMode};
+use pointlens::passes::VeilRule;
 use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
-use pointlens::veil::VeilRule;
 use pointlens::PointCloud;
 
 /// Lens samples of the reference.

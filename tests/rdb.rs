@@ -6,6 +6,7 @@ use common::{camera, cloud, root, with_gpu};
 use glam::Vec3;
 use pointlens::camera::rdb_lens_table;
 use pointlens::camera::Camera;
+use pointlens::host_gbuffer::HostGBuffer;
 use pointlens::image_io::LinearImage;
 use pointlens::input::ply::load_ply;
 use pointlens::metrics::psnr;
@@ -14,7 +15,7 @@ use pointlens::options::{FastWeights, GatherWindow};
 use pointlens::options::{RdbAtomics, RdbMode, RdbOptions};
 use pointlens::passes::rdb::{bytes_per_pixel, TilePlan};
 use pointlens::reference;
-use pointlens::render::{HostGBuffer, RenderOptions, Renderer, Scene, SplatSize};
+use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
 
 fn options(cam: Camera, method: Method) -> RenderOptions {
     RenderOptions {

@@ -7,11 +7,10 @@ use std::sync::Arc;
 
 use glam::Vec2;
 
-use super::{DofFrame, DofInput, DofMethod, FrameView};
+use super::{DofFrame, DofInput, DofMethod, FrameView, VeilRule};
 use crate::camera::{lens_samples, Camera};
 use crate::error::Result;
 use crate::options::{check_samples, AccumOptions};
-use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 /// The accumulation reference with its options.

@@ -300,21 +300,15 @@ struct FastFrame<'m> {
     images: FastImages,
 }
 
-impl DofFrame for FastFrame<'_> {
-    /// The passes. `view.max_coc_px` bounds every pixel's CoC, the
-    /// background's included.
-    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+impl FastFrame<'_> {
+    /// Pass `fast.coc`: each G-buffer pixel's CoC and weight from its eye
+    /// depth. `extent`: the G-buffer's size.
+    fn record_coc<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>, extent: [i32; 2]) {
         let p = self.method.pipelines;
         let options = self.method.options;
         let images = &self.images;
-        let view = &input.view;
-        let camera = &view.camera;
-        let (w, h) = (input.color.width() as i32, input.color.height() as i32);
-        let tiles = [
-            images.tile_max.width() as i32,
-            images.tile_max.height() as i32,
-        ];
-        let g = view.guard as i32;
+        let camera = &input.view.camera;
+        let [w, h] = extent;
         frame.pass("fast.coc", |rec| {
             rec.barriers(&[
                 (input.eye, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ),
@@ -336,6 +330,20 @@ impl DofFrame for FastFrame<'_> {
                 [groups(w as u32, 8), groups(h as u32, 8), 1],
             );
         });
+    }
+
+    /// Passes `fast.tile_max` and `fast.tile_dilate`: each tile's largest
+    /// CoC, then the radius its gather reaches from its neighbours'.
+    fn record_tiles<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>, extent: [i32; 2]) {
+        let p = self.method.pipelines;
+        let options = self.method.options;
+        let images = &self.images;
+        let view = &input.view;
+        let [w, h] = extent;
+        let tiles = [
+            images.tile_max.width() as i32,
+            images.tile_max.height() as i32,
+        ];
         frame.pass("fast.tile_max", |rec| {
             rec.barriers(&[
                 (
@@ -390,46 +398,68 @@ impl DofFrame for FastFrame<'_> {
                 [groups(tiles[0] as u32, 8), groups(tiles[1] as u32, 8), 1],
             );
         });
-        if let Some(tree) = &images.tree {
-            frame.pass("fast.tree", |rec| {
-                rec.barriers(&[
-                    (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
-                    (
-                        &images.coc_weight,
-                        Access::COMPUTE_WRITE,
-                        Access::COMPUTE_READ,
-                    ),
-                ]);
-                // The previous frame's gather read the buffers.
-                rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
-                for level in TREE_LEAF_LEVEL..=tree.levels {
-                    if level > TREE_LEAF_LEVEL {
-                        rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ_WRITE);
-                    }
-                    let (bw, bh) = (
-                        (w as u32).div_ceil(1 << level),
-                        (h as u32).div_ceil(1 << level),
-                    );
-                    rec.dispatch(
-                        &p.tree,
-                        &[
-                            Bind::StorageImage(input.color),
-                            Bind::StorageImage(input.eye),
-                            Bind::StorageImage(&images.coc_weight),
-                            Bind::StorageBuffer(&tree.sums),
-                            Bind::StorageBuffer(&tree.weights),
-                            Bind::StorageBuffer(&tree.bounds),
-                        ],
-                        &TreePush {
-                            extent: [w, h],
-                            padded: tree.padded.map(|v| v as i32),
-                            level: level as i32,
-                        },
-                        [groups(bw, 8), groups(bh, 8), 1],
-                    );
+    }
+
+    /// Pass `fast.tree`: the gather's tree of block sums, level by level
+    /// from the leaves.
+    fn record_tree<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        input: &DofInput<'r>,
+        tree: &'r FastTree,
+        extent: [i32; 2],
+    ) {
+        let p = self.method.pipelines;
+        let images = &self.images;
+        let [w, h] = extent;
+        frame.pass("fast.tree", |rec| {
+            rec.barriers(&[
+                (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
+                (
+                    &images.coc_weight,
+                    Access::COMPUTE_WRITE,
+                    Access::COMPUTE_READ,
+                ),
+            ]);
+            // The previous frame's gather read the buffers.
+            rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
+            for level in TREE_LEAF_LEVEL..=tree.levels {
+                if level > TREE_LEAF_LEVEL {
+                    rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ_WRITE);
                 }
-            });
-        }
+                let (bw, bh) = (
+                    (w as u32).div_ceil(1 << level),
+                    (h as u32).div_ceil(1 << level),
+                );
+                rec.dispatch(
+                    &p.tree,
+                    &[
+                        Bind::StorageImage(input.color),
+                        Bind::StorageImage(input.eye),
+                        Bind::StorageImage(&images.coc_weight),
+                        Bind::StorageBuffer(&tree.sums),
+                        Bind::StorageBuffer(&tree.weights),
+                        Bind::StorageBuffer(&tree.bounds),
+                    ],
+                    &TreePush {
+                        extent: [w, h],
+                        padded: tree.padded.map(|v| v as i32),
+                        level: level as i32,
+                    },
+                    [groups(bw, 8), groups(bh, 8), 1],
+                );
+            }
+        });
+    }
+
+    /// Pass `fast.gather`: each output pixel's gather, through the tree
+    /// where there is one.
+    fn record_gather<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>, extent: [i32; 2]) {
+        let p = self.method.pipelines;
+        let images = &self.images;
+        let view = &input.view;
+        let [w, h] = extent;
+        let g = view.guard as i32;
         frame.pass("fast.gather", |rec| {
             rec.barriers(&[
                 (input.color, Access::COMPUTE_WRITE, Access::COMPUTE_READ),
@@ -477,7 +507,21 @@ impl DofFrame for FastFrame<'_> {
                 [groups(ow, 8), groups(oh, 8), 1],
             );
         });
-        &images.result
+    }
+}
+
+impl DofFrame for FastFrame<'_> {
+    /// The passes. `view.max_coc_px` bounds every pixel's CoC, the
+    /// background's included.
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        let extent = [input.color.width() as i32, input.color.height() as i32];
+        self.record_coc(frame, input, extent);
+        self.record_tiles(frame, input, extent);
+        if let Some(tree) = &self.images.tree {
+            self.record_tree(frame, input, tree, extent);
+        }
+        self.record_gather(frame, input, extent);
+        &self.images.result
     }
 
     /// The blocks of the gather's tree, all levels (0: every window pixel

@@ -12,7 +12,9 @@ use std::sync::Arc;
 use super::splat_compute::Visibility;
 use crate::error::Result;
 use crate::push_constants;
-use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
+use crate::vk::{
+    groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image, Recorder,
+};
 
 push_constants! {
     struct Push {
@@ -206,79 +208,94 @@ impl GBufferResolve {
                 ));
             }
             rec.barriers(&list);
-            let extent = [w as i32, end_row as i32];
-            let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
-            let image = match images.sample {
-                Samples::Target(image) => image,
-                Samples::Visibility {
-                    target,
-                    splats,
-                    background,
-                } => {
-                    let binds = [
-                        Bind::StorageBuffer(&target.words),
-                        Bind::StorageImage(images.color_sum),
-                        Bind::StorageImage(images.gbuffer_eye),
-                        Bind::StorageImage(images.gbuffer_color),
-                        Bind::StorageBuffer(splats),
-                    ];
-                    let [r, g, b] = background;
-                    let push = VisPush {
-                        extent,
-                        sample_index: pass.first_sample,
-                        sample_count: pass.sample_count,
-                        scale: pass.scale,
-                        first_row: first_row as i32,
-                        target_width: target.width(),
-                        pad: 0,
-                        background: [r, g, b, 0.0],
-                    };
-                    let pipeline = self
-                        .visibility
-                        .as_ref()
-                        .expect("visibility words on a device with 64-bit atomics");
-                    rec.dispatch(pipeline, &binds, &push, size);
-                    return;
-                }
-            };
-            let binds = [
-                Bind::StorageImage(image),
-                Bind::StorageImage(images.color_sum),
-                Bind::StorageImage(images.gbuffer_eye),
-                Bind::StorageImage(images.gbuffer_color),
-            ];
-            if samples == 1 {
-                assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
-                assert_eq!(
-                    pass.index_base + pass.indices[0],
-                    pass.first_sample,
-                    "one-sample passes fold in index order"
-                );
-                let push = Push {
+            self.dispatch(rec, images, pass, w);
+        });
+    }
+
+    /// Records the dispatch of the pass's pipeline for its kind of samples
+    /// (visibility words, one sample or several per pixel) over the rows of
+    /// `pass` of a G-buffer `w` pixels wide.
+    fn dispatch<'r>(
+        &'r self,
+        rec: &mut Recorder<'_, 'r>,
+        images: &ResolveImages<'r>,
+        pass: &ResolvePass,
+        w: u32,
+    ) {
+        let samples = images.sample.per_pixel();
+        let (first_row, end_row) = pass.rows;
+        let extent = [w as i32, end_row as i32];
+        let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
+        let image = match images.sample {
+            Samples::Target(image) => image,
+            Samples::Visibility {
+                target,
+                splats,
+                background,
+            } => {
+                let binds = [
+                    Bind::StorageBuffer(&target.words),
+                    Bind::StorageImage(images.color_sum),
+                    Bind::StorageImage(images.gbuffer_eye),
+                    Bind::StorageImage(images.gbuffer_color),
+                    Bind::StorageBuffer(splats),
+                ];
+                let [r, g, b] = background;
+                let push = VisPush {
                     extent,
                     sample_index: pass.first_sample,
                     sample_count: pass.sample_count,
                     scale: pass.scale,
                     first_row: first_row as i32,
+                    target_width: target.width(),
+                    pad: 0,
+                    background: [r, g, b, 0.0],
                 };
-                rec.dispatch(&self.pipeline, &binds, &push, size);
-            } else {
                 let pipeline = self
-                    .multisampled
+                    .visibility
                     .as_ref()
-                    .expect("multisampled targets on a device that resolves them");
-                let push = MsPush {
-                    extent,
-                    sample_base: pass.first_sample,
-                    sample_count: pass.sample_count,
-                    samples,
-                    read_offsets: pass.read_offsets,
-                    index_base: pass.index_base,
-                    indices: pass.indices,
-                };
+                    .expect("visibility words on a device with 64-bit atomics");
                 rec.dispatch(pipeline, &binds, &push, size);
+                return;
             }
-        });
+        };
+        let binds = [
+            Bind::StorageImage(image),
+            Bind::StorageImage(images.color_sum),
+            Bind::StorageImage(images.gbuffer_eye),
+            Bind::StorageImage(images.gbuffer_color),
+        ];
+        if samples == 1 {
+            assert_eq!(pass.read_offsets, 0, "one-sample passes read in place");
+            assert_eq!(
+                pass.index_base + pass.indices[0],
+                pass.first_sample,
+                "one-sample passes fold in index order"
+            );
+            let push = Push {
+                extent,
+                sample_index: pass.first_sample,
+                sample_count: pass.sample_count,
+                scale: pass.scale,
+                first_row: first_row as i32,
+            };
+            rec.dispatch(&self.pipeline, &binds, &push, size);
+        } else {
+            let pipeline = self
+                .multisampled
+                .as_ref()
+                .expect("multisampled targets on a device that resolves them");
+            let push = MsPush {
+                extent,
+                sample_base: pass.first_sample,
+                sample_count: pass.sample_count,
+                samples,
+                read_offsets: pass.read_offsets,
+                index_base: pass.index_base,
+                indices: pass.indices,
+            };
+            rec.dispatch(pipeline, &binds, &push, size);
+        }
     }
 }
 

@@ -383,21 +383,21 @@ struct LayeredFrame<'m> {
     images: LayeredImages,
 }
 
-impl DofFrame for LayeredFrame<'_> {
-    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
-        let p = self.pipelines;
+impl LayeredFrame<'_> {
+    /// The push constants every pass of the frame starts from (layer,
+    /// slice and band 0), for the G-buffer of `input`.
+    fn base_push(&self, input: &DofInput) -> LayeredPush {
         let images = &self.images;
         let view = &input.view;
         let camera = &view.camera;
         let (w, h) = (input.color.width(), input.color.height());
         let layers = input.layers.len() as u32;
-        assert_eq!(layers, self.options.layers, "the G-buffer's layers");
         let tiles = [
             images.occluder_tiles.width() as i32,
             images.occluder_tiles.height() as i32,
         ];
         let b = input.background;
-        let base = LayeredPush {
+        LayeredPush {
             background: [b.x, b.y, b.z, 0.0],
             extent: [w as i32, h as i32],
             tiles,
@@ -416,7 +416,24 @@ impl DofFrame for LayeredFrame<'_> {
             slice_lo: self.slices.lo,
             slice_width: self.slices.width,
             gaussian_layers: u32::from(self.gaussian_layers),
-        };
+        }
+    }
+
+    /// Passes `layered.tiles`, `layered.prepare` and `layered.clear`: the
+    /// occluder tiles of the first layer; every layer's covered pixels as
+    /// fragments, each tile listed for the depth slices it spreads in
+    /// (kept and discarded pixels counted for [`DofFrame::counts`]); the
+    /// spread's buffers cleared.
+    fn record_fragments<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        input: &DofInput<'r>,
+        base: &LayeredPush,
+    ) {
+        let p = self.pipelines;
+        let images = &self.images;
+        let (w, h) = (input.color.width(), input.color.height());
+        let tiles = base.tiles;
         let pixels = [groups(w, 8), groups(h, 8), 1];
         let first = &input.layers[0];
         frame.pass("layered.tiles", |rec| {
@@ -432,7 +449,7 @@ impl DofFrame for LayeredFrame<'_> {
                     Bind::StorageImage(&first.eye),
                     Bind::StorageImage(&images.occluder_tiles),
                 ],
-                &base,
+                base,
                 [groups(tiles[0] as u32, 8), groups(tiles[1] as u32, 8), 1],
             );
         });
@@ -467,7 +484,7 @@ impl DofFrame for LayeredFrame<'_> {
                     ],
                     &LayeredPush {
                         layer: l as i32,
-                        ..base
+                        ..*base
                     },
                     pixels,
                 );
@@ -497,12 +514,18 @@ impl DofFrame for LayeredFrame<'_> {
                 (&images.result, Access::NONE, Access::COMPUTE_WRITE),
             ]);
         });
+    }
+
+    /// Passes `layered.spread` and `layered.composite` of each band of
+    /// rows of a G-buffer `h` rows high, slice by slice, back to front.
+    fn record_slices<'r>(&'r self, frame: &mut Frame<'r>, base: &LayeredPush, h: u32) {
+        let images = &self.images;
         for band_y0 in (0..h).step_by(images.band_rows as usize) {
             for slice in (0..self.slices.count).rev() {
                 let push = LayeredPush {
                     slice: slice as i32,
                     band_y0: band_y0 as i32,
-                    ..base
+                    ..*base
                 };
                 // Each pass starts with the barrier on what it reads: the
                 // slice lists, the cleared differences and row spans
@@ -542,7 +565,17 @@ impl DofFrame for LayeredFrame<'_> {
                 });
             }
         }
-        &images.result
+    }
+}
+
+impl DofFrame for LayeredFrame<'_> {
+    fn record<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>) -> &'r Image {
+        let layers = input.layers.len() as u32;
+        assert_eq!(layers, self.options.layers, "the G-buffer's layers");
+        let base = self.base_push(input);
+        self.record_fragments(frame, input, &base);
+        self.record_slices(frame, &base, input.color.height());
+        &self.images.result
     }
 
     fn counts(&self) -> Vec<(String, u64)> {

@@ -15,7 +15,6 @@ use glam::{Vec2, Vec3};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::options::Method;
-use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 pub mod accum;
@@ -90,6 +89,20 @@ impl Window {
             })
             .collect()
     }
+}
+
+/// Which splats a method takes out of its G-buffer into the veil
+/// ([`DofMethod::veil_rule`]; `crate::veil` splits them by it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum VeilRule {
+    /// None (the pinhole image, which has no blur).
+    None,
+    /// Those in front of the focus plane with a CoC above
+    /// [`Camera::veil_coc_px`] (the methods that blur a G-buffer).
+    Blurred,
+    /// Those nearer than the near plane of the splats' depth range, which
+    /// no raster draws (`accum`).
+    BeyondNear,
 }
 
 /// What every pass of one frame may know about its view.

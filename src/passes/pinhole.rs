@@ -2,10 +2,9 @@
 
 use std::sync::Arc;
 
-use super::{DofFrame, DofInput, DofMethod, FrameView};
+use super::{DofFrame, DofInput, DofMethod, FrameView, VeilRule};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::veil::VeilRule;
 use crate::vk::{Context, Frame, Image};
 
 /// The pinhole method: no pass of its own.

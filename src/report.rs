@@ -202,6 +202,7 @@ impl FrameReport {
         let l = &self.lod;
         if self.gaussians {
             s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
+            s += &self.host_line();
             for (name, ms) in [("load wall", self.load_ms), ("encode wall", self.encode_ms)] {
                 s += &format!("{name:<20} {ms:>10.3}   (not in the frame)\n");
             }
@@ -225,6 +226,7 @@ impl FrameReport {
             "splats upload wall", l.splats_upload_ms
         );
         s += &format!("{:<20} {:>10.3}\n", "frame wall", self.frame_wall_ms);
+        s += &self.host_line();
         if self.points > 0 && self.upload.tree_bytes > 0 {
             s += &format!(
                 "tree: {} bytes, {:.1} per point (every level)\n",
@@ -242,6 +244,27 @@ impl FrameReport {
             s += &format!("{name:<20} {ms:>10.3}   (not in the frame)\n");
         }
         s
+    }
+
+    /// The frame's host share, ms: its wall time less its GPU time
+    /// (recording, allocation, submission, waiting, readback; on a CPU
+    /// device the two overlap less than on a GPU).
+    pub fn host_ms(&self) -> f64 {
+        (self.frame_wall_ms - self.gpu_total_ms).max(0.0)
+    }
+
+    /// The `--timings` line of [`FrameReport::host_ms`], with its share of
+    /// the frame.
+    fn host_line(&self) -> String {
+        let share = match self.frame_wall_ms > 0.0 {
+            true => 100.0 * self.host_ms() / self.frame_wall_ms,
+            false => 0.0,
+        };
+        format!(
+            "{:<20} {:>10.3}   ({share:.0} % of the frame wall)\n",
+            "host (wall - gpu)",
+            self.host_ms()
+        )
     }
 
     /// The report as pretty-printed JSON (`--timings-json`).

@@ -47,7 +47,13 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
         !err.contains("in view"),
         "a warning of an empty frame: {err}"
     );
-    for pass in ["gbuffer.raster", "gbuffer.resolve", "output", "frame wall"] {
+    for pass in [
+        "gbuffer.raster",
+        "gbuffer.resolve",
+        "output",
+        "frame wall",
+        "host (wall - gpu)",
+    ] {
         assert!(err.contains(pass), "timings lack {pass}: {err}");
     }
     let t: serde_json::Value =

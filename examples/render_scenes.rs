@@ -70,6 +70,7 @@ fn job_spec(output: &Path, method: Method) -> JobSpec {
         lod: Lod::default(),
         written: Written::default(),
         timings_json: None,
+        fps: None,
     }
 }
 

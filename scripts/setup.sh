@@ -6,7 +6,7 @@
 set -euo pipefail
 
 PACKAGES=(mesa-vulkan-drivers vulkan-validationlayers libvulkan-dev vulkan-tools
-          cmake ninja-build python3 g++ curl ca-certificates)
+          cmake ninja-build python3 g++ curl ca-certificates ffmpeg)
 
 as_root() {
     if [ "$(id -u)" = 0 ]; then "$@"; else sudo "$@"; fi

@@ -131,7 +131,9 @@ impl RenderConsole {
     pub fn finish(&self, outcome: &Result<Outcome>) -> Result<()> {
         self.loading.finish_and_clear();
         match outcome {
-            Err(Error::Interrupted { .. }) => self.frames.abandon(),
+            Err(Error::Interrupted { .. } | Error::VideoInterrupted { .. }) => {
+                self.frames.abandon()
+            }
             _ => self.frames.finish_and_clear(),
         }
         if let Ok(outcome) = outcome {

@@ -64,6 +64,13 @@ pub enum Error {
         total: usize,
         next: u32,
     },
+    /// A video stopped by a signal between frames: no file is written.
+    #[error("interrupted: {rendered} of {total} frames rendered, the video {} not written", path.display())]
+    VideoInterrupted {
+        path: std::path::PathBuf,
+        rendered: usize,
+        total: usize,
+    },
     /// An error and where it happened (a file, a frame).
     #[error("{context}: {source}")]
     Within {

@@ -228,6 +228,37 @@ pub fn write_atomically(path: &Path, write: impl FnOnce(File) -> Result<()>) -> 
     }
 }
 
+/// A new empty temporary file beside `target`, named as
+/// [`write_atomically`]'s are and removed by [`abandon_writes`] alike: for
+/// a file another program writes (a video through ffmpeg), then
+/// [`commit_temp`] or [`discard_temp`].
+pub fn temp_beside(target: &Path) -> Result<PathBuf> {
+    let (tmp, file) = create_temp_beside(target).map_err(|source| io_err(target, source))?;
+    drop(file);
+    Ok(tmp)
+}
+
+/// Gives the temporary `tmp` of [`temp_beside`] the name `target`.
+pub fn commit_temp(tmp: &Path, target: &Path) -> Result<()> {
+    let renamed = {
+        let mut in_flight = in_flight();
+        let renamed = fs::rename(tmp, target).map_err(|source| io_err(target, source));
+        in_flight.retain(|p| p != tmp);
+        renamed
+    };
+    if renamed.is_ok() {
+        sync_parent_dir(target);
+    }
+    renamed
+}
+
+/// Removes the temporary `tmp` of [`temp_beside`] (if still there).
+pub fn discard_temp(tmp: &Path) {
+    let mut in_flight = in_flight();
+    let _ = fs::remove_file(tmp);
+    in_flight.retain(|p| p != tmp);
+}
+
 /// Writes `text` to `path` atomically ([`write_atomically`]).
 pub fn write_text_atomically(path: &Path, text: &str) -> Result<()> {
     write_atomically(path, |mut file| {

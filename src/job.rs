@@ -32,13 +32,14 @@ use crate::gaussian_render::{GaussianRenderer, GpuGaussians};
 use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{
     check_output_path, check_parent_dir, is_png_path, write_exr_channels, write_image,
-    write_png_rgba, write_text_atomically, ExrChannel, LinearImage,
+    write_png_rgba, write_text_atomically, ExrChannel, LinearImage, Srgb8Image,
 };
 use crate::options::{check_lod, Lod, Method};
 use crate::render::{RenderOptions, Rendered, Renderer, Scene};
 use crate::report::FrameReport;
 use crate::scene::{self, HostScene, SceneKind, SceneSpec, Scenes};
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
+use crate::video::VideoWriter;
 use crate::vk::{Context, ContextOptions};
 
 /// What is rendered: one image, or a sequence of numbered ones.
@@ -130,12 +131,17 @@ pub struct JobSpec {
     pub written: Written,
     /// `--timings-json`: every frame's report, written at the end.
     pub timings_json: Option<PathBuf>,
+    /// `--fps`: a video's frame rate (None: [`crate::video::DEFAULT_FPS`];
+    /// only with a video output).
+    pub fps: Option<u32>,
 }
 
 /// A checked job ([`RenderJob::new`]).
 #[derive(Debug, Clone)]
 pub struct RenderJob {
     spec: JobSpec,
+    /// Where the frames go when `-o` names a video.
+    video: Option<Arc<VideoSink>>,
     pattern: Option<FramePattern>,
     /// The file of a single image: `-o` with `%%` read as `%`.
     single: PathBuf,
@@ -218,7 +224,10 @@ impl RenderJob {
         if let Method::Fast(fast) = spec.method {
             fast.check()?;
         }
-        check_output_path(&spec.output)?;
+        let video = VideoSink::for_job(&spec)?;
+        if video.is_none() {
+            check_output_path(&spec.output)?;
+        }
         if let Shot::Motion(motion) = &spec.shot {
             motion.check()?;
         }
@@ -226,6 +235,7 @@ impl RenderJob {
         let sequence = spec.shot.is_sequence();
         let output = spec.output.display();
         match (&pattern, sequence) {
+            (None, true) if video.is_some() => {}
             (None, true) => {
                 return Err(invalid(format!(
                     "-o {output}: a sequence needs a frame number in the output name, \
@@ -258,12 +268,15 @@ impl RenderJob {
         };
         let job = RenderJob {
             spec,
+            video,
             pattern,
             single,
             range,
         };
         job.check_folders()?;
-        if job.spec.written.passes != Passes::default() && is_png_path(&job.spec.output)? {
+        if job.spec.written.passes != Passes::default()
+            && (job.video.is_some() || is_png_path(&job.spec.output)?)
+        {
             return Err(invalid("--passes writes EXR channels: use an .exr output"));
         }
         check_lod(&job.spec.lod)?;
@@ -433,6 +446,9 @@ impl RenderJob {
         })?;
         let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
         let plan = self.plan(host.framing())?;
+        if let Some(video) = &self.video {
+            video.check_plan(&plan)?;
+        }
         if plan.frames.is_empty() {
             log::warn!(
                 "nothing to render: the {} frames' files exist",
@@ -453,7 +469,8 @@ impl RenderJob {
             events,
             WRITES_IN_FLIGHT,
             |job, events| on_device.render_frame(self, job, &plan, load_ms, events),
-        )?;
+        );
+        let outcome = self.finish_video(outcome)?;
         self.write_timings(&outcome.reports)?;
         // The device's scene goes before the validation layer's count.
         drop(on_device);
@@ -476,9 +493,36 @@ impl RenderJob {
         load_ms: f64,
         events: &mut dyn FnMut(JobEvent) -> Result<()>,
     ) -> Result<Outcome> {
-        self.run_frames(renderer.ctx(), plan, stop, events, 0, |job, events| {
+        let outcome = self.run_frames(renderer.ctx(), plan, stop, events, 0, |job, events| {
             self.point_frame(renderer, scenes, job, plan, load_ms, events)
-        })
+        });
+        self.finish_video(outcome)
+    }
+
+    /// A video's end: once every frame is in (`outcome` Ok), ffmpeg
+    /// finishes the file, which takes its name; otherwise the video in
+    /// writing is dropped with its temporary.
+    fn finish_video(&self, outcome: Result<Outcome>) -> Result<Outcome> {
+        let Some(video) = &self.video else {
+            return outcome;
+        };
+        let writer = video
+            .writer
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        match (outcome, writer) {
+            (Ok(outcome), Some(writer)) => {
+                writer.finish()?;
+                Ok(outcome)
+            }
+            (Err(Error::Interrupted { written, total, .. }), _) => Err(Error::VideoInterrupted {
+                path: video.path.clone(),
+                rendered: written,
+                total,
+            }),
+            (outcome, _) => outcome,
+        }
     }
 
     /// Renders frame `job` of a cloud's `scenes`, its camera told to
@@ -511,8 +555,10 @@ impl RenderJob {
             number: job.number,
             spec: &spec,
         })?;
-        let (measure, write) =
-            render_frame(renderer, scene, &options, &job.output, self.spec.written)?;
+        let (measure, write) = match &self.video {
+            Some(video) => video_frame(renderer, scene, &options, video)?,
+            None => render_frame(renderer, scene, &options, &job.output, self.spec.written)?,
+        };
         let report = FrameReport {
             load_ms,
             ..measure.into_report(renderer, &self.spec, &options, scene)
@@ -715,10 +761,17 @@ impl RenderJob {
             )
         };
         let output = job.output.clone();
+        let write: FileWrite = match &self.video {
+            Some(video) => {
+                let video = video.clone();
+                Box::new(move || video.push(&Srgb8Image::of(&frame.image)))
+            }
+            None => Box::new(move || write_image(&frame.image, &output)),
+        };
         Ok(RenderedFrame {
             spec,
             report,
-            write: Box::new(move || write_image(&frame.image, &output)),
+            write,
         })
     }
 
@@ -886,6 +939,117 @@ fn render_frame(
         (rendered, Box::new(move || image.write_png(&path)))
     };
     Ok((FrameMeasure { rendered, camera }, write))
+}
+
+/// Renders one frame of a video, and the write that appends it.
+fn video_frame(
+    renderer: &Renderer,
+    scene: &Scene,
+    options: &RenderOptions,
+    video: &Arc<VideoSink>,
+) -> Result<(FrameMeasure, FileWrite)> {
+    let (image, rendered) = split(renderer.render_srgb8(scene, options)?);
+    let video = video.clone();
+    let write = Box::new(move || video.push(&image));
+    Ok((
+        FrameMeasure {
+            rendered,
+            camera: options.camera,
+        },
+        write,
+    ))
+}
+
+/// A video output (`-o film.mp4`, `.webm`): ffmpeg started at the first
+/// frame, at its size, fed every frame in order.
+pub struct VideoSink {
+    path: PathBuf,
+    fps: u32,
+    writer: std::sync::Mutex<Option<VideoWriter>>,
+}
+
+impl std::fmt::Debug for VideoSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "VideoSink({}, {} fps)", self.path.display(), self.fps)
+    }
+}
+
+impl VideoSink {
+    /// The video `spec` writes, if `-o` names one: checked before any
+    /// cloud is read (a sequence, one file, opaque, no EXR passes, no
+    /// `--skip-existing`, ffmpeg on PATH); `--fps` is refused without one.
+    fn for_job(spec: &JobSpec) -> Result<Option<Arc<VideoSink>>> {
+        let output = spec.output.display();
+        if crate::video::Container::of(&spec.output).is_none() {
+            if spec.fps.is_some() {
+                return Err(invalid(format!(
+                    "--fps is for a video output (-o film.mp4 or film.webm), not -o {output}"
+                )));
+            }
+            return Ok(None);
+        }
+        let refuse = |why: &str| Err(invalid(format!("-o {output}: {why}")));
+        if !spec.shot.is_sequence() {
+            return refuse("a video needs a sequence (add --frames N or --path FILE)");
+        }
+        if FramePattern::parse(&spec.output)?.is_some() {
+            return refuse("a video is one file: no frame number in its name");
+        }
+        if spec.skip_existing {
+            return refuse("--skip-existing is for numbered frames, not a video");
+        }
+        if spec.written.transparent {
+            return refuse(
+                "a video has no alpha: a transparent background writes PNG or EXR frames",
+            );
+        }
+        crate::video::ffmpeg(&spec.output)?;
+        Ok(Some(Arc::new(VideoSink {
+            path: FramePattern::single_image(&spec.output)?,
+            fps: spec.fps.unwrap_or(crate::video::DEFAULT_FPS),
+            writer: std::sync::Mutex::new(None),
+        })))
+    }
+
+    /// Checks, before any frame renders, that the plan's frames are one
+    /// size that the video takes.
+    fn check_plan(&self, plan: &Plan) -> Result<()> {
+        let Some(first) = plan.frames.first() else {
+            return Ok(());
+        };
+        let size = (first.camera.width, first.camera.height);
+        if let Some(other) = plan
+            .frames
+            .iter()
+            .find(|f| (f.camera.width, f.camera.height) != size)
+        {
+            return Err(invalid(format!(
+                "-o {}: frame {} is {}×{}, frame {} {}×{}: a video's frames are one size",
+                self.path.display(),
+                first.number,
+                size.0,
+                size.1,
+                other.number,
+                other.camera.width,
+                other.camera.height
+            )));
+        }
+        crate::video::check_size(&self.path, size.0, size.1)
+    }
+
+    /// Appends `frame`, starting ffmpeg at the first.
+    fn push(&self, frame: &Srgb8Image) -> Result<()> {
+        let mut writer = self.writer.lock().unwrap_or_else(|e| e.into_inner());
+        if writer.is_none() {
+            *writer = Some(VideoWriter::start(
+                &self.path,
+                frame.width,
+                frame.height,
+                self.fps,
+            )?);
+        }
+        writer.as_mut().expect("started above").push(frame)
+    }
 }
 
 /// A rendered frame's image, and the rest of it.

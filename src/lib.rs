@@ -41,6 +41,7 @@ pub mod sequence;
 pub mod synth;
 pub mod tree;
 pub mod veil;
+pub mod video;
 #[allow(unsafe_code)]
 pub mod vk;
 

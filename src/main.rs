@@ -202,7 +202,8 @@ struct RenderArgs {
     /// PLY (ASCII or binary), LAS or LAZ (COPC included) file.
     input: PathBuf,
     /// Output image: .png (sRGB 8-bit) or .exr (linear float); for a
-    /// sequence with a frame number, `shot_%04d.png`.
+    /// sequence with a frame number, `shot_%04d.png`, or one video,
+    /// `film.mp4` (H.264) or `film.webm` (VP9), written through ffmpeg.
     #[arg(short, long)]
     output: PathBuf,
     /// Camera file (JSON, DESIGN §2); the flags below override single fields.
@@ -422,6 +423,10 @@ struct RenderArgs {
     /// Write the timings as JSON.
     #[arg(long, value_name = "FILE")]
     timings_json: Option<PathBuf>,
+    /// Frames a second of a video output (-o film.mp4 or film.webm;
+    /// default 24).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=240))]
+    fps: Option<u32>,
 }
 /// How the G-buffer is rasterised: flags of `render` and `bench`.
 #[derive(clap::Args, Debug, Clone, Copy)]
@@ -690,5 +695,6 @@ fn job_spec(args: &RenderArgs) -> Result<JobSpec> {
             passes: args.passes.unwrap_or_default(),
         },
         timings_json: args.timings_json.clone(),
+        fps: args.fps,
     })
 }

@@ -46,6 +46,7 @@ fn spec(shot: Shot, output: &Path) -> JobSpec {
         lod: Lod::default(),
         written: Written::default(),
         timings_json: None,
+        fps: None,
     }
 }
 

@@ -4,10 +4,17 @@
 // in a host-visible buffer, so that the host only copies them out:
 //   format 0: linear RGBA f32 (EXR), one pixel per invocation (f16 → f32
 //     is exact);
-//   format 1: sRGB 8-bit RGB (PNG), tightly packed, 4 pixels (12 bytes,
-//     3 words) per invocation. Each channel's code comes from a table of
-//     all 65,536 half-float bit patterns made on the host with
-//     image_io::linear_to_srgb8, so it equals the host's encoding exactly.
+//   format 1: sRGB 8-bit RGB (PNG), tightly packed, also one pixel per
+//     invocation: a workgroup's 64 pixels (192 bytes) meet in shared
+//     memory and 48 of its invocations write their 48 words. Each
+//     channel's code comes from a table of all 65,536 half-float bit
+//     patterns made on the host with image_io::linear_to_srgb8, so it
+//     equals the host's encoding exactly.
+// One pixel per invocation in both: the veil loops over every veil splat
+// per pixel, and llvmpipe ends an invocation's loops, all together, after
+// 65,535 iterations without a word (docs/ARCHITECTURE.md, "llvmpipe's
+// loop limit"); an invocation that veiled 4 pixels ran out of them on
+// veils of some thousand splats and left the last pixels black.
 
 layout(local_size_x = 64) in;
 
@@ -30,7 +37,7 @@ layout(push_constant, std430) uniform Push {
     ivec2 size;    // output width, height (the window's)
     ivec2 window;  // the frame's pixel of output pixel (0, 0): a tile's origin
     uint format;   // 0: linear f32 RGBA, 1: sRGB 8-bit RGB
-    uint count;    // invocations with work: pixels (format 0) or 4-pixel groups (format 1)
+    uint count;    // pixels (invocations with work)
     uint veil_count; // disks of the veil (0: the result as it is)
 } pc;
 
@@ -97,32 +104,43 @@ uint srgb8(float v) {
     return (srgb8_lut[bits >> 2u] >> (8u * (bits & 3u))) & 0xFFu;
 }
 
+// The sRGB codes of a workgroup's pixels, byte ch of entry l: channel ch
+// of its pixel l.
+shared uint group_codes[64];
+
 void main() {
-    uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * 64u + gl_LocalInvocationIndex;
-    if (i >= pc.count) {
-        return;
-    }
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint l = gl_LocalInvocationIndex;
+    uint i = group * 64u + l;
     if (pc.format == 0u) {
-        vec4 c = pixel(i);
-        for (uint k = 0u; k < 4u; ++k) {
-            words[4u * i + k] = floatBitsToUint(c[k]);
+        if (i < pc.count) {
+            vec4 c = pixel(i);
+            for (uint k = 0u; k < 4u; ++k) {
+                words[4u * i + k] = floatBitsToUint(c[k]);
+            }
         }
         return;
     }
-    uint pixels = uint(pc.size.x) * uint(pc.size.y);
-    uint packed[3] = uint[3](0u, 0u, 0u);
-    for (uint k = 0u; k < 4u; ++k) {
-        uint p = 4u * i + k;
-        if (p >= pixels) {
-            break;
-        }
-        vec4 c = pixel(p);
-        for (uint ch = 0u; ch < 3u; ++ch) {
-            uint byte_index = 3u * k + ch;
-            packed[byte_index / 4u] |= srgb8(c[ch]) << (8u * (byte_index % 4u));
-        }
+    // Every invocation of the workgroup reaches the barrier (the format
+    // is the same for all): one past the last pixel gives zero bytes.
+    uint codes = 0u;
+    if (i < pc.count) {
+        vec4 c = pixel(i);
+        codes = srgb8(c.r) | (srgb8(c.g) << 8u) | (srgb8(c.b) << 16u);
     }
-    for (uint w = 0u; w < 3u; ++w) {
-        words[3u * i + w] = packed[w];
+    group_codes[l] = codes;
+    barrier();
+    // Word w of the group holds its bytes 4w .. 4w + 3: byte b is channel
+    // b % 3 of pixel b / 3. The last group's words stop at the last
+    // 4-pixel group's (OutputFormat::buffer_bytes).
+    uint words_used = 3u * ((pc.count + 3u) / 4u);
+    uint w = group * 48u + l;
+    if (l < 48u && w < words_used) {
+        uint word = 0u;
+        for (uint k = 0u; k < 4u; ++k) {
+            uint b = 4u * l + k;
+            word |= ((group_codes[b / 3u] >> (8u * (b % 3u))) & 0xFFu) << (8u * k);
+        }
+        words[w] = word;
     }
 }

@@ -37,14 +37,6 @@ pub enum OutputFormat {
 }
 
 impl OutputFormat {
-    /// Invocations of the pass with work, for `pixels` pixels.
-    fn count(self, pixels: u64) -> u64 {
-        match self {
-            OutputFormat::LinearF32 => pixels,
-            OutputFormat::Srgb8 => pixels.div_ceil(4),
-        }
-    }
-
     /// Bytes the pass writes for `pixels` pixels (the sRGB form rounded up
     /// to whole 4-pixel groups).
     pub fn buffer_bytes(self, pixels: u64) -> u64 {
@@ -124,8 +116,10 @@ impl OutputConvert {
             out.size() >= format.buffer_bytes(pixels),
             "output buffer too small"
         );
-        let count = format.count(pixels);
-        let count = u32::try_from(count).expect("fewer than 2^32 pixels");
+        // One invocation per pixel in both formats: the veil loops over its
+        // splats per pixel, and an invocation's loop iterations are bounded
+        // on llvmpipe (`glsl/output_convert.comp`).
+        let count = u32::try_from(pixels).expect("fewer than 2^32 pixels");
         // Workgroups of 64 as a 2D grid within the per-dimension limit.
         let groups = count.div_ceil(64);
         let gx = groups.clamp(1, 65_535);

@@ -843,18 +843,21 @@ fn log_memory(ctx: &crate::vk::Context, job: &FrameJob, started: Instant) {
     );
 }
 
-/// Handles SIGINT and SIGTERM on a thread of their own. In a sequence the
+/// Handles SIGINT, SIGTERM and SIGHUP on a thread of their own. In a sequence the
 /// first sets `stop`, and [`RenderJob::render`] ends after the frame in
 /// flight; otherwise (a single image, or a second signal) the temporary
 /// files of the writes in progress are removed and the process ends as the
 /// signal's default action would (its status says which signal), so no
 /// partial file, not even a hidden temporary, is left.
 pub fn watch_signals(sequence: bool, stop: Arc<AtomicBool>) -> Result<()> {
-    use signal_hook::consts::{SIGINT, SIGTERM};
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    // SIGHUP too: an ssh session that closes ends its commands so.
     let mut signals =
-        signal_hook::iterator::Signals::new([SIGINT, SIGTERM]).map_err(|source| Error::System {
-            what: "installing a signal handler",
-            source,
+        signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]).map_err(|source| {
+            Error::System {
+                what: "installing a signal handler",
+                source,
+            }
         })?;
     std::thread::spawn(move || {
         for signal in signals.forever() {

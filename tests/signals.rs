@@ -1,4 +1,4 @@
-//! Signals and concurrency (issue 17): SIGINT or SIGTERM during a render,
+//! Signals and concurrency: SIGINT, SIGTERM or SIGHUP during a render,
 //! or while its file is being written, leaves no file and no temporary; a
 //! sequence stopped so keeps its finished frames (one signal: the frame in
 //! flight is finished; two: it is dropped); a killed writer's temporary
@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 
 use common::{file_names, root, scratch};
 
+const SIGHUP: i32 = 1;
 const SIGINT: i32 = 2;
 const SIGTERM: i32 = 15;
 
@@ -82,7 +83,7 @@ fn wait_for_name(dir: &Path, part: &str, child: &mut Child) {
 
 #[test]
 fn a_signal_during_a_render_leaves_no_file() {
-    for signal in [SIGTERM, SIGINT] {
+    for signal in [SIGTERM, SIGINT, SIGHUP] {
         let dir = scratch(&format!("signals-render-{signal}"));
         let out = dir.join("slow.png").display().to_string();
         // An accumulation of many lens samples: seconds on lavapipe after
@@ -118,7 +119,7 @@ fn a_signal_during_a_render_leaves_no_file() {
 
 #[test]
 fn a_signal_while_the_file_is_written_leaves_neither_it_nor_its_temporary() {
-    for signal in [SIGTERM, SIGINT] {
+    for signal in [SIGTERM, SIGINT, SIGHUP] {
         let dir = scratch(&format!("signals-write-{signal}"));
         let out = dir.join("f.exr").display().to_string();
         let mut child = pointlens()
@@ -149,7 +150,7 @@ fn a_signal_while_the_file_is_written_leaves_neither_it_nor_its_temporary() {
 /// (it used to leave a hidden temporary of hundreds of megabytes).
 #[test]
 fn a_signal_during_synth_leaves_no_file() {
-    for signal in [SIGTERM, SIGINT] {
+    for signal in [SIGTERM, SIGINT, SIGHUP] {
         let dir = scratch(&format!("signals-synth-{signal}"));
         let out = dir.join("big.ply").display().to_string();
         // 750 MB: seconds of writing.
@@ -179,7 +180,7 @@ fn a_signal_during_convert_leaves_no_parts_and_no_file() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for signal in [SIGTERM, SIGINT] {
+    for signal in [SIGTERM, SIGINT, SIGHUP] {
         for in_output in [false, true] {
             let dir = scratch(&format!("signals-convert-{signal}-{in_output}"));
             let out = dir.join("out.copc.laz").display().to_string();

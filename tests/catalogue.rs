@@ -483,6 +483,16 @@ fn catalogue() -> Vec<Case> {
         // info.
         no_output("info {dir}/no-such.ply", "no-such.ply"),
         no_output("info {dir}/count-lies.ply", "count-lies.ply"),
+        // Some of a 3D Gaussian's properties but not all: a broken Gaussian
+        // file, not a cloud of white points.
+        case(
+            "render {dir}/gaussian-no-opacity.ply -o {out} R",
+            "without the properties opacity",
+        ),
+        no_output(
+            "info {dir}/gaussian-no-opacity.ply",
+            "without the properties opacity",
+        ),
     ]
 }
 
@@ -494,6 +504,20 @@ fn write_inputs(dir: &Path) {
     };
     let xyz = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n";
     w("empty.ply", b"");
+    let gaussian: String = [
+        "x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "scale_0", "scale_1",
+    ]
+    .iter()
+    .chain(&["scale_2", "rot_0", "rot_1", "rot_2", "rot_3"])
+    .map(|p| format!("property float {p}\n"))
+    .collect();
+    w(
+        "gaussian-no-opacity.ply",
+        &ascii(
+            &format!("element vertex 1\n{gaussian}"),
+            "0 0 0 0.5 0.5 0.5 -3 -3 -3 1 0 0 0\n",
+        ),
+    );
     w("not-ply.ply", b"hello, not a point cloud\n");
     w(
         "no-end-header.ply",

@@ -171,6 +171,14 @@ fn a_bad_gaussian_file_is_one_line() {
         "without the properties scale_1, rot_3",
     );
     check(&good, &["f_rest_8"], "8 f_rest_* properties");
+    // Some but not all of the Gaussian properties is a broken Gaussian
+    // file, not a cloud of points: without `opacity` alone too.
+    check(&good, &["opacity"], "without the properties opacity");
+    check(
+        &good,
+        &["opacity", "scale_0", "scale_1", "scale_2"],
+        "without the properties opacity, scale_0, scale_1, scale_2",
+    );
     let mut nan = good.clone();
     nan[3].opacity = f32::NAN;
     check(&nan, &[], "Gaussian 3: opacity is NaN (not finite)");

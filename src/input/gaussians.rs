@@ -64,13 +64,16 @@ impl GaussianScene {
     }
 }
 
-/// Whether a PLY header's vertices are 3D Gaussians: they have `f_dc_0`,
-/// `opacity`, `scale_0` and `rot_0` (the rest is checked when read).
+/// Whether a PLY header's vertices are 3D Gaussians: they have properties
+/// of at least two of the families `f_dc_*`, `opacity`, `scale_*` and
+/// `rot_*`. Every property is checked when read, so a file with some but
+/// not all of them is a broken Gaussian file, refused naming what it lacks
+/// (one family alone, an `opacity` of a point cloud, is not Gaussian).
 pub fn is_gaussian_header(header: &Header) -> bool {
     header.elements.get("vertex").is_some_and(|v| {
-        ["f_dc_0", "opacity", "scale_0", "rot_0"]
-            .iter()
-            .all(|p| v.properties.contains_key(*p))
+        let family = |prefix: &str| v.properties.keys().any(|p| p.starts_with(prefix));
+        let families = ["f_dc_", "opacity", "scale_", "rot_"];
+        families.iter().filter(|f| family(f)).count() >= 2
     })
 }
 

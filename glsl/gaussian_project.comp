@@ -31,6 +31,7 @@ layout(push_constant) uniform Push {
     uint sh_degree;
     uint sh_stride;    // floats of SH per Gaussian
     uint sh_split;     // the first Gaussian whose SH is in sh_rest
+    float near_z;      // centres at most this eye depth are culled
 } pc;
 
 const float SH_C0 = 0.28209479177387814;
@@ -92,7 +93,7 @@ void main() {
     vec3 eye = vec3(pc.right.w, pc.up.w, pc.forward.w);
     vec3 q = p - eye;
     vec3 e0 = vec3(dot(q, pc.right.xyz), dot(q, pc.up.xyz), dot(q, pc.forward.xyz));
-    if (!(e0.z > 0.2)) {
+    if (!(e0.z > pc.near_z)) {
         cull(g);
         return;
     }

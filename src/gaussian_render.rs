@@ -81,6 +81,7 @@ push_constants! {
         pub sh_degree: u32,
         pub sh_stride: u32,
         pub sh_split: u32,
+        pub near_z: f32,
     }
 }
 
@@ -144,6 +145,8 @@ pub struct GpuGaussians {
     count: u32,
     sh_degree: u32,
     sh_stride: u32,
+    /// The eye depth at which a centre is culled ([`crate::gaussians::near_z`]).
+    near_z: f32,
 }
 
 impl GpuGaussians {
@@ -157,14 +160,31 @@ impl GpuGaussians {
         self.count == 0
     }
 
+    /// The eye depth at which a centre is culled.
+    pub fn near_z(&self) -> f32 {
+        self.near_z
+    }
+
+    /// How many centres `camera` sees in front of the near plane.
+    pub fn in_front(&self, camera: &Camera) -> usize {
+        let eye_from_world = camera.eye_from_world_transform();
+        let near_z = self.near_z;
+        self.centres
+            .iter()
+            .filter(|p| eye_from_world.apply(**p).z > near_z)
+            .count()
+    }
+
     /// The eye-depth range of the centres `camera` does not cull (eye
-    /// depth above 0.2, as the projection), None when it culls all.
+    /// depth above [`GpuGaussians::near_z`], as the projection), None when
+    /// it culls all.
     pub fn depths(&self, camera: &Camera) -> Option<(f32, f32)> {
         let eye_from_world = camera.eye_from_world_transform();
+        let near_z = self.near_z;
         self.centres
             .iter()
             .map(|p| eye_from_world.apply(*p).z)
-            .filter(|z| *z > 0.2)
+            .filter(|z| *z > near_z)
             .fold(None, |range, z| match range {
                 None => Some((z, z)),
                 Some((lo, hi)) => Some((f32::min(lo, z), f32::max(hi, z))),
@@ -300,6 +320,7 @@ impl GaussianRenderer {
             Buffer::with_bytes(ctx, name, bytes, usage)
         };
         Ok(GpuGaussians {
+            near_z: crate::gaussians::near_z(&scene.positions),
             centres: scene.positions.clone(),
             gaussians: upload("gaussians", bytemuck::cast_slice(&gaussians))?,
             sh: upload(
@@ -757,6 +778,7 @@ fn project_push(scene: &GpuGaussians, chain: &Chain, camera: &Camera, u: Vec2) -
         sh_degree: scene.sh_degree,
         sh_stride: scene.sh_stride,
         sh_split: scene.sh_split,
+        near_z: scene.near_z,
     }
 }
 

@@ -4,7 +4,7 @@
 //! (docs/ARCHITECTURE.md, "3D Gaussian scenes"). For tests, on small
 //! images: one pixel at a time, every Gaussian of its 16 × 16 tile.
 //!
-//! Per Gaussian: its eye-space centre (culled at z ≤ 0.2); the 3D
+//! Per Gaussian: its eye-space centre (culled at z ≤ [`near_z`]); the 3D
 //! covariance Σ = R S Sᵀ Rᵀ; the 2D covariance J W Σ Wᵀ Jᵀ with the
 //! Jacobian of the projection at the centre (its x/z and y/z clamped to
 //! 1.3 × the half field of view's tangent) plus 0.3 px² on the diagonal
@@ -102,9 +102,30 @@ pub struct Splat2d {
 }
 
 /// Gaussian `g` of `scene` through `camera`'s pinhole (its lens ignored),
-/// or None where the reference culls it.
-pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat2d> {
-    project_through(scene, g, camera, Vec2::ZERO)
+/// or None where the reference culls it (at the eye depth `near_z`,
+/// [`near_z`] of the scene).
+pub fn project(scene: &GaussianScene, g: usize, camera: &Camera, near_z: f32) -> Option<Splat2d> {
+    project_through(scene, g, camera, Vec2::ZERO, near_z)
+}
+
+/// The reference code's near plane: Gaussians whose centre is at most this
+/// eye depth (scene units; metres in its trained scenes) are culled.
+pub const REFERENCE_NEAR_Z: f32 = 0.2;
+
+/// A scene's near plane, eye depth: the reference code's
+/// [`REFERENCE_NEAR_Z`], or 1 % of the centres' extent (the bounding box's
+/// largest side) where that is nearer, so that a scene smaller than 20
+/// units across is not culled by a plane fitted to rooms and streets.
+pub fn near_z(centres: &[Vec3]) -> f32 {
+    let (lo, hi) = centres.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let extent = (hi - lo).max_element();
+    match extent.is_finite() && extent > 0.0 {
+        true => REFERENCE_NEAR_Z.min(0.01 * extent),
+        false => REFERENCE_NEAR_Z,
+    }
 }
 
 /// Gaussian `g` of `scene` seen from the point `lens` of `camera`'s lens
@@ -113,16 +134,18 @@ pub fn project(scene: &GaussianScene, g: usize, camera: &Camera) -> Option<Splat
 /// where the pinhole draws (e.x − l.x + l.x·e.z/S, e.y − l.y + l.y·e.z/S,
 /// e.z), an affine map applied to the Gaussian's centre and covariance
 /// alike (so defocus enlarges it), its colour seen from the lens point.
+/// None where culled: its centre at an eye depth of at most `near_z`.
 pub fn project_through(
     scene: &GaussianScene,
     g: usize,
     camera: &Camera,
     lens: Vec2,
+    near_z: f32,
 ) -> Option<Splat2d> {
     let eye_from_world = camera.eye_from_world_transform();
     let p = scene.positions[g];
     let e0 = eye_from_world.apply(p);
-    if e0.z <= 0.2 || e0.z.is_nan() {
+    if e0.z <= near_z || e0.z.is_nan() {
         return None;
     }
     let s = camera.focus_distance;
@@ -261,8 +284,9 @@ fn render_through(
     lens: Vec2,
     jitter: Vec2,
 ) -> Vec<Vec3> {
+    let near = near_z(&scene.positions);
     let mut splats: Vec<(usize, Splat2d)> = (0..scene.len())
-        .filter_map(|g| project_through(scene, g, camera, lens).map(|s| (g, s)))
+        .filter_map(|g| project_through(scene, g, camera, lens, near).map(|s| (g, s)))
         .collect();
     // Front to back; equal depths in the scene's order.
     splats.sort_by(|a, b| a.1.depth.total_cmp(&b.1.depth).then(a.0.cmp(&b.0)));

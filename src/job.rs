@@ -743,6 +743,10 @@ impl RenderJob {
                     frame.entries as u64,
                 ),
                 ("gaussians.retries".into(), frame.retries as u64),
+                (
+                    crate::report::GAUSSIANS_IN_FRONT.into(),
+                    scene.in_front(&job.camera) as u64,
+                ),
             ],
             gaussians: true,
             ..FrameReport::new(
@@ -1185,6 +1189,17 @@ impl FilesWritten {
 
 /// The warning of the first frame that drew nothing of the scene.
 fn empty_frame_warning(number: u32, report: &FrameReport) -> String {
+    let in_front = report
+        .counts
+        .iter()
+        .find(|(name, _)| name == crate::report::GAUSSIANS_IN_FRONT);
+    if let Some((_, 0)) = in_front {
+        return format!(
+            "frame {number}: every Gaussian is behind the camera or nearer than the near plane \
+             (1 % of the scene's extent, at most {} units): move the camera back",
+            crate::gaussians::REFERENCE_NEAR_Z
+        );
+    }
     let what = match report.gaussians {
         true => "no Gaussian",
         false => "no point",

@@ -88,6 +88,9 @@ pub struct LodReport {
 /// The count a frame of 3D Gaussians reports its tile entries under (the
 /// most of any lens point).
 pub const GAUSSIAN_TILE_ENTRIES: &str = "gaussians.tile_entries";
+/// The count of a Gaussian frame's report: centres in front of the near
+/// plane (`GpuGaussians::near_z`), before the view's sides cull.
+pub const GAUSSIANS_IN_FRONT: &str = "gaussians.in_front";
 
 /// One rendered frame: what was rendered, each pass's GPU time, the frame's
 /// wall time, and the work around the frame measured apart.

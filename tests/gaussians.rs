@@ -279,18 +279,20 @@ fn the_command_line_knows_a_gaussian_scene() {
         assert_eq!((image.width, image.height), (40, 30));
         std::fs::remove_file(&png).unwrap();
     }
-    // A camera looking away from the scene: the background, and a warning.
-    let mut args = vec![
-        "render", p, "-o", o, "--eye", "0,0,10", "--target", "0,0,20",
-    ];
-    args.extend(small);
-    let run = assert_runs(&args);
-    let warning = String::from_utf8_lossy(&run.stderr);
-    assert!(
-        warning.contains("no Gaussian of the scene is in view"),
-        "{warning}"
-    );
-    std::fs::remove_file(&png).unwrap();
+    // A camera looking away from the scene: the background, and a warning
+    // that says why (every centre behind it); one looking past it, with
+    // centres in front but beside the view: the other warning.
+    for (target, why) in [
+        ("0,0,20", "every Gaussian is behind the camera"),
+        ("10,0,10", "no Gaussian of the scene is in view"),
+    ] {
+        let mut args = vec!["render", p, "-o", o, "--eye", "0,0,10", "--target", target];
+        args.extend(small);
+        let run = assert_runs(&args);
+        let warning = String::from_utf8_lossy(&run.stderr);
+        assert!(warning.contains(why), "{warning}");
+        std::fs::remove_file(&png).unwrap();
+    }
     // A scene that would not fit --memory-mb: one line, no file.
     let large = dir.path().join("large.ply");
     write(&large, "binary_little_endian", &scene(4000, 3), &[]);
@@ -573,4 +575,86 @@ fn the_lens_reference_blurs_by_the_circle_of_confusion() {
         .map(|(a, b)| (*a - *b).abs().max_element())
         .fold(0.0f32, f32::max);
     assert!(worst < 2e-3, "in focus, {worst} from the pinhole image");
+}
+
+/// A scene 0.2 units across seen from 0.15 units away renders: the near
+/// plane follows the scene's scale (1 % of its extent) instead of the
+/// reference code's 0.2, which culled every Gaussian. A camera with every
+/// Gaussian behind it says so, not that a camera file's origin is wrong.
+#[test]
+fn a_small_scene_seen_from_near_renders_and_an_empty_frame_names_its_cause() {
+    let dir = scratch("gaussians-near");
+    let path = dir.path().join("small.ply");
+    // 200 Gaussians in a cube of side 0.2 about the origin, σ about 0.005.
+    let small: Vec<Stored> = scene(200, 0)
+        .into_iter()
+        .map(|mut g| {
+            g.xyz = g.xyz.map(|v| 0.1 * v);
+            g.scale = g.scale.map(|s| s - 2.0);
+            g.opacity = 3.0;
+            g
+        })
+        .collect();
+    write(&path, "binary_little_endian", &small, &[]);
+    let (p, out) = (path.to_str().unwrap(), dir.path().join("near.png"));
+    let o = out.to_str().unwrap();
+    let view = [
+        "--width", "48", "--height", "36", "--device", "llvmpipe", "--method", "pinhole",
+        "--target", "0,0,0", "--up", "0,1,0",
+    ];
+    let mut args = vec!["render", p, "-o", o, "--eye", "0,0,0.11", "--timings"];
+    args.extend(view);
+    let run = assert_runs(&args);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !err.contains("in view") && !err.contains("near plane"),
+        "{err}"
+    );
+    // Eye depths from 0.01 to 0.21: every centre in front of the near plane
+    // (0.002 here; the reference's 0.2 kept 5 % of them).
+    let in_front = err
+        .lines()
+        .find_map(|l| l.strip_prefix("gaussians.in_front"))
+        .unwrap_or_else(|| panic!("no in_front count: {err}"));
+    assert_eq!(in_front.trim(), "200", "{err}");
+    let image = pointlens::image_io::read_image(&out).unwrap();
+    let lit = image
+        .pixels
+        .iter()
+        .filter(|p| p[0] + p[1] + p[2] > 0.05)
+        .count();
+    assert!(
+        lit > image.pixels.len() / 4,
+        "{lit} of {} pixels lit",
+        image.pixels.len()
+    );
+    // The camera inside the scene's far side, looking away: every centre
+    // behind it.
+    let behind = dir.path().join("behind.png");
+    let b = behind.to_str().unwrap();
+    let run = assert_runs(&[
+        "render",
+        p,
+        "-o",
+        b,
+        "--eye",
+        "0,0,-0.15",
+        "--target",
+        "0,0,-1",
+        "--up",
+        "0,1,0",
+        "--width",
+        "48",
+        "--height",
+        "36",
+        "--device",
+        "llvmpipe",
+        "--method",
+        "pinhole",
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("frame 1: every Gaussian is behind the camera or nearer than the near plane"),
+        "{err}"
+    );
 }

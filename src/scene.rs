@@ -249,11 +249,12 @@ pub enum HostScene {
     Cloud(PointCloud),
     /// A COPC file opened to be read by node; `preview` is its root node's
     /// points (colored), on which cameras are framed, and `ranges` what
-    /// `--color` stretches over in every frame.
+    /// `--color` stretches over in every frame (the whole file's; None
+    /// without `--color`).
     Copc {
         clouds: CopcClouds,
         preview: PointCloud,
-        ranges: ColorRanges,
+        ranges: Option<ColorRanges>,
     },
     /// 3D Gaussians, and their centres as a cloud to frame cameras on.
     Gaussians {
@@ -293,9 +294,15 @@ impl HostScene {
                         .unwrap_or(input::copc::DEFAULT_POINT_BUDGET),
                     spec.memory_mb,
                 )?;
+                let ranges = match spec.color {
+                    Some(_) => Some(clouds.color_ranges()?),
+                    None => None,
+                };
                 let preview = clouds.preview()?;
-                let ranges = ColorRanges::of(&preview);
-                let preview = colored(preview, &ranges)?;
+                let preview = match &ranges {
+                    Some(ranges) => colored(preview, ranges)?,
+                    None => preview,
+                };
                 Ok(HostScene::Copc {
                     clouds,
                     preview,
@@ -350,7 +357,7 @@ impl HostScene {
                 Ok(DeviceScene::Cloud { renderer, scene })
             }
             HostScene::Copc { clouds, ranges, .. } => {
-                let color = spec.color.map(|mode| (mode, ranges));
+                let color = spec.color.zip(ranges);
                 let copc = CopcScenes::new(clouds, spec.splat, color);
                 Ok(DeviceScene::Copc { renderer, copc })
             }
@@ -534,7 +541,7 @@ impl<'a> Scenes<'a> {
 pub struct CopcScenes {
     pub clouds: CopcClouds,
     pub splat: SplatSize,
-    /// `--color` and the ranges it stretches over (the root node's).
+    /// `--color` and the ranges it stretches over (the whole file's).
     pub color: Option<(ColorMode, ColorRanges)>,
     last: std::sync::Mutex<Option<(Vec<NodeEntry>, Arc<Scene>)>>,
 }

@@ -792,6 +792,28 @@ impl CopcClouds {
         gather.finish_with(&self.path, &self.facts, Some(self.origin), self.norms)
     }
 
+    /// [`CopcClouds::cloud`] of `nodes`, and each point's node's spacing
+    /// (the root's halved per level), scene units.
+    pub fn cloud_with_spacing(&self, nodes: &[NodeEntry]) -> Result<(PointCloud, Vec<f32>)> {
+        let cloud = self.cloud(nodes)?;
+        let mut spacing = Vec::with_capacity(cloud.len());
+        for node in nodes {
+            let s = self.copc.info.spacing_at(node.key.level) as f32;
+            spacing.extend(std::iter::repeat_n(s, node.point_count as usize));
+        }
+        if spacing.len() != cloud.len() {
+            return Err(Error::Las {
+                path: self.path.clone(),
+                msg: format!(
+                    "the COPC nodes' entries declare {} points, their data hold {}",
+                    spacing.len(),
+                    cloud.len()
+                ),
+            });
+        }
+        Ok((cloud, spacing))
+    }
+
     /// The points of `nodes`: from the cache, the rest decompressed by
     /// every thread, then the cache trimmed to `--memory-mb` (the nodes
     /// of this frame stay while the frame needs them: they are returned).

@@ -47,8 +47,9 @@ pub fn pack_return(number: u8, count: u8) -> u8 {
 
 /// The ranges a color mode stretches over: the intensities' (min, max)
 /// and the heights' 0.5–99.5 % range. Made from the whole cloud, or, for
-/// a cloud read in parts (COPC by node), once from a sample, so that every
-/// frame colors a point alike.
+/// a cloud read in parts (COPC by node), once from every point of the file
+/// (`CopcClouds::color_ranges`), so that every frame colors a point as the
+/// file read whole does.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColorRanges {
     pub intensity: (u16, u16),
@@ -67,9 +68,23 @@ impl ColorRanges {
         let heights: Vec<f32> = cloud.positions.iter().map(|p| p[axis]).collect();
         ColorRanges {
             intensity,
-            elevation: percentile_range(heights, 0.005),
+            elevation: percentile_range(heights, ELEVATION_TAIL),
         }
     }
+}
+
+/// The share of heights below and above the elevation's stretch: its
+/// range is the 0.5–99.5 % one.
+pub const ELEVATION_TAIL: f64 = 0.005;
+
+/// The ranks (from 0) in `n` sorted values of the values at fraction `q`
+/// and 1 − `q`: what [`ColorRanges`] takes for the elevation's range
+/// (`n` ≥ 1).
+pub fn percentile_ranks(n: usize, q: f64) -> (usize, usize) {
+    let last = n.saturating_sub(1);
+    let lo_at = (q * last as f64).round() as usize;
+    let hi_at = ((1.0 - q) * last as f64).round() as usize;
+    (lo_at, hi_at)
 }
 
 /// Recolors `cloud` by `mode`, stretched over its own ranges
@@ -142,9 +157,7 @@ fn percentile_range(mut v: Vec<f32>, q: f64) -> (f32, f32) {
     if v.is_empty() {
         return (0.0, 1.0);
     }
-    let last = v.len() - 1;
-    let lo_at = (q * last as f64).round() as usize;
-    let hi_at = ((1.0 - q) * last as f64).round() as usize;
+    let (lo_at, hi_at) = percentile_ranks(v.len(), q);
     let lo = *v.select_nth_unstable_by(lo_at, f32::total_cmp).1;
     let hi = *v.select_nth_unstable_by(hi_at, f32::total_cmp).1;
     (lo, hi)

@@ -554,6 +554,29 @@ impl Renderer {
         self.upload_with(cloud, SplatSize::Spacing, LeafSize::PerPoint(diameters))
     }
 
+    /// [`Renderer::upload`] with each splat sized from the spacing at most
+    /// `max_diameters` (world units, in the cloud's order); sizes `splat`
+    /// gives otherwise (`--splat-size`, `--splat-px`) are taken as given.
+    pub fn upload_bounded(
+        &self,
+        cloud: &PointCloud,
+        splat: SplatSize,
+        max_diameters: &[f32],
+    ) -> Result<Scene> {
+        if max_diameters.len() != cloud.len() {
+            return Err(Error::InvalidArgument(format!(
+                "{} diameters for {} points",
+                max_diameters.len(),
+                cloud.len()
+            )));
+        }
+        let size = match splat {
+            SplatSize::Spacing => LeafSize::SpacingTimesAtMost(SPACING_TO_DIAMETER, max_diameters),
+            _ => splat.leaf_size(),
+        };
+        self.upload_with(cloud, splat, size)
+    }
+
     /// [`Renderer::upload`] drawing every point in the cloud's order, no
     /// hierarchy ([`SplatTree::build_in_input_order`]): to measure what
     /// Morton order gains the raster.

@@ -249,11 +249,12 @@ pub enum HostScene {
     Cloud(PointCloud),
     /// A COPC file opened to be read by node; `preview` is its root node's
     /// points (colored), on which cameras are framed, and `ranges` what
-    /// `--color` stretches over in every frame.
+    /// `--color` stretches over in every frame (the whole file's; None
+    /// without `--color`).
     Copc {
         clouds: CopcClouds,
         preview: PointCloud,
-        ranges: ColorRanges,
+        ranges: Option<ColorRanges>,
     },
     /// 3D Gaussians, and their centres as a cloud to frame cameras on.
     Gaussians {
@@ -293,9 +294,15 @@ impl HostScene {
                         .unwrap_or(input::copc::DEFAULT_POINT_BUDGET),
                     spec.memory_mb,
                 )?;
+                let ranges = match spec.color {
+                    Some(_) => Some(clouds.color_ranges()?),
+                    None => None,
+                };
                 let preview = clouds.preview()?;
-                let ranges = ColorRanges::of(&preview);
-                let preview = colored(preview, &ranges)?;
+                let preview = match &ranges {
+                    Some(ranges) => colored(preview, ranges)?,
+                    None => preview,
+                };
                 Ok(HostScene::Copc {
                     clouds,
                     preview,
@@ -350,7 +357,7 @@ impl HostScene {
                 Ok(DeviceScene::Cloud { renderer, scene })
             }
             HostScene::Copc { clouds, ranges, .. } => {
-                let color = spec.color.map(|mode| (mode, ranges));
+                let color = spec.color.zip(ranges);
                 let copc = CopcScenes::new(clouds, spec.splat, color);
                 Ok(DeviceScene::Copc { renderer, copc })
             }
@@ -527,6 +534,14 @@ impl<'a> Scenes<'a> {
     }
 }
 
+/// A splat of a frame of some of a COPC file's nodes is at most this many
+/// times its node's spacing wide: its spacing from its neighbours in the
+/// frame where that is less (a surface's one point per cell of the node's
+/// grid sits about 1.2 spacings from its 8 nearest), and the limit of
+/// isolated points ([`crate::tree::ISOLATED_LIMIT`]) where the frame holds
+/// few of its neighbours.
+pub const NODE_SPLAT_SPACINGS: f32 = crate::tree::ISOLATED_LIMIT;
+
 /// The scenes of a COPC file rendered by node
 /// ([`crate::input::copc::CopcClouds`]): a frame's nodes become a cloud,
 /// colored as the whole file is, and a splat hierarchy, kept while the
@@ -534,7 +549,7 @@ impl<'a> Scenes<'a> {
 pub struct CopcScenes {
     pub clouds: CopcClouds,
     pub splat: SplatSize,
-    /// `--color` and the ranges it stretches over (the root node's).
+    /// `--color` and the ranges it stretches over (the whole file's).
     pub color: Option<(ColorMode, ColorRanges)>,
     last: std::sync::Mutex<Option<(Vec<NodeEntry>, Arc<Scene>)>>,
 }
@@ -591,11 +606,20 @@ impl CopcScenes {
         }
         // The last frame's scene goes before this one is built.
         *last = None;
-        let mut cloud = self.clouds.cloud(&selection.nodes)?;
+        let (mut cloud, spacing) = self.clouds.cloud_with_spacing(&selection.nodes)?;
         if let Some((mode, ranges)) = &self.color {
             crate::color::apply_over(&mut cloud, *mode, ranges)?;
         }
-        let scene = Arc::new(renderer.upload(&cloud, self.splat)?);
+        // A frame of every node is the file read whole; in a frame of fewer,
+        // a point is no wider than its node's spacing allows (a coarse node's
+        // few points are far from each other: issue 47, defect 8).
+        let scene = if selection.points == self.clouds.total_points() {
+            renderer.upload(&cloud, self.splat)?
+        } else {
+            let most: Vec<f32> = spacing.iter().map(|s| NODE_SPLAT_SPACINGS * s).collect();
+            renderer.upload_bounded(&cloud, self.splat, &most)?
+        };
+        let scene = Arc::new(scene);
         *last = Some((selection.nodes, scene.clone()));
         Ok(scene)
     }

@@ -26,6 +26,7 @@ use laz::record::{LayeredPointRecordDecompressor, RecordDecompressor};
 use super::las::{preflight, Gather, Norms, Preflight};
 use crate::camera::Camera;
 use crate::cloud::PointCloud;
+use crate::color::ColorRanges;
 use crate::error::{Error, Result};
 use crate::options::Lod;
 
@@ -540,13 +541,18 @@ fn key_name(k: NodeKey) -> String {
 /// points of the nodes that frame needs ([`CopcClouds::select`]), read
 /// from a cache of decompressed nodes bounded by `--memory-mb`; every
 /// frame's points share one origin and one color scale (the header's
-/// bounds, the root node's colors), so a point is the same in every frame.
+/// bounds; the ranges of every node's points, read once when the file is
+/// opened), so a point is the same in every frame and as the file read
+/// whole has it.
 pub struct CopcClouds {
     path: PathBuf,
     copc: CopcFile,
     facts: Preflight,
     origin: DVec3,
     norms: Norms,
+    /// The whole file's ranges, from every node read once.
+    scan: FileScan,
+    bins: HeightBins,
     /// The most points one frame takes (`--point-budget`).
     point_budget: u64,
     /// The most bytes of decompressed nodes kept (`--memory-mb`).
@@ -599,7 +605,7 @@ impl CopcClouds {
         let mut sample = Gather::with_capacity(data.len(), path)?;
         sample.add(&data);
         // Positions on the header's bounds (the whole read's range when the
-        // header is right), colors scaled as the root's.
+        // header is right), colors scaled by the whole file's ranges.
         let t = facts.header.transforms();
         let b = facts.header.bounds();
         let code = |v: f64, tr: las::Transform| ((v - tr.offset) / tr.scale).round();
@@ -612,10 +618,22 @@ impl CopcClouds {
                 [b.max.x, b.max.y, b.max.z]
             )));
         }
+        let (code_lo, code_hi) = (lo.map(|v| v as i32), hi.map(|v| v as i32));
+        let started = std::time::Instant::now();
+        let bins = HeightBins::new(code_lo[2], code_hi[2]);
+        let scan = copc.scan(bins)?;
+        log::info!(
+            "{}: the ranges of its {} points read in {:.2} s",
+            path.display(),
+            scan.points,
+            started.elapsed().as_secs_f64()
+        );
         let norms = Norms {
-            code_lo: lo.map(|v| v as i32),
-            code_hi: hi.map(|v| v as i32),
-            ..sample.norms()
+            code_lo,
+            code_hi,
+            rgb_max: scan.rgb_max,
+            int_lo: scan.int_lo,
+            int_hi: scan.int_hi,
         };
         let origin = sample.finish_with(path, &facts, origin, norms)?.origin;
         Ok(CopcClouds {
@@ -624,6 +642,8 @@ impl CopcClouds {
             facts,
             origin,
             norms,
+            scan,
+            bins,
             point_budget,
             memory_bytes: memory_mb.saturating_mul(1 << 20),
             cache: Mutex::new(NodeCache::default()),
@@ -633,6 +653,21 @@ impl CopcClouds {
     /// Points in the file.
     pub fn total_points(&self) -> u64 {
         self.facts.header.number_of_points()
+    }
+
+    /// What `--color` stretches over in every frame: the whole file's
+    /// intensity range and 0.5–99.5 % height range, as the file read whole
+    /// has them (the heights exact where the header's bounds hold every
+    /// point, as the origin assumes; a second read of every node where
+    /// they span more than 2^20 grid steps).
+    pub fn color_ranges(&self) -> Result<ColorRanges> {
+        let [lo, hi] = self.copc.height_codes(self.scan.heights, self.bins)?;
+        let z = self.facts.header.transforms().z;
+        let height = |code| super::las::local_coord(z.scale, z.offset, self.origin.z, code);
+        Ok(ColorRanges {
+            intensity: (self.scan.int_lo, self.scan.int_hi),
+            elevation: (height(lo), height(hi)),
+        })
     }
 
     /// The root node's points as a cloud: a sample of the whole, spread
@@ -757,6 +792,28 @@ impl CopcClouds {
         gather.finish_with(&self.path, &self.facts, Some(self.origin), self.norms)
     }
 
+    /// [`CopcClouds::cloud`] of `nodes`, and each point's node's spacing
+    /// (the root's halved per level), scene units.
+    pub fn cloud_with_spacing(&self, nodes: &[NodeEntry]) -> Result<(PointCloud, Vec<f32>)> {
+        let cloud = self.cloud(nodes)?;
+        let mut spacing = Vec::with_capacity(cloud.len());
+        for node in nodes {
+            let s = self.copc.info.spacing_at(node.key.level) as f32;
+            spacing.extend(std::iter::repeat_n(s, node.point_count as usize));
+        }
+        if spacing.len() != cloud.len() {
+            return Err(Error::Las {
+                path: self.path.clone(),
+                msg: format!(
+                    "the COPC nodes' entries declare {} points, their data hold {}",
+                    spacing.len(),
+                    cloud.len()
+                ),
+            });
+        }
+        Ok((cloud, spacing))
+    }
+
     /// The points of `nodes`: from the cache, the rest decompressed by
     /// every thread, then the cache trimmed to `--memory-mb` (the nodes
     /// of this frame stay while the frame needs them: they are returned).
@@ -818,4 +875,186 @@ impl CopcClouds {
 /// The bytes a decompressed node holds.
 fn node_bytes(data: &PointData) -> u64 {
     data.len() as u64 * data.format().len() as u64
+}
+
+/// Bins of the heights' histogram in [`FileScan`]: a height range of up to
+/// this many grid steps is ranked in one pass.
+const HEIGHT_BINS: u64 = 1 << 20;
+
+/// What the whole file's points say, read once when the file is opened
+/// (every node decompressed in batches and dropped): the largest RGB code
+/// and the intensities' range, which the file read whole scales its colors
+/// by, and where the heights of the elevation's range lie.
+#[derive(Debug, Clone, Copy)]
+struct FileScan {
+    points: u64,
+    rgb_max: u16,
+    int_lo: u16,
+    int_hi: u16,
+    /// The elevation's two order statistics ([`crate::color::percentile_ranks`]).
+    heights: [HeightRank; 2],
+}
+
+/// An order statistic of the heights' grid codes: the `rank`-th smallest
+/// (from 0) of the codes in `[start, start + width)`.
+#[derive(Debug, Clone, Copy)]
+struct HeightRank {
+    start: i64,
+    width: u64,
+    rank: u64,
+}
+
+/// The heights' grid codes `[lo, hi]` (the header's bounds) in at most
+/// [`HEIGHT_BINS`] bins of equal width; a code outside falls in the bin at
+/// its end.
+#[derive(Debug, Clone, Copy)]
+struct HeightBins {
+    lo: i64,
+    hi: i64,
+    width: u64,
+}
+
+impl HeightBins {
+    fn new(lo: i32, hi: i32) -> HeightBins {
+        let span = (i64::from(hi) - i64::from(lo) + 1) as u64;
+        HeightBins {
+            lo: i64::from(lo),
+            hi: i64::from(hi),
+            width: span.div_ceil(HEIGHT_BINS),
+        }
+    }
+
+    fn count(&self) -> usize {
+        ((self.hi - self.lo) as u64 / self.width + 1) as usize
+    }
+
+    fn of(&self, code: i32) -> usize {
+        ((i64::from(code).clamp(self.lo, self.hi) - self.lo) as u64 / self.width) as usize
+    }
+
+    /// The bin of the `rank`-th smallest code (`counts`: per bin), as a
+    /// rank within it.
+    fn find(&self, counts: &[u64], rank: u64) -> HeightRank {
+        let mut below = 0u64;
+        for (b, &n) in counts.iter().enumerate() {
+            if rank < below + n {
+                return HeightRank {
+                    start: self.lo + b as i64 * self.width as i64,
+                    width: self.width,
+                    rank: rank - below,
+                };
+            }
+            below += n;
+        }
+        HeightRank {
+            start: self.hi,
+            width: 1,
+            rank: 0,
+        }
+    }
+}
+
+impl CopcFile {
+    /// Calls `f` with the points of each of `nodes`, in order, decompressed
+    /// by every thread in batches of about [`super::las::CHUNK_POINTS`]
+    /// points: the memory of one batch at a time.
+    fn stream(&self, nodes: &[NodeEntry], f: &mut dyn FnMut(&PointData)) -> Result<()> {
+        let threads = crate::available_threads().max(1);
+        let mut rest = nodes;
+        while !rest.is_empty() {
+            let mut points = 0;
+            let len = rest
+                .iter()
+                .take_while(|n| {
+                    let take = points < super::las::CHUNK_POINTS;
+                    points += n.point_count;
+                    take
+                })
+                .count();
+            let (batch, after) = rest.split_at(len);
+            rest = after;
+            for data in crate::parallel_map(batch, threads, |node| self.read_node(node)) {
+                f(&data?);
+            }
+        }
+        Ok(())
+    }
+
+    /// Every node with points, refused in one line where their counts do
+    /// not add up to the header's.
+    fn all_nodes_checked(&self) -> Result<Vec<NodeEntry>> {
+        let nodes = self.all_nodes()?;
+        let points: u64 = nodes.iter().map(|n| n.point_count).sum();
+        let total = self.header.number_of_points();
+        if points != total {
+            return Err(self.fail(format!(
+                "the COPC hierarchy's nodes hold {points} points, the header declares {total}: \
+                 counts that lie"
+            )));
+        }
+        Ok(nodes)
+    }
+
+    /// Reads every node once ([`FileScan`]); `heights` bins the grid codes
+    /// of z.
+    fn scan(&self, heights: HeightBins) -> Result<FileScan> {
+        let nodes = self.all_nodes_checked()?;
+        let mut counts = vec![0u64; heights.count()];
+        let (mut rgb_max, mut int_lo, mut int_hi) = (0u16, u16::MAX, 0u16);
+        self.stream(&nodes, &mut |data| {
+            for z in data.z_raw() {
+                counts[heights.of(z)] += 1;
+            }
+            for i in data.intensity() {
+                (int_lo, int_hi) = (int_lo.min(i), int_hi.max(i));
+            }
+            if let Some(rgb) = data.rgb() {
+                for (r, g, b) in rgb {
+                    rgb_max = rgb_max.max(r).max(g).max(b);
+                }
+            }
+        })?;
+        let points = self.header.number_of_points();
+        let n = usize::try_from(points).unwrap_or(usize::MAX);
+        let (lo_at, hi_at) = crate::color::percentile_ranks(n, crate::color::ELEVATION_TAIL);
+        Ok(FileScan {
+            points,
+            rgb_max,
+            int_lo,
+            int_hi,
+            heights: [lo_at, hi_at].map(|r| heights.find(&counts, r as u64)),
+        })
+    }
+
+    /// The grid codes of the order statistics `ranks` of z (each found in
+    /// its bin by [`CopcFile::scan`]): one more read of every node where a
+    /// bin is wider than one code.
+    fn height_codes(&self, ranks: [HeightRank; 2], bins: HeightBins) -> Result<[i32; 2]> {
+        let exact = |r: &HeightRank| (r.start.clamp(bins.lo, bins.hi)) as i32;
+        if ranks.iter().all(|r| r.width == 1) {
+            return Ok(ranks.map(|r| exact(&r)));
+        }
+        let mut counts: Vec<Vec<u64>> = ranks.iter().map(|r| vec![0; r.width as usize]).collect();
+        let nodes = self.all_nodes_checked()?;
+        self.stream(&nodes, &mut |data| {
+            for z in data.z_raw() {
+                let z = i64::from(z).clamp(bins.lo, bins.hi);
+                for (r, c) in ranks.iter().zip(counts.iter_mut()) {
+                    if (r.start..r.start + r.width as i64).contains(&z) {
+                        c[(z - r.start) as usize] += 1;
+                    }
+                }
+            }
+        })?;
+        let mut codes = [0i32; 2];
+        for ((r, c), code) in ranks.iter().zip(&counts).zip(codes.iter_mut()) {
+            let fine = HeightBins {
+                lo: r.start,
+                hi: r.start + r.width as i64 - 1,
+                width: 1,
+            };
+            *code = exact(&fine.find(c, r.rank));
+        }
+        Ok(codes)
+    }
 }

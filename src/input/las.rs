@@ -89,6 +89,14 @@ impl Axis {
     }
 }
 
+/// The scene coordinate of `code` on an axis of `scale` and `offset`
+/// re-centred on `origin` (file coordinates; a grid point for the default
+/// origin): the f32 [`Gather::finish`] gives a point of that code.
+pub(super) fn local_coord(scale: f64, offset: f64, origin: f64, code: i32) -> f32 {
+    let probe = Axis::new(scale, offset, 0.0, offset);
+    Axis::new(scale, offset, probe.code_of(origin), origin).local(code)
+}
+
 /// The origin on one axis: the user's, or the centre of the codes'
 /// range `[lo, hi]` snapped to the grid (an integer midpoint).
 fn axis(scale: f64, offset: f64, user: Option<f64>, range: (f64, f64)) -> Result<Axis, String> {
@@ -636,19 +644,6 @@ impl Gather {
             None => self
                 .colors
                 .resize(self.colors.len() + data.len(), Vec3::ZERO),
-        }
-    }
-
-    /// The cloud of every chunk added, re-centred on `origin` (default:
-    /// the centre of the codes' range).
-    /// The ranges of what was added: what [`Gather::finish`] scales by.
-    pub(super) fn norms(&self) -> Norms {
-        Norms {
-            code_lo: self.code_lo,
-            code_hi: self.code_hi,
-            rgb_max: self.rgb_max,
-            int_lo: self.int_lo,
-            int_hi: self.int_hi,
         }
     }
 

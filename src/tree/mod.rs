@@ -115,6 +115,10 @@ pub enum LeafSize<'a> {
     Zero,
     /// Each point's world diameter, in the order of [`Points`].
     PerPoint(&'a [f32]),
+    /// `SpacingTimes`, each point's diameter at most the one given (in the
+    /// order of [`Points`]): a point of a coarse COPC node no wider than
+    /// its node's spacing allows, whatever its neighbours in the frame.
+    SpacingTimesAtMost(f32, &'a [f32]),
 }
 
 /// The hierarchy of one cloud.
@@ -191,7 +195,7 @@ impl SplatTree {
         let n = points.positions.len();
         let order = morton_order(points.positions, threads);
         let per_point = match size {
-            LeafSize::PerPoint(d) => Some(d),
+            LeafSize::PerPoint(d) | LeafSize::SpacingTimesAtMost(_, d) => Some(d),
             _ => None,
         };
         let normals = points.normals;
@@ -238,14 +242,18 @@ impl SplatTree {
         match size {
             LeafSize::World(w) => leaves.iter_mut().for_each(|v| v.position_size[3] = w),
             LeafSize::Zero | LeafSize::PerPoint(_) => {}
-            LeafSize::SpacingTimes(k) => {
+            LeafSize::SpacingTimes(k) | LeafSize::SpacingTimesAtMost(k, _) => {
+                // The leaves hold their bounds (`leaves_of`) where given.
+                let bounded = matches!(size, LeafSize::SpacingTimesAtMost(..));
                 let in_order: Vec<Vec3> = leaves.iter().map(Splat::centre).collect();
                 let at = |i: usize| leaves[i].centre();
                 let (spacing, limited) = tree_spacing_limited_owned(in_order, &at, threads);
                 isolated_limited = limited;
                 let fallback = median(spacing.clone());
                 for (v, s) in leaves.iter_mut().zip(spacing) {
-                    v.position_size[3] = k * if s > 0.0 { s } else { fallback };
+                    let d = k * if s > 0.0 { s } else { fallback };
+                    let size = &mut v.position_size[3];
+                    *size = if bounded { d.min(*size) } else { d };
                 }
             }
         }

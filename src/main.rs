@@ -20,9 +20,8 @@ use pointlens::flags::{
 use pointlens::job::{JobSpec, Passes, RenderJob, Shot, Written};
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
-    check_samples_per_pass, check_ssaa, AccumOptions, EdlOptions, FastGather, FastOptions,
-    FastWeights, GatherWindow, LayeredOptions, Lod, Method, MethodKind, Raster, RdbAtomics,
-    RdbMode, RdbOptions, SplatShape,
+    check_samples_per_pass, check_ssaa, EdlOptions, FastGather, FastWeights, GatherWindow, Lod,
+    Method, MethodFlags, MethodKind, Raster, RdbAtomics, RdbMode, SplatShape,
 };
 use pointlens::scene::SceneSpec;
 use pointlens::sequence::{FrameRange, Motion};
@@ -219,34 +218,36 @@ struct RenderArgs {
     #[arg(long, default_value = "layered", value_parser = method_kind)]
     method: MethodKind,
     /// Weights of the paper's rule (--fast-gather tree or pixels): area (by
-    /// inverse CoC area) or uniform (the paper's plain mean).
-    #[arg(long, value_enum, default_value_t)]
-    fast_weights: FastWeights,
+    /// inverse CoC area, the default) or uniform (the paper's plain mean).
+    #[arg(long, value_enum)]
+    fast_weights: Option<FastWeights>,
     /// Gather window of the paper's rule (--fast-gather tree or pixels):
-    /// tiles (bounded by the tiles' CoCs) or fixed (the frame's largest CoC
-    /// everywhere; a benchmark baseline).
-    #[arg(long, value_enum, default_value_t)]
-    fast_window: GatherWindow,
-    /// How the fast method gathers: fields (the bounded two-field gather:
+    /// tiles (bounded by the tiles' CoCs, the default) or fixed (the
+    /// frame's largest CoC everywhere; a benchmark baseline).
+    #[arg(long, value_enum)]
+    fast_window: Option<GatherWindow>,
+    /// How the fast method gathers: fields (the default, the bounded two-field gather:
     /// 7–12 dB closer to Mitsuba's reference than the paper's rule, its
     /// cost bounded whatever the CoC; docs/BENCHMARKS.md), tree (DESIGN
     /// §4's rule, the paper's, by blocks of a tree, opened only where the
     /// gather's tests differ within a block) or pixels (the same rule pixel
     /// by pixel, the paper's loop).
-    #[arg(long, value_enum, default_value_t)]
-    fast_gather: FastGather,
-    /// Lens bins of the ray distribution buffer per axis: N×N bins, N in 2..=16.
-    #[arg(long, default_value_t = pointlens::options::DEFAULT_RDB_BINS, value_parser = checked(check_rdb_bins))]
-    rdb_bins: u32,
-    /// Which rays a bin receives: centre (the ray through the bin's lens
-    /// cell centre) or pairs (the paper's pair-to-bin assignment).
-    #[arg(long, value_enum, default_value_t)]
-    rdb_mode: RdbMode,
+    #[arg(long, value_enum)]
+    fast_gather: Option<FastGather>,
+    /// Lens bins of the ray distribution buffer per axis: N×N bins, N in
+    /// 2..=16 (default 9).
+    #[arg(long, value_parser = checked(check_rdb_bins))]
+    rdb_bins: Option<u32>,
+    /// Which rays a bin receives: centre (the default: the ray through the
+    /// bin's lens cell centre) or pairs (the paper's pair-to-bin assignment).
+    #[arg(long, value_enum)]
+    rdb_mode: Option<RdbMode>,
     /// Atomics of the RDB's scatter: 64 (one pass into a buffer never
     /// cleared per frame), 32 (two passes into images cleared per tile) or
-    /// auto (64 where the device has 64-bit buffer atomics); the same image.
-    #[arg(long, value_enum, default_value_t)]
-    rdb_atomics: RdbAtomics,
+    /// auto (the default: 64 where the device has 64-bit buffer atomics);
+    /// the same image.
+    #[arg(long, value_enum)]
+    rdb_atomics: Option<RdbAtomics>,
     /// Memory for the bins of the ray distribution buffer, MiB (default a
     /// quarter of the device-local heap); above it the frame is processed
     /// in tiles, with the same result.
@@ -257,9 +258,10 @@ struct RenderArgs {
     /// for 3D Gaussians, whose depth layers follow the circle of confusion.
     #[arg(long, value_parser = checked(check_layers))]
     layers: Option<u32>,
-    /// Lens samples of the accumulation reference (--method accum).
-    #[arg(long, default_value_t = pointlens::options::DEFAULT_SAMPLES, value_parser = checked(check_samples))]
-    samples: u32,
+    /// Lens samples of the accumulation reference (--method accum; default
+    /// 256).
+    #[arg(long, value_parser = checked(check_samples))]
+    samples: Option<u32>,
     /// K: the G-buffer takes K×K samples per pixel, 1 to 16 (1 = hard
     /// sprites; default 3 on the compute raster's rotated grid, 4 on the
     /// sprites' K×K grid: docs/BENCHMARKS.md; 1 for accum with at least
@@ -623,27 +625,20 @@ fn scene_spec(args: &RenderArgs) -> Result<SceneSpec> {
     })
 }
 
-/// The method and its options from the flags.
-fn method_of(args: &RenderArgs) -> Method {
-    let fast = FastOptions {
-        weights: args.fast_weights,
-        window: args.fast_window,
-        gather: args.fast_gather,
-    };
-    let rdb = RdbOptions {
-        bins: args.rdb_bins,
-        mode: args.rdb_mode,
-        memory_bytes: args.rdb_memory_mb.map(|mb| mb << 20),
-        atomics: args.rdb_atomics,
-    };
-    let layered = LayeredOptions {
-        layers: args.layers.unwrap_or(pointlens::options::DEFAULT_LAYERS),
-        ..LayeredOptions::default()
-    };
-    let accum = AccumOptions {
+/// The method and its options from the flags (one given that the method
+/// does not read is refused).
+fn method_of(args: &RenderArgs) -> Result<Method> {
+    Ok(args.method.with_flags(&MethodFlags {
+        fast_weights: args.fast_weights,
+        fast_window: args.fast_window,
+        fast_gather: args.fast_gather,
+        rdb_bins: args.rdb_bins,
+        rdb_mode: args.rdb_mode,
+        rdb_memory_mb: args.rdb_memory_mb,
+        rdb_atomics: args.rdb_atomics,
+        layers: args.layers,
         samples: args.samples,
-    };
-    args.method.with(fast, rdb, accum, layered)
+    })?)
 }
 
 /// Everything `render` asks of the job.
@@ -682,7 +677,7 @@ fn job_spec(args: &RenderArgs) -> Result<JobSpec> {
             ..CameraSpec::default()
         },
         focus_pixel: args.focus_pixel,
-        method: method_of(args),
+        method: method_of(args)?,
         ssaa: args.ssaa,
         samples_per_pass: args.gbuffer.samples_per_pass,
         background: Background::linear_of(args.background)?,

@@ -305,23 +305,122 @@ impl MethodKind {
         )))
     }
 
-    /// The method with these options (those of other methods are ignored).
-    pub fn with(
-        self,
-        fast: FastOptions,
-        rdb: RdbOptions,
-        accum: AccumOptions,
-        layered: LayeredOptions,
-    ) -> Method {
-        match self {
-            MethodKind::Pinhole => Method::Pinhole,
-            MethodKind::Fast => Method::Fast(fast),
-            MethodKind::Rdb => Method::Rdb(rdb),
-            MethodKind::Accum => Method::Accum(accum),
-            MethodKind::Layered => Method::Layered(layered),
+    /// The method with the options `flags` give, each other option at its
+    /// default. A flag given that this method does not read is refused in
+    /// one line ([`METHOD_FLAGS`]): it cannot act on the frame.
+    pub fn with_flags(self, flags: &MethodFlags) -> Result<Method> {
+        if let Some(f) = METHOD_FLAGS
+            .iter()
+            .find(|f| (f.given)(flags) && !f.kinds.contains(&self))
+        {
+            let names: Vec<&str> = f.kinds.iter().map(|k| k.name()).collect();
+            return Err(Error::InvalidArgument(format!(
+                "{} acts on --method {} only, not {}",
+                f.flag,
+                names.join(" or "),
+                self.name()
+            )));
         }
+        let fast = FastOptions::default();
+        let rdb = RdbOptions::default();
+        Ok(match self {
+            MethodKind::Pinhole => Method::Pinhole,
+            MethodKind::Fast => Method::Fast(FastOptions {
+                weights: flags.fast_weights.unwrap_or(fast.weights),
+                window: flags.fast_window.unwrap_or(fast.window),
+                gather: flags.fast_gather.unwrap_or(fast.gather),
+            }),
+            MethodKind::Rdb => Method::Rdb(RdbOptions {
+                bins: flags.rdb_bins.unwrap_or(rdb.bins),
+                mode: flags.rdb_mode.unwrap_or(rdb.mode),
+                memory_bytes: flags.rdb_memory_mb.map(|mb| mb << 20),
+                atomics: flags.rdb_atomics.unwrap_or(rdb.atomics),
+            }),
+            MethodKind::Accum => Method::Accum(AccumOptions {
+                samples: flags.samples.unwrap_or(DEFAULT_SAMPLES),
+            }),
+            MethodKind::Layered => Method::Layered(LayeredOptions {
+                layers: flags.layers.unwrap_or(DEFAULT_LAYERS),
+                ..LayeredOptions::default()
+            }),
+        })
     }
 }
+
+/// The options of the methods as the command line gives them: None where
+/// a flag is not given ([`MethodKind::with_flags`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MethodFlags {
+    pub fast_weights: Option<FastWeights>,
+    pub fast_window: Option<GatherWindow>,
+    pub fast_gather: Option<FastGather>,
+    pub rdb_bins: Option<u32>,
+    pub rdb_mode: Option<RdbMode>,
+    pub rdb_memory_mb: Option<u64>,
+    pub rdb_atomics: Option<RdbAtomics>,
+    pub layers: Option<u32>,
+    pub samples: Option<u32>,
+}
+
+/// A flag of one method's options.
+pub struct MethodFlag {
+    /// As the command line spells it.
+    pub flag: &'static str,
+    /// Whether it is given.
+    pub given: fn(&MethodFlags) -> bool,
+    /// The methods that read it; with any other it is refused.
+    pub kinds: &'static [MethodKind],
+}
+
+/// Every flag of a method's options and the methods that read it: the one
+/// table [`MethodKind::with_flags`] refuses by.
+pub const METHOD_FLAGS: &[MethodFlag] = &[
+    MethodFlag {
+        flag: "--fast-weights",
+        given: |f| f.fast_weights.is_some(),
+        kinds: &[MethodKind::Fast],
+    },
+    MethodFlag {
+        flag: "--fast-window",
+        given: |f| f.fast_window.is_some(),
+        kinds: &[MethodKind::Fast],
+    },
+    MethodFlag {
+        flag: "--fast-gather",
+        given: |f| f.fast_gather.is_some(),
+        kinds: &[MethodKind::Fast],
+    },
+    MethodFlag {
+        flag: "--rdb-bins",
+        given: |f| f.rdb_bins.is_some(),
+        kinds: &[MethodKind::Rdb],
+    },
+    MethodFlag {
+        flag: "--rdb-mode",
+        given: |f| f.rdb_mode.is_some(),
+        kinds: &[MethodKind::Rdb],
+    },
+    MethodFlag {
+        flag: "--rdb-memory-mb",
+        given: |f| f.rdb_memory_mb.is_some(),
+        kinds: &[MethodKind::Rdb],
+    },
+    MethodFlag {
+        flag: "--rdb-atomics",
+        given: |f| f.rdb_atomics.is_some(),
+        kinds: &[MethodKind::Rdb],
+    },
+    MethodFlag {
+        flag: "--layers",
+        given: |f| f.layers.is_some(),
+        kinds: &[MethodKind::Layered],
+    },
+    MethodFlag {
+        flag: "--samples",
+        given: |f| f.samples.is_some(),
+        kinds: &[MethodKind::Accum],
+    },
+];
 
 impl Method {
     /// The fast method by DESIGN §4's rule (the paper's) with these

@@ -409,9 +409,10 @@ fn focus_pixel_sets_the_printed_focus_distance() {
     // silhouette, where one sample and nine see different surfaces.
     for x in (6..60).step_by(6) {
         let pixel = format!("{x},24");
-        let extra = ["--focus-pixel", pixel.as_str(), "--samples", "16"];
+        let extra = ["--focus-pixel", pixel.as_str()];
+        let accum = ["--focus-pixel", pixel.as_str(), "--samples", "16"];
         assert_eq!(
-            focus_of("accum", &extra),
+            focus_of("accum", &accum),
             focus_of("fast", &extra),
             "pixel {pixel}"
         );

@@ -1028,8 +1028,8 @@ pub fn convert_ply(
             return Ok(None);
         };
         for p in positions {
-            lo = lo.min(p.as_dvec3());
-            hi = hi.max(p.as_dvec3());
+            lo = lo.min(p);
+            hi = hi.max(p);
         }
     }
     if !chunks.rest_is_well_formed().map_err(io)? {
@@ -1069,7 +1069,7 @@ pub fn convert_ply(
                 return Err(fail("it changed while being converted".into()));
             };
             for (p, c) in positions.iter().zip(&colors) {
-                cloud_record(p.as_dvec3(), *c, &transforms, records).map_err(&fail)?;
+                cloud_record(*p, *c, &transforms, records).map_err(&fail)?;
             }
             Ok(positions.len() as u64)
         },

@@ -464,3 +464,50 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         "48",
     ]);
 }
+
+/// Every point of a LAS/COPC file in file coordinates, sorted.
+fn file_positions(path: &Path) -> Vec<[f64; 3]> {
+    let cloud = load_las(path, None, &mut |_, _| {}).unwrap();
+    let mut v: Vec<[f64; 3]> = cloud
+        .positions
+        .iter()
+        .map(|p| (p.as_dvec3() + cloud.origin).to_array())
+        .collect();
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    v
+}
+
+/// Issue 47, defect 2: a PLY of double coordinates at 10^7 converts to
+/// its own distinct positions, streamed (binary) or read whole (ASCII).
+#[test]
+fn double_ply_coordinates_far_from_zero_convert_exactly() {
+    use common::{cube_points, write_binary_ply};
+    let dir = scratch("convert-double-far");
+    let mut points = cube_points(2_000, 1e7);
+    let props = [("double", "x"), ("double", "y"), ("double", "z")];
+    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
+    let binary = dir.path().join("far.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.path().join("far-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nend_header\n",
+        points.len()
+    );
+    for p in &points {
+        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(&ascii, text).unwrap();
+    points.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    for (input, name) in [(&binary, "streamed"), (&ascii, "whole")] {
+        let output = dir.path().join(format!("{name}.copc.laz"));
+        convert(input, &output);
+        let got = file_positions(&output);
+        assert_eq!(got.len(), points.len());
+        for (g, want) in got.iter().zip(&points) {
+            for k in 0..3 {
+                assert!((g[k] - want[k]).abs() < 1e-6, "{name}: {g:?} for {want:?}");
+            }
+        }
+    }
+}

@@ -8,7 +8,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::OnceLock;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
     DefaultElement, ElementDef, Encoding, Header, Property, PropertyType, ScalarType,
@@ -43,17 +43,72 @@ pub const CHUNK_BYTES: usize = 16 << 20;
 /// the general reader ([`load_ply_general`]), which gives the same cloud
 /// for every file the direct one reads and the error messages for the rest.
 pub fn load_ply(path: &Path) -> Result<PointCloud> {
-    load_ply_with_chunk(path, CHUNK_BYTES)
+    load_ply_at(path, None)
+}
+
+/// [`load_ply`] re-centred on `origin` (file coordinates), or on the
+/// default origin where None ([`origin_to_read_at`]): positions are
+/// `(file coordinate − origin)` computed in f64, then made f32.
+pub fn load_ply_at(path: &Path, origin: Option<DVec3>) -> Result<PointCloud> {
+    load_with_chunk(path, CHUNK_BYTES, origin)
 }
 
 /// [`load_ply`] reading a binary vertex block `chunk_bytes` at a time
 /// (at least one record).
 pub fn load_ply_with_chunk(path: &Path, chunk_bytes: usize) -> Result<PointCloud> {
-    match load_direct(path, chunk_bytes)? {
+    load_with_chunk(path, chunk_bytes, None)
+}
+
+fn load_with_chunk(path: &Path, chunk_bytes: usize, origin: Option<DVec3>) -> Result<PointCloud> {
+    match load_direct(path, chunk_bytes, origin)? {
         Direct::Read(cloud) => Ok(cloud),
-        Direct::Declined(Some(bytes)) => load_parsed(&bytes, path),
-        Direct::Declined(None) => load_parsed(&read_file(path)?, path),
+        Direct::Declined(Some(bytes)) => load_parsed(&bytes, path, origin),
+        Direct::Declined(None) => load_parsed(&read_file(path)?, path, origin),
     }
+}
+
+/// Coordinates of this magnitude or more (on some axis) are far from
+/// zero: f32 keeps less than a thousandth of a unit there (a millimetre
+/// for metres: its step at 10^4 is 2^-10).
+pub const FAR_COORDINATE: f64 = 1e4;
+
+/// The origin a PLY file's vertices are read against (converted as
+/// `(value − origin) as f32`, in f64): `given` where there is one; else,
+/// for coordinates of more precision than f32 holds (`wide`: double or
+/// 32-bit integer) whose first vertex, at `first`, lies
+/// [`FAR_COORDINATE`] or more from zero, that vertex (the cloud is then
+/// re-centred on its bounds' centre, [`settle_origin`]); else zero, the
+/// file's coordinates, as for a float file, whose coordinates f32 holds
+/// as they are.
+fn origin_to_read_at(given: Option<DVec3>, wide: bool, first: impl FnOnce() -> DVec3) -> DVec3 {
+    match given {
+        Some(origin) => origin,
+        None if wide => {
+            let first = first();
+            match first.is_finite() && first.abs().max_element() >= FAR_COORDINATE {
+                true => first,
+                false => DVec3::ZERO,
+            }
+        }
+        None => DVec3::ZERO,
+    }
+}
+
+/// Whether a coordinate of type `ty` may hold more precision than f32.
+fn is_wide(ty: &ScalarType) -> bool {
+    matches!(ty, ScalarType::Double | ScalarType::Int | ScalarType::UInt)
+}
+
+/// A cloud read against `cloud.origin` ([`origin_to_read_at`]) without
+/// a `given` origin: where that was a far vertex, re-centred on the centre
+/// of its bounds in f64 (as a LAS file is by default).
+fn settle_origin(mut cloud: PointCloud, given: Option<DVec3>, path: &Path) -> Result<PointCloud> {
+    if given.is_none() && cloud.origin != DVec3::ZERO {
+        let (lo, hi) = cloud.bounds();
+        let centre = cloud.origin + (lo.as_dvec3() + hi.as_dvec3()) / 2.0;
+        cloud.recentre(centre).map_err(|msg| ply_error(path, msg))?;
+    }
+    Ok(cloud)
 }
 
 /// The direct reader alone: None when it declines the file (which
@@ -65,7 +120,7 @@ pub fn load_ply_direct(path: &Path) -> Result<Option<PointCloud>> {
 /// [`load_ply_direct`] reading a binary vertex block `chunk_bytes` at a
 /// time (at least one record). For tests.
 pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Option<PointCloud>> {
-    Ok(match load_direct(path, chunk_bytes)? {
+    Ok(match load_direct(path, chunk_bytes, None)? {
         Direct::Read(cloud) => Some(cloud),
         Direct::Declined(_) => None,
     })
@@ -190,7 +245,7 @@ impl VertexChunks {
             Some(bytes) if bytes <= left => {}
             _ => return Ok(None),
         }
-        let converter = Converter::new(&fields);
+        let converter = Converter::new(&fields, DVec3::ZERO);
         Ok(Some(VertexChunks {
             left: vertex.count,
             has_colors: layout.colors.is_some(),
@@ -212,10 +267,11 @@ impl VertexChunks {
         self.left
     }
 
-    /// The next at most `max` vertices' positions and linear colors (an
-    /// empty chunk at the end); None where the direct reader would decline
-    /// them (a coordinate not finite).
-    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<(Vec<Vec3>, Vec<Vec3>)>> {
+    /// The next at most `max` vertices' positions (file coordinates, in
+    /// f64, as the file holds them) and linear colors (an empty chunk at
+    /// the end); None where the direct reader would decline them (a
+    /// coordinate not finite in f32).
+    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<(Vec<DVec3>, Vec<Vec3>)>> {
         let n = max.max(1).min(self.left);
         let mut block = vec![0u8; n * self.fields.stride];
         if !read_or_end(&mut self.input, &mut block)? {
@@ -232,7 +288,11 @@ impl VertexChunks {
             return Ok(None);
         }
         self.left -= n;
-        Ok(Some((part.0, part.1)))
+        let positions = block
+            .chunks_exact(self.fields.stride)
+            .map(|r| self.fields.binary_position(r, self.big_endian))
+            .collect();
+        Ok(Some((positions, part.1)))
     }
 
     /// After the last chunk: whether the elements after the vertices are
@@ -261,7 +321,7 @@ enum Direct {
     Declined(Option<Vec<u8>>),
 }
 
-fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
+fn load_direct(path: &Path, chunk_bytes: usize, origin: Option<DVec3>) -> Result<Direct> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -280,13 +340,14 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
                     &header,
                     vertex,
                     &layout,
-                    chunk_bytes,
+                    (chunk_bytes, origin),
                 )
                 .map_err(io)?;
                 let z_up = declares_z_up(&header);
-                return Ok(cloud.map_or(Direct::Declined(None), |c| {
-                    Direct::Read(PointCloud { z_up, ..c })
-                }));
+                return Ok(match cloud {
+                    Some(c) => Direct::Read(settle_origin(PointCloud { z_up, ..c }, origin, path)?),
+                    None => Direct::Declined(None),
+                });
             }
             // ASCII is read whole: its lines are found in memory.
             drop(input);
@@ -305,7 +366,7 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
     let (vertex, layout) = vertex_element(&header, path)?;
     let payload = &bytes[payload_at..];
     let cloud = if matches!(header.encoding, Encoding::Ascii) {
-        read_ascii(payload, &header, vertex, &layout)
+        read_ascii(payload, &header, vertex, &layout, origin)
     } else {
         let mut input = payload;
         read_binary(
@@ -314,15 +375,19 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
             &header,
             vertex,
             &layout,
-            chunk_bytes,
+            (chunk_bytes, origin),
         )
         .map_err(io)?
     };
     Ok(match cloud {
-        Some(cloud) => Direct::Read(PointCloud {
-            z_up: declares_z_up(&header),
-            ..cloud
-        }),
+        Some(cloud) => Direct::Read(settle_origin(
+            PointCloud {
+                z_up: declares_z_up(&header),
+                ..cloud
+            },
+            origin,
+            path,
+        )?),
         None => Direct::Declined(Some(bytes)),
     })
 }
@@ -351,7 +416,7 @@ pub fn says_z_up(line: &str) -> bool {
 /// [`load_ply`] through the general reader alone (ply-rs, a map per
 /// vertex): the reference the direct reader is tested against.
 pub fn load_ply_general(path: &Path) -> Result<PointCloud> {
-    load_parsed(&read_file(path)?, path)
+    load_parsed(&read_file(path)?, path, None)
 }
 
 pub(super) fn ply_error(path: &Path, msg: String) -> Error {
@@ -413,7 +478,7 @@ fn vertex_element<'h>(header: &'h Header, path: &Path) -> Result<(&'h ElementDef
 
 /// The general reader: ply-rs parses the whole payload into a map per
 /// element, then the vertices are converted one by one.
-fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+fn load_parsed(bytes: &[u8], path: &Path, origin: Option<DVec3>) -> Result<PointCloud> {
     let fail = |msg: String| ply_error(path, msg);
     // The header is checked before the payload so that its errors are specific.
     let (header, _) = read_header(bytes, path)?;
@@ -441,7 +506,21 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         )));
     }
 
+    let value = |row: &DefaultElement, name: &str| {
+        row.get(name)
+            .and_then(Scalar::of)
+            .map_or(0.0, Scalar::value)
+    };
+    let at = |row: &DefaultElement| DVec3::new(value(row, "x"), value(row, "y"), value(row, "z"));
+    let wide = ["x", "y", "z"].iter().any(|n| {
+        matches!(
+            vertex.properties.get(*n).map(|p| &p.data_type),
+            Some(PropertyType::Scalar(ty)) if is_wide(ty)
+        )
+    });
+    let shift = origin_to_read_at(origin, wide, || rows.first().map_or(DVec3::ZERO, at));
     let mut cloud = PointCloud {
+        origin: shift,
         positions: Vec::with_capacity(rows.len()),
         colors: Vec::with_capacity(rows.len()),
         normals: layout.normals.then(|| Vec::with_capacity(rows.len())),
@@ -457,11 +536,16 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
                 .and_then(Scalar::of)
                 .map_or(0.0, Scalar::coordinate)
         };
-        let p = Vec3::new(get("x"), get("y"), get("z"));
+        let file = at(row);
+        let p = (file - shift).as_vec3();
         if !p.is_finite() {
-            return Err(fail(format!(
-                "vertex {i} has a non-finite coordinate ({p})"
-            )));
+            let raw = file.as_vec3();
+            return Err(fail(match raw.is_finite() {
+                true => {
+                    format!("a point at {file} does not fit in f32 after re-centring on {shift}")
+                }
+                false => format!("vertex {i} has a non-finite coordinate ({raw})"),
+            }));
         }
         cloud.positions.push(p);
         let color = match &layout.colors {
@@ -478,7 +562,7 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             normals.push(unit_normal(Vec3::new(get("nx"), get("ny"), get("nz"))));
         }
     }
-    Ok(cloud)
+    settle_origin(cloud, origin, path)
 }
 
 /// Which optional vertex properties a file has.
@@ -664,6 +748,22 @@ impl Fields {
     }
 }
 
+impl Fields {
+    /// Whether a coordinate may hold more precision than f32 ([`is_wide`]).
+    fn wide(&self) -> bool {
+        self.position.iter().any(|f| is_wide(&f.ty))
+    }
+
+    /// The file position of the first binary record of `block`.
+    fn binary_position(&self, block: &[u8], big_endian: bool) -> DVec3 {
+        let [x, y, z] = self
+            .position
+            .each_ref()
+            .map(|f| binary_scalar(&block[f.at..], &f.ty, big_endian).value());
+        DVec3::new(x, y, z)
+    }
+}
+
 /// Reads a binary scalar of type `ty` at the start of `b`.
 pub(super) fn binary_scalar(b: &[u8], ty: &ScalarType, big_endian: bool) -> Scalar {
     macro_rules! read {
@@ -763,20 +863,29 @@ fn color_table(ty: &ScalarType) -> Option<&'static [f32]> {
     }
 }
 
-/// The color conversion of the direct reader: 8- and 16-bit channels
-/// through the tables, other types through [`Scalar::linear_color`].
+/// The conversions of the direct reader: positions against the origin
+/// `shift` in f64; colors, 8- and 16-bit channels through the tables,
+/// other types through [`Scalar::linear_color`].
 struct Converter {
     tables: [Option<&'static [f32]>; 3],
+    shift: DVec3,
 }
 
 impl Converter {
-    fn new(fields: &Fields) -> Converter {
+    fn new(fields: &Fields, shift: DVec3) -> Converter {
         Converter {
             tables: fields
                 .color
                 .as_ref()
                 .map_or([None; 3], |c| c.each_ref().map(|f| color_table(&f.ty))),
+            shift,
         }
+    }
+
+    /// Scene coordinate `axis` (0 x, 1 y, 2 z) of file value `v`.
+    #[inline]
+    fn coordinate(&self, axis: usize, v: Scalar) -> f32 {
+        (v.value() - self.shift[axis]) as f32
     }
 
     /// Linear color of channel `c` (0 red, 1 green, 2 blue) of value `v`.
@@ -897,7 +1006,9 @@ fn binary_part(
             binary_column(block, stride, field, big_endian, out, c, |v| map(c, v));
         }
     };
-    columns(out.positions, &fields.position, &|_, v| v.coordinate());
+    columns(out.positions, &fields.position, &|c, v| {
+        converter.coordinate(c, v)
+    });
     if !out.positions.iter().all(|p| p.is_finite()) {
         return false;
     }
@@ -994,7 +1105,12 @@ fn ascii_part(
             row.push(ascii_scalar(token, ty)?);
         }
         let three = |f: &[Field; 3]| f.each_ref().map(|f| row[f.at]);
-        let p = Vec3::from_array(three(&fields.position).map(Scalar::coordinate));
+        let [x, y, z] = three(&fields.position);
+        let p = Vec3::new(
+            converter.coordinate(0, x),
+            converter.coordinate(1, y),
+            converter.coordinate(2, z),
+        );
         if !p.is_finite() {
             return None;
         }
@@ -1143,7 +1259,8 @@ impl<R: BufRead> BufRead for Counted<R> {
 
 /// Reads a binary vertex element straight from the payload, `input` (of
 /// `payload_len` bytes), streamed `chunk_bytes` at a time (whole records,
-/// at least one) into the cloud's vectors. None when the file is anything
+/// at least one) into the cloud's vectors, against the origin of
+/// [`origin_to_read_at`] for `origin`. None when the file is anything
 /// but well-formed (the general reader then reads it, or says what is
 /// wrong). Every element is checked as the general reader would read it,
 /// those before and after the vertices too.
@@ -1153,7 +1270,7 @@ fn read_binary(
     header: &Header,
     vertex: &ElementDef,
     layout: &Layout,
-    chunk_bytes: usize,
+    read_as: (usize, Option<DVec3>),
 ) -> io::Result<Option<PointCloud>> {
     let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
     let Some(fields) = Fields::of(vertex, layout, true) else {
@@ -1173,7 +1290,7 @@ fn read_binary(
                 Some(bytes) if bytes <= left => {}
                 _ => return Ok(None),
             }
-            vertices = read_vertex_block(input, &fields, count, big_endian, chunk_bytes)?;
+            vertices = read_vertex_block(input, &fields, count, big_endian, read_as)?;
             if vertices.is_none() {
                 return Ok(None);
             }
@@ -1189,10 +1306,11 @@ fn read_binary(
             }
         }
     }
-    let Some((positions, colors, normals)) = vertices else {
+    let Some(((positions, colors, normals), origin)) = vertices else {
         return Ok(None);
     };
     Ok(Some(PointCloud {
+        origin,
         positions,
         colors,
         normals: layout.normals.then_some(normals),
@@ -1205,15 +1323,16 @@ fn read_binary(
 
 /// The `count` binary vertex records at the start of `input`, read
 /// `chunk_bytes` at a time (whole records, at least one) and converted
-/// into vectors of room for all of them; None when the file ends first or
-/// a coordinate is not finite.
+/// into vectors of room for all of them, positions against the origin of
+/// [`origin_to_read_at`] (returned with them); None when the file ends
+/// first or a coordinate is not finite.
 fn read_vertex_block(
     input: &mut impl Read,
     fields: &Fields,
     count: usize,
     big_endian: bool,
-    chunk_bytes: usize,
-) -> io::Result<Option<Part>> {
+    (chunk_bytes, origin): (usize, Option<DVec3>),
+) -> io::Result<Option<(Part, DVec3)>> {
     let stride = fields.stride;
     let per_chunk = (chunk_bytes / stride).clamp(1, count.max(1));
     let mut cloud: Part = (
@@ -1221,20 +1340,28 @@ fn read_vertex_block(
         Vec::with_capacity(count),
         Vec::with_capacity(if fields.normal.is_some() { count } else { 0 }),
     );
-    let converter = Converter::new(fields);
+    let mut converter = None;
     let mut buf = vec![0u8; per_chunk * stride];
     let mut done = 0;
     while done < count {
         let n = per_chunk.min(count - done);
         let block = &mut buf[..n * stride];
-        if !read_or_end(input, block)?
-            || !append_binary(block, fields, &converter, big_endian, &mut cloud)
-        {
+        if !read_or_end(input, block)? {
+            return Ok(None);
+        }
+        // The origin once the first vertex is known.
+        let converter = converter.get_or_insert_with(|| {
+            let shift = origin_to_read_at(origin, fields.wide(), || {
+                fields.binary_position(block, big_endian)
+            });
+            Converter::new(fields, shift)
+        });
+        if !append_binary(block, fields, converter, big_endian, &mut cloud) {
             return Ok(None);
         }
         done += n;
     }
-    Ok(Some(cloud))
+    Ok(Some((cloud, converter.map_or(DVec3::ZERO, |c| c.shift))))
 }
 
 /// Reads an ASCII vertex element straight from the payload, or None when
@@ -1246,6 +1373,7 @@ fn read_ascii(
     header: &Header,
     vertex: &ElementDef,
     layout: &Layout,
+    origin: Option<DVec3>,
 ) -> Option<PointCloud> {
     let fields = Fields::of(vertex, layout, false)?;
     let count = vertex.count;
@@ -1284,11 +1412,17 @@ fn read_ascii(
             PropertyType::List(..) => None,
         })
         .collect();
-    let converter = Converter::new(&fields);
+    let first = ascii_tokens(vertex_lines.first()?);
+    let value = |f: &Field| ascii_scalar(first.get(f.at)?, &f.ty).map(Scalar::value);
+    let [x, y, z] = fields.position.each_ref().map(value);
+    let first = DVec3::new(x?, y?, z?);
+    let shift = origin_to_read_at(origin, fields.wide(), || first);
+    let converter = Converter::new(&fields, shift);
     let (positions, colors, normals) = convert_all(count, |range| {
         ascii_part(&vertex_lines, &types, &fields, &converter, range)
     })?;
     Some(PointCloud {
+        origin: shift,
         positions,
         colors,
         normals: layout.normals.then_some(normals),

@@ -511,3 +511,60 @@ fn double_ply_coordinates_far_from_zero_convert_exactly() {
         }
     }
 }
+
+/// Issue 47, defect 9: a PLY without colors converts to point format 6
+/// (no RGB invented), its `intensity` kept: floats in [0, 1] scaled to
+/// 0–65535, streamed (binary) or read whole (ASCII); a PLY with colors
+/// stays format 7.
+#[test]
+fn a_ply_without_colors_converts_to_format_6_with_its_intensity() {
+    use common::{cube_points, write_binary_ply};
+    let dir = scratch("convert-intensity");
+    let points = cube_points(500, 0.0);
+    let props = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "intensity"),
+    ];
+    let rows: Vec<Vec<f64>> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| vec![p[0], p[1], p[2], (i % 101) as f64 / 100.0])
+        .collect();
+    let binary = dir.path().join("grey.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.path().join("grey-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty float intensity\nend_header\n",
+        rows.len()
+    );
+    for r in &rows {
+        text += &format!(
+            "{} {} {} {}\n",
+            r[0] as f32, r[1] as f32, r[2] as f32, r[3] as f32
+        );
+    }
+    std::fs::write(&ascii, text).unwrap();
+    let mut want: Vec<u16> = rows
+        .iter()
+        .map(|r| ((r[3] as f32) as f64 * 65535.0).round() as u16)
+        .collect();
+    want.sort_unstable();
+    for (input, name) in [(&binary, "streamed"), (&ascii, "whole")] {
+        let output = dir.path().join(format!("{name}.copc.laz"));
+        convert(input, &output);
+        let header = las::Reader::from_path(&output).unwrap().header().clone();
+        assert_eq!(header.point_format().to_u8().unwrap(), 6, "{name}");
+        let cloud = load_las(&output, None, &mut |_, _| {}).unwrap();
+        assert!(!cloud.has_rgb, "{name}");
+        let mut got = cloud.intensities.unwrap();
+        got.sort_unstable();
+        assert_eq!(got, want, "{name}");
+    }
+    let colored = dir.path().join("colored.copc.laz");
+    convert(&root().join("data/bunny_colored.ply"), &colored);
+    let header = las::Reader::from_path(&colored).unwrap().header().clone();
+    assert_eq!(header.point_format().to_u8().unwrap(), 7);
+}

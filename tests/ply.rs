@@ -829,3 +829,40 @@ fn double_coordinates_far_from_zero_keep_their_precision() {
         Vec3::from_array(points[0].map(|v| v as f32))
     );
 }
+
+/// Issue 47, defect 9: a PLY `intensity` is read as a 16-bit intensity
+/// (`IntensityScale`): 8-bit times 257, floats in [0, 1] times 65535,
+/// within [0, 65535] as they are, else their range onto 0–65535.
+#[test]
+fn a_ply_intensity_is_read_as_16_bits() {
+    use common::write_binary_ply;
+    let dir = scratch("ply-intensity");
+    for (ty, values, want) in [
+        ("uchar", vec![0.0, 128.0, 255.0], vec![0u16, 32896, 65535]),
+        ("float", vec![0.0, 0.5, 1.0], vec![0, 32768, 65535]),
+        ("float", vec![0.0, 12.4, 4000.0], vec![0, 12, 4000]),
+        ("float", vec![-2.0, 0.0, 2.0], vec![0, 32768, 65535]),
+        ("int", vec![-10.0, 0.0, 10.0], vec![0, 32768, 65535]),
+    ] {
+        let props = [
+            ("float", "x"),
+            ("float", "y"),
+            ("float", "z"),
+            (ty, "intensity"),
+        ];
+        let rows: Vec<Vec<f64>> = values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| vec![i as f64, 0.0, 0.0, v])
+            .collect();
+        let path = dir.join(format!("{ty}-{}.ply", values[2]));
+        write_binary_ply(&path, &props, &rows);
+        for cloud in [load_ply(&path).unwrap(), load_ply_general(&path).unwrap()] {
+            assert_eq!(
+                cloud.intensities.as_deref(),
+                Some(&want[..]),
+                "{ty} {values:?}"
+            );
+        }
+    }
+}

@@ -183,6 +183,16 @@ pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
     Ok(Some((vertex.count as u64, ascii, payload_len)))
 }
 
+/// Vertices of a [`VertexChunks`] chunk.
+pub struct Chunk {
+    /// File coordinates, as the file holds them.
+    pub positions: Vec<DVec3>,
+    /// Linear colors (the whole read's default without colors).
+    pub colors: Vec<Vec3>,
+    /// The `intensity` values as stored, made f32 (empty without one).
+    pub intensities: Vec<f32>,
+}
+
 /// A binary PLY file's vertices, read a chunk at a time in bounded memory
 /// (for `convert`): each chunk's positions and linear colors are the ones
 /// the whole read gives (the direct reader's conversion).
@@ -262,6 +272,16 @@ impl VertexChunks {
         self.has_colors
     }
 
+    /// The scale of the vertices' `intensity` whose stored values (as
+    /// [`Chunk::intensities`] gives them) lie in `range`
+    /// ([`finite_range`]); None without one.
+    pub fn intensity_scale(&self, range: (f64, f64)) -> Option<IntensityScale> {
+        Some(IntensityScale::of(
+            &self.fields.intensity.as_ref()?.ty,
+            range,
+        ))
+    }
+
     /// Vertices not yet read.
     pub fn left(&self) -> usize {
         self.left
@@ -271,7 +291,7 @@ impl VertexChunks {
     /// f64, as the file holds them) and linear colors (an empty chunk at
     /// the end); None where the direct reader would decline them (a
     /// coordinate not finite in f32).
-    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<(Vec<DVec3>, Vec<Vec3>)>> {
+    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<Chunk>> {
         let n = max.max(1).min(self.left);
         let mut block = vec![0u8; n * self.fields.stride];
         if !read_or_end(&mut self.input, &mut block)? {
@@ -292,7 +312,11 @@ impl VertexChunks {
             .chunks_exact(self.fields.stride)
             .map(|r| self.fields.binary_position(r, self.big_endian))
             .collect();
-        Ok(Some((positions, part.1)))
+        Ok(Some(Chunk {
+            positions,
+            colors: part.1,
+            intensities: self.fields.binary_intensities(&block, self.big_endian),
+        }))
     }
 
     /// After the last chunk: whether the elements after the vertices are
@@ -562,6 +586,14 @@ fn load_parsed(bytes: &[u8], path: &Path, origin: Option<DVec3>) -> Result<Point
             normals.push(unit_normal(Vec3::new(get("nx"), get("ny"), get("nz"))));
         }
     }
+    if let Some(PropertyType::Scalar(ty)) = vertex.properties.get(INTENSITY).map(|p| &p.data_type) {
+        let raw: Vec<f64> = rows
+            .iter()
+            .map(|row| f64::from(value(row, INTENSITY) as f32))
+            .collect();
+        let scale = IntensityScale::of(ty, finite_range(raw.iter().copied()));
+        cloud.intensities = Some(raw.iter().map(|&v| scale.code(v)).collect());
+    }
     settle_origin(cloud, origin, path)
 }
 
@@ -691,6 +723,72 @@ fn unit_normal(n: Vec3) -> Vec3 {
     n.try_normalize().unwrap_or(Vec3::ZERO)
 }
 
+/// The name of the vertex property read as a LiDAR intensity.
+const INTENSITY: &str = "intensity";
+
+/// How a PLY `intensity` becomes a 16-bit LAS intensity (which the LAS
+/// specification normalises to 0–65535): an 8-bit value times 257 (255 →
+/// 65535), a 16-bit one as it is; any other type by the range of the
+/// file's finite values: within [0, 1] (a float normalised) times 65535,
+/// within [0, 65535] rounded as it is (raw counts), else the range mapped
+/// linearly onto 0–65535. Rounded to the nearest code; a value outside
+/// the range or not finite is clamped (NaN to 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum IntensityScale {
+    Bits8,
+    Bits16,
+    Unit,
+    AsIs,
+    Range(f64, f64),
+}
+
+impl IntensityScale {
+    /// The scale of values of type `ty` whose finite ones lie in
+    /// `lo..=hi` (an empty range where there are none).
+    fn of(ty: &ScalarType, (lo, hi): (f64, f64)) -> IntensityScale {
+        let float = matches!(ty, ScalarType::Float | ScalarType::Double);
+        match ty {
+            ScalarType::UChar => IntensityScale::Bits8,
+            ScalarType::UShort => IntensityScale::Bits16,
+            _ if lo > hi => IntensityScale::AsIs,
+            _ if float && lo >= 0.0 && hi <= 1.0 => IntensityScale::Unit,
+            _ if lo >= 0.0 && hi <= 65535.0 => IntensityScale::AsIs,
+            _ => IntensityScale::Range(lo, hi),
+        }
+    }
+
+    /// The 16-bit intensity of value `v`.
+    pub fn code(self, v: f64) -> u16 {
+        let scaled = match self {
+            IntensityScale::Bits8 => v * 257.0,
+            IntensityScale::Bits16 | IntensityScale::AsIs => v,
+            IntensityScale::Unit => v * 65535.0,
+            IntensityScale::Range(lo, hi) => (v - lo) / (hi - lo).max(f64::MIN_POSITIVE) * 65535.0,
+        };
+        // `as` saturates, and makes NaN 0.
+        scaled.round().clamp(0.0, 65535.0) as u16
+    }
+}
+
+/// The range of the finite values of `values`: (lo, hi), lo > hi where
+/// there are none.
+pub fn finite_range(values: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// The 16-bit intensities of `raw` values of the `intensity` property of
+/// `fields` ([`IntensityScale`]); None without one.
+fn intensity_codes(fields: &Fields, raw: &[f32]) -> Option<Vec<u16>> {
+    let f = fields.intensity.as_ref()?;
+    let scale = IntensityScale::of(&f.ty, finite_range(raw.iter().map(|&v| f64::from(v))));
+    Some(raw.iter().map(|&v| scale.code(f64::from(v))).collect())
+}
+
 /// Where one scalar vertex property lies in a binary record, or which token
 /// of an ASCII line it is, and its type.
 #[derive(Debug, Clone)]
@@ -705,6 +803,8 @@ struct Fields {
     position: [Field; 3],
     color: Option<[Field; 3]>,
     normal: Option<[Field; 3]>,
+    /// The `intensity` property, as stored.
+    intensity: Option<Field>,
     /// Bytes per binary record (0 for ASCII).
     stride: usize,
 }
@@ -743,12 +843,25 @@ impl Fields {
                 true => Some(three(["nx", "ny", "nz"])?),
                 false => None,
             },
+            intensity: get(INTENSITY),
             stride: if binary { at } else { 0 },
         })
     }
 }
 
 impl Fields {
+    /// The intensities of the binary records of `block`, as stored
+    /// (empty without an `intensity` property).
+    fn binary_intensities(&self, block: &[u8], big_endian: bool) -> Vec<f32> {
+        let Some(f) = &self.intensity else {
+            return Vec::new();
+        };
+        block
+            .chunks_exact(self.stride)
+            .map(|r| binary_scalar(&r[f.at..], &f.ty, big_endian).value() as f32)
+            .collect()
+    }
+
     /// Whether a coordinate may hold more precision than f32 ([`is_wide`]).
     fn wide(&self) -> bool {
         self.position.iter().any(|f| is_wide(&f.ty))
@@ -1306,11 +1419,12 @@ fn read_binary(
             }
         }
     }
-    let Some(((positions, colors, normals), origin)) = vertices else {
+    let Some(((positions, colors, normals), origin, intensities)) = vertices else {
         return Ok(None);
     };
     Ok(Some(PointCloud {
         origin,
+        intensities: intensity_codes(&fields, &intensities),
         positions,
         colors,
         normals: layout.normals.then_some(normals),
@@ -1324,15 +1438,15 @@ fn read_binary(
 /// The `count` binary vertex records at the start of `input`, read
 /// `chunk_bytes` at a time (whole records, at least one) and converted
 /// into vectors of room for all of them, positions against the origin of
-/// [`origin_to_read_at`] (returned with them); None when the file ends
-/// first or a coordinate is not finite.
+/// [`origin_to_read_at`] (returned with them, and the intensities as
+/// stored); None when the file ends first or a coordinate is not finite.
 fn read_vertex_block(
     input: &mut impl Read,
     fields: &Fields,
     count: usize,
     big_endian: bool,
     (chunk_bytes, origin): (usize, Option<DVec3>),
-) -> io::Result<Option<(Part, DVec3)>> {
+) -> io::Result<Option<(Part, DVec3, Vec<f32>)>> {
     let stride = fields.stride;
     let per_chunk = (chunk_bytes / stride).clamp(1, count.max(1));
     let mut cloud: Part = (
@@ -1341,6 +1455,7 @@ fn read_vertex_block(
         Vec::with_capacity(if fields.normal.is_some() { count } else { 0 }),
     );
     let mut converter = None;
+    let mut intensities = Vec::new();
     let mut buf = vec![0u8; per_chunk * stride];
     let mut done = 0;
     while done < count {
@@ -1359,9 +1474,11 @@ fn read_vertex_block(
         if !append_binary(block, fields, converter, big_endian, &mut cloud) {
             return Ok(None);
         }
+        intensities.extend(fields.binary_intensities(block, big_endian));
         done += n;
     }
-    Ok(Some((cloud, converter.map_or(DVec3::ZERO, |c| c.shift))))
+    let shift = converter.map_or(DVec3::ZERO, |c| c.shift);
+    Ok(Some((cloud, shift, intensities)))
 }
 
 /// Reads an ASCII vertex element straight from the payload, or None when
@@ -1421,8 +1538,16 @@ fn read_ascii(
     let (positions, colors, normals) = convert_all(count, |range| {
         ascii_part(&vertex_lines, &types, &fields, &converter, range)
     })?;
+    let intensities = match &fields.intensity {
+        Some(f) => vertex_lines
+            .iter()
+            .map(|l| Some(ascii_scalar(ascii_tokens(l).get(f.at)?, &f.ty)?.value() as f32))
+            .collect::<Option<Vec<f32>>>()?,
+        None => Vec::new(),
+    };
     Some(PointCloud {
         origin: shift,
+        intensities: intensity_codes(&fields, &intensities),
         positions,
         colors,
         normals: layout.normals.then_some(normals),

@@ -248,7 +248,8 @@ fn cloud_record(
 /// to the 1.4 layout; class 12 (overlap) becomes class 1 with the overlap
 /// flag; the scan angle rank becomes 0.006° steps; a missing GPS time is
 /// 0 and missing colors are black. Extended formats (6–10) keep their
-/// first 30 bytes; NIR, waveforms and extra bytes are dropped. Return
+/// first 30 bytes; NIR, waveforms and extra bytes are dropped (named in
+/// a warning, [`dropped_by_conversion`]). Return
 /// numbers are at least 1 and a number of returns at least the return's.
 #[derive(Debug, Clone, Copy)]
 pub struct RecordConverter {
@@ -985,6 +986,13 @@ pub fn convert_las(
             header.point_format()
         ))
     })?;
+    if let Some(lost) = dropped_by_conversion(&header) {
+        log::warn!(
+            "{}: COPC as written holds point format {} without {lost}: they are not converted",
+            input.display(),
+            meta.format.to_u8().unwrap_or(6)
+        );
+    }
     let mut data = las::PointDataBuilder::new().for_header(&header).build();
     let source = Source {
         meta,
@@ -1002,6 +1010,45 @@ pub fn convert_las(
         },
     };
     convert_source(source, output, threads, part_points)
+}
+
+/// What a conversion of `header`'s points (to format 6 or 7,
+/// [`RecordConverter`]) leaves out, in words: NIR, waveform packets and
+/// extra bytes (named as the Extra Bytes VLR names them); None where it
+/// keeps everything.
+fn dropped_by_conversion(header: &las::Header) -> Option<String> {
+    let format = header.point_format();
+    let mut lost = Vec::new();
+    if format.has_nir {
+        lost.push("NIR".to_string());
+    }
+    if format.has_waveform {
+        lost.push("waveform packets".to_string());
+    }
+    if format.extra_bytes > 0 {
+        // Each descriptor of the Extra Bytes VLR (LASF_Spec 4) is 192 bytes,
+        // its name at bytes 4..36.
+        let names: Vec<String> = header
+            .all_vlrs()
+            .filter(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+            .flat_map(|v| v.data.chunks_exact(192).map(|d| d[4..36].to_vec()))
+            .map(|n| {
+                String::from_utf8_lossy(&n)
+                    .trim_end_matches('\0')
+                    .to_string()
+            })
+            .filter(|n| !n.is_empty())
+            .collect();
+        lost.push(match names.is_empty() {
+            true => format!("{} extra bytes a point", format.extra_bytes),
+            false => format!(
+                "{} extra bytes a point ({})",
+                format.extra_bytes,
+                names.join(", ")
+            ),
+        });
+    }
+    (!lost.is_empty()).then(|| lost.join(" and "))
 }
 
 /// Converts a binary PLY file to COPC out of core, as [`convert_las`]

@@ -568,3 +568,58 @@ fn a_ply_without_colors_converts_to_format_6_with_its_intensity() {
     let header = las::Reader::from_path(&colored).unwrap().header().clone();
     assert_eq!(header.point_format().to_u8().unwrap(), 7);
 }
+
+/// Issue 47, defect 5: what `convert` does not carry into the COPC file
+/// (NIR of point format 8, extra bytes) is named in one warning line, not
+/// dropped silently.
+#[test]
+fn convert_names_the_data_it_does_not_keep() {
+    use las::{Builder, Color, Point, Vlr, Writer};
+    let dir = scratch("convert-lost");
+    let input = dir.path().join("nir.las");
+    let mut builder = Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(8).unwrap();
+    builder.point_format.extra_bytes = 4;
+    let mut descriptor = vec![0u8; 192];
+    descriptor[2] = 5; // unsigned long
+    descriptor[4..12].copy_from_slice(b"OriginId");
+    builder.vlrs.push(Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "extra bytes".into(),
+        data: descriptor,
+    });
+    let mut writer = Writer::from_path(&input, builder.into_header().unwrap()).unwrap();
+    for i in 0..100u32 {
+        writer
+            .write_point(Point {
+                x: f64::from(i % 10),
+                y: f64::from(i / 10),
+                z: 0.0,
+                return_number: 1,
+                number_of_returns: 1,
+                gps_time: Some(0.0),
+                color: Some(Color::new(1, 2, 3)),
+                nir: Some(4),
+                extra_bytes: i.to_le_bytes().to_vec(),
+                ..Point::default()
+            })
+            .unwrap();
+    }
+    writer.close().unwrap();
+    let output = dir.path().join("nir.copc.laz");
+    let o = pointlens(&[
+        "convert",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("NIR")).collect();
+    assert_eq!(warnings.len(), 1, "{stderr}");
+    assert!(
+        warnings[0].contains("4 extra bytes a point (OriginId)"),
+        "{stderr}"
+    );
+}

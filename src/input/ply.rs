@@ -76,7 +76,8 @@ pub const FAR_COORDINATE: f64 = 1e4;
 /// `(value − origin) as f32`, in f64): `given` where there is one; else,
 /// for coordinates of more precision than f32 holds (`wide`: double or
 /// 32-bit integer) whose first vertex, at `first`, lies
-/// [`FAR_COORDINATE`] or more from zero, that vertex (the cloud is then
+/// [`FAR_COORDINATE`] or more from zero (and within
+/// [`super::MAX_COORDINATE`]), that vertex (the cloud is then
 /// re-centred on its bounds' centre, [`settle_origin`]); else zero, the
 /// file's coordinates, as for a float file, whose coordinates f32 holds
 /// as they are.
@@ -85,7 +86,10 @@ fn origin_to_read_at(given: Option<DVec3>, wide: bool, first: impl FnOnce() -> D
         Some(origin) => origin,
         None if wide => {
             let first = first();
-            match first.is_finite() && first.abs().max_element() >= FAR_COORDINATE {
+            // A vertex beyond what a scene holds is left to the checks
+            // of the file's coordinates, whose errors name it.
+            let far = first.abs().max_element();
+            match (FAR_COORDINATE..=f64::from(super::MAX_COORDINATE)).contains(&far) {
                 true => first,
                 false => DVec3::ZERO,
             }

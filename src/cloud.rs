@@ -29,7 +29,9 @@ pub struct PointCloud {
     /// The scene's origin in the file's coordinates: a point's position in
     /// the file is `origin + position`, in double precision. LAS and LAZ
     /// clouds are re-centred (see `las`); PLY clouds keep the file's
-    /// coordinates (zero) unless `--origin` is given.
+    /// coordinates (zero) unless `--origin` is given or their coordinates
+    /// are double (or 32-bit integers) far from zero
+    /// (`input::ply::load_ply_at`).
     pub origin: DVec3,
     /// Whether the file says its z axis points up: LAS/LAZ always (by
     /// their specification), a PLY whose header has a `comment up z` line

@@ -112,7 +112,7 @@ pub fn apply_over(cloud: &mut PointCloud, mode: ColorMode, ranges: &ColorRanges)
         }
         ColorMode::Intensity => {
             let Some(values) = &cloud.intensities else {
-                return missing("intensities (LAS/LAZ)");
+                return missing("intensities (LAS/LAZ, or a PLY `intensity`)");
             };
             let (lo, hi) = ranges.intensity;
             // The loader's grey ramp (`input::linear_from_code`).

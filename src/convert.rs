@@ -149,17 +149,19 @@ impl Records {
     }
 
     /// The records of an in-memory cloud (a PLY file's): format 7 with its
-    /// colors as 16-bit sRGB (`cloud_record`), on the grid of
+    /// colors as 16-bit sRGB where it has RGB, else format 6; its
+    /// intensities where it has them (`cloud_record`); on the grid of
     /// `Records::for_cloud_within` its bounds.
     pub fn of_cloud(cloud: &PointCloud, path: &Path) -> Result<Records> {
         let (lo, hi) = cloud.bounds();
         let (lo, hi) = (lo.as_dvec3() + cloud.origin, hi.as_dvec3() + cloud.origin);
-        let mut records = Records::for_cloud_within(lo, hi);
+        let mut records = Records::for_cloud_within(lo, hi, cloud.has_rgb);
         records.bytes = Vec::with_capacity(cloud.len() * records.record_len());
-        for (p, c) in cloud.positions.iter().zip(&cloud.colors) {
+        for (i, (p, c)) in cloud.positions.iter().zip(&cloud.colors).enumerate() {
+            let intensity = cloud.intensities.as_ref().map_or(0, |v| v[i]);
             cloud_record(
                 p.as_dvec3() + cloud.origin,
-                *c,
+                (cloud.has_rgb.then_some(*c), intensity),
                 &records.transforms,
                 &mut records.bytes,
             )
@@ -172,9 +174,10 @@ impl Records {
     }
 
     /// No records yet, of a cloud within `lo`..`hi` (file coordinates):
-    /// format 7, positions on a grid of 10^k units fine enough for f32 (7
-    /// digits over the largest extent), centred on the bounds.
-    fn for_cloud_within(lo: DVec3, hi: DVec3) -> Records {
+    /// format 7 with `color`, else 6, positions on a grid of 10^k units
+    /// fine enough for f32 (7 digits over the largest extent), centred on
+    /// the bounds.
+    fn for_cloud_within(lo: DVec3, hi: DVec3, color: bool) -> Records {
         // A single point (or one place) still gets a grid.
         let extent = (hi - lo).max_element().max(1e-6);
         let scale = 10f64.powf((extent * 1e-7).log10().floor());
@@ -182,7 +185,7 @@ impl Records {
         let offset = (centre / scale).round() * scale;
         let axis = |offset: f64| Transform { scale, offset };
         Records {
-            format: Format::new(7).expect("format 7"),
+            format: Format::new(if color { 7 } else { 6 }).expect("format 6 or 7"),
             transforms: las::Vector {
                 x: axis(offset.x),
                 y: axis(offset.y),
@@ -195,12 +198,13 @@ impl Records {
     }
 }
 
-/// Appends the format 7 record of a cloud's point at `p` (file
-/// coordinates) of linear color `c`: its codes under `transforms`, the
-/// color as 16-bit sRGB, a first return of one, nothing else.
+/// Appends the record of a cloud's point at `p` (file coordinates) of
+/// linear color `c` and 16-bit `intensity`: format 7 with a color (as
+/// 16-bit sRGB), else 6; its codes under `transforms`, a first return of
+/// one, nothing else.
 fn cloud_record(
     p: DVec3,
-    c: glam::Vec3,
+    (c, intensity): (Option<glam::Vec3>, u16),
     transforms: &las::Vector<Transform>,
     out: &mut Vec<u8>,
 ) -> std::result::Result<(), String> {
@@ -221,8 +225,13 @@ fn cloud_record(
     for (k, v) in xyz.iter().enumerate() {
         r[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
     }
+    r[12..14].copy_from_slice(&intensity.to_le_bytes());
     // Return 1 of 1.
     r[14] = 0x11;
+    let Some(c) = c else {
+        out.extend_from_slice(&r[..30]);
+        return Ok(());
+    };
     for (k, v) in [srgb(c.x), srgb(c.y), srgb(c.z)].iter().enumerate() {
         r[30 + 2 * k..32 + 2 * k].copy_from_slice(&v.to_le_bytes());
     }
@@ -239,7 +248,8 @@ fn cloud_record(
 /// to the 1.4 layout; class 12 (overlap) becomes class 1 with the overlap
 /// flag; the scan angle rank becomes 0.006° steps; a missing GPS time is
 /// 0 and missing colors are black. Extended formats (6–10) keep their
-/// first 30 bytes; NIR, waveforms and extra bytes are dropped. Return
+/// first 30 bytes; NIR, waveforms and extra bytes are dropped (named in
+/// a warning, [`dropped_by_conversion`]). Return
 /// numbers are at least 1 and a number of returns at least the return's.
 #[derive(Debug, Clone, Copy)]
 pub struct RecordConverter {
@@ -976,6 +986,13 @@ pub fn convert_las(
             header.point_format()
         ))
     })?;
+    if let Some(lost) = dropped_by_conversion(&header) {
+        log::warn!(
+            "{}: COPC as written holds point format {} without {lost}: they are not converted",
+            input.display(),
+            meta.format.to_u8().unwrap_or(6)
+        );
+    }
     let mut data = las::PointDataBuilder::new().for_header(&header).build();
     let source = Source {
         meta,
@@ -995,10 +1012,50 @@ pub fn convert_las(
     convert_source(source, output, threads, part_points)
 }
 
+/// What a conversion of `header`'s points (to format 6 or 7,
+/// [`RecordConverter`]) leaves out, in words: NIR, waveform packets and
+/// extra bytes (named as the Extra Bytes VLR names them); None where it
+/// keeps everything.
+fn dropped_by_conversion(header: &las::Header) -> Option<String> {
+    let format = header.point_format();
+    let mut lost = Vec::new();
+    if format.has_nir {
+        lost.push("NIR".to_string());
+    }
+    if format.has_waveform {
+        lost.push("waveform packets".to_string());
+    }
+    if format.extra_bytes > 0 {
+        // Each descriptor of the Extra Bytes VLR (LASF_Spec 4) is 192 bytes,
+        // its name at bytes 4..36.
+        let names: Vec<String> = header
+            .all_vlrs()
+            .filter(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+            .flat_map(|v| v.data.chunks_exact(192).map(|d| d[4..36].to_vec()))
+            .map(|n| {
+                String::from_utf8_lossy(&n)
+                    .trim_end_matches('\0')
+                    .to_string()
+            })
+            .filter(|n| !n.is_empty())
+            .collect();
+        lost.push(match names.is_empty() {
+            true => format!("{} extra bytes a point", format.extra_bytes),
+            false => format!(
+                "{} extra bytes a point ({})",
+                format.extra_bytes,
+                names.join(", ")
+            ),
+        });
+    }
+    (!lost.is_empty()).then(|| lost.join(" and "))
+}
+
 /// Converts a binary PLY file to COPC out of core, as [`convert_las`]
-/// does a LAS file: one pass for the bounds (the grid and the cube), one
-/// that turns the vertices into records (format 7, as
-/// [`Records::of_cloud`] makes them) for the distribution. None where
+/// does a LAS file: one pass for the bounds (the grid and the cube) and
+/// the intensities' range, one that turns the vertices into records
+/// (format 7 with colors, else 6, as [`Records::of_cloud`] makes them)
+/// for the distribution. None where
 /// the file does not stream ([`crate::input::ply::VertexChunks::open`]):
 /// the caller reads it whole.
 pub fn convert_ply(
@@ -1007,7 +1064,7 @@ pub fn convert_ply(
     threads: usize,
     part_points: u64,
 ) -> Result<Option<Converted>> {
-    use crate::input::ply::VertexChunks;
+    use crate::input::ply::{finite_range, VertexChunks};
     let fail = |msg: String| Error::Ply {
         path: input.to_path_buf(),
         msg,
@@ -1022,16 +1079,21 @@ pub fn convert_ply(
         return Ok(None);
     };
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut intensities = (f64::INFINITY, f64::NEG_INFINITY);
     let total = chunks.left() as u64;
+    let has_colors = chunks.has_colors();
     while chunks.left() > 0 {
-        let Some((positions, _)) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
+        let Some(chunk) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
             return Ok(None);
         };
-        for p in positions {
-            lo = lo.min(p.as_dvec3());
-            hi = hi.max(p.as_dvec3());
+        for p in chunk.positions {
+            lo = lo.min(p);
+            hi = hi.max(p);
         }
+        let (a, b) = finite_range(chunk.intensities.iter().map(|&v| f64::from(v)));
+        intensities = (intensities.0.min(a), intensities.1.max(b));
     }
+    let intensity_scale = chunks.intensity_scale(intensities);
     if !chunks.rest_is_well_formed().map_err(io)? {
         return Ok(None);
     }
@@ -1046,14 +1108,13 @@ pub fn convert_ply(
     // 2. The records.
     let meta = Records {
         bytes: Vec::new(),
-        ..Records::for_cloud_within(lo, hi)
+        ..Records::for_cloud_within(lo, hi, has_colors)
     };
     let transforms = meta.transforms;
     let Some(mut chunks) = VertexChunks::open(input)? else {
         return Err(fail("it changed while being converted".into()));
     };
-    let to = Format::new(7).expect("format 7");
-    let converter = RecordConverter::new(&to, &to).expect("7 to 7");
+    let converter = RecordConverter::new(&meta.format, &meta.format).expect("6 or 7 to itself");
     let source = Source {
         meta,
         bounds: (lo, hi),
@@ -1065,13 +1126,16 @@ pub fn convert_ply(
             if chunks.left() == 0 {
                 return Ok(0);
             }
-            let Some((positions, colors)) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
+            let Some(chunk) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
                 return Err(fail("it changed while being converted".into()));
             };
-            for (p, c) in positions.iter().zip(&colors) {
-                cloud_record(p.as_dvec3(), *c, &transforms, records).map_err(&fail)?;
+            for (i, (p, c)) in chunk.positions.iter().zip(&chunk.colors).enumerate() {
+                let intensity =
+                    intensity_scale.map_or(0, |s| s.code(f64::from(chunk.intensities[i])));
+                let color = has_colors.then_some(*c);
+                cloud_record(*p, (color, intensity), &transforms, records).map_err(&fail)?;
             }
-            Ok(positions.len() as u64)
+            Ok(chunk.positions.len() as u64)
         },
     };
     convert_source(source, output, threads, part_points).map(Some)
@@ -1876,7 +1940,7 @@ mod tests {
     /// hold several points, with exact ties in distance: duplicates), the
     /// other bytes random.
     fn random_records(format: u8, n: usize) -> Records {
-        let mut records = Records::for_cloud_within(DVec3::ZERO, DVec3::splat(1.0));
+        let mut records = Records::for_cloud_within(DVec3::ZERO, DVec3::splat(1.0), true);
         records.format = Format::new(format).expect("6 or 7");
         let axis = Transform {
             scale: 0.001,
@@ -2100,7 +2164,8 @@ mod tests {
     /// color.
     #[test]
     fn a_cloud_record_is_las_point_record() {
-        let records = Records::for_cloud_within(DVec3::splat(-3.0), DVec3::new(5.0, 2.0, 9.0));
+        let records =
+            Records::for_cloud_within(DVec3::splat(-3.0), DVec3::new(5.0, 2.0, 9.0), true);
         let format = Format::new(7).expect("format 7");
         let mut state = 1u32;
         let mut next = move || {
@@ -2115,7 +2180,7 @@ mod tests {
             );
             let c = glam::Vec3::new(next() * 1.2 - 0.1, next(), next());
             let mut got = Vec::new();
-            cloud_record(p, c, &records.transforms, &mut got).expect("on the grid");
+            cloud_record(p, (Some(c), 0), &records.transforms, &mut got).expect("on the grid");
             let code = |v: f32| {
                 let s = crate::image_io::linear_to_srgb(v.clamp(0.0, 1.0));
                 (s * 65535.0).round() as u16

@@ -464,3 +464,162 @@ fn a_cloud_over_memory_mb_is_refused_with_the_convert_command() {
         "48",
     ]);
 }
+
+/// Every point of a LAS/COPC file in file coordinates, sorted.
+fn file_positions(path: &Path) -> Vec<[f64; 3]> {
+    let cloud = load_las(path, None, &mut |_, _| {}).unwrap();
+    let mut v: Vec<[f64; 3]> = cloud
+        .positions
+        .iter()
+        .map(|p| (p.as_dvec3() + cloud.origin).to_array())
+        .collect();
+    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    v
+}
+
+/// Issue 47, defect 2: a PLY of double coordinates at 10^7 converts to
+/// its own distinct positions, streamed (binary) or read whole (ASCII).
+#[test]
+fn double_ply_coordinates_far_from_zero_convert_exactly() {
+    use common::{cube_points, write_binary_ply};
+    let dir = scratch("convert-double-far");
+    let mut points = cube_points(2_000, 1e7);
+    let props = [("double", "x"), ("double", "y"), ("double", "z")];
+    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
+    let binary = dir.path().join("far.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.path().join("far-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nend_header\n",
+        points.len()
+    );
+    for p in &points {
+        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(&ascii, text).unwrap();
+    points.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    for (input, name) in [(&binary, "streamed"), (&ascii, "whole")] {
+        let output = dir.path().join(format!("{name}.copc.laz"));
+        convert(input, &output);
+        let got = file_positions(&output);
+        assert_eq!(got.len(), points.len());
+        for (g, want) in got.iter().zip(&points) {
+            for k in 0..3 {
+                assert!((g[k] - want[k]).abs() < 1e-6, "{name}: {g:?} for {want:?}");
+            }
+        }
+    }
+}
+
+/// Issue 47, defect 9: a PLY without colors converts to point format 6
+/// (no RGB invented), its `intensity` kept: floats in [0, 1] scaled to
+/// 0–65535, streamed (binary) or read whole (ASCII); a PLY with colors
+/// stays format 7.
+#[test]
+fn a_ply_without_colors_converts_to_format_6_with_its_intensity() {
+    use common::{cube_points, write_binary_ply};
+    let dir = scratch("convert-intensity");
+    let points = cube_points(500, 0.0);
+    let props = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "intensity"),
+    ];
+    let rows: Vec<Vec<f64>> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| vec![p[0], p[1], p[2], (i % 101) as f64 / 100.0])
+        .collect();
+    let binary = dir.path().join("grey.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.path().join("grey-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty float intensity\nend_header\n",
+        rows.len()
+    );
+    for r in &rows {
+        text += &format!(
+            "{} {} {} {}\n",
+            r[0] as f32, r[1] as f32, r[2] as f32, r[3] as f32
+        );
+    }
+    std::fs::write(&ascii, text).unwrap();
+    let mut want: Vec<u16> = rows
+        .iter()
+        .map(|r| ((r[3] as f32) as f64 * 65535.0).round() as u16)
+        .collect();
+    want.sort_unstable();
+    for (input, name) in [(&binary, "streamed"), (&ascii, "whole")] {
+        let output = dir.path().join(format!("{name}.copc.laz"));
+        convert(input, &output);
+        let header = las::Reader::from_path(&output).unwrap().header().clone();
+        assert_eq!(header.point_format().to_u8().unwrap(), 6, "{name}");
+        let cloud = load_las(&output, None, &mut |_, _| {}).unwrap();
+        assert!(!cloud.has_rgb, "{name}");
+        let mut got = cloud.intensities.unwrap();
+        got.sort_unstable();
+        assert_eq!(got, want, "{name}");
+    }
+    let colored = dir.path().join("colored.copc.laz");
+    convert(&root().join("data/bunny_colored.ply"), &colored);
+    let header = las::Reader::from_path(&colored).unwrap().header().clone();
+    assert_eq!(header.point_format().to_u8().unwrap(), 7);
+}
+
+/// Issue 47, defect 5: what `convert` does not carry into the COPC file
+/// (NIR of point format 8, extra bytes) is named in one warning line, not
+/// dropped silently.
+#[test]
+fn convert_names_the_data_it_does_not_keep() {
+    use las::{Builder, Color, Point, Vlr, Writer};
+    let dir = scratch("convert-lost");
+    let input = dir.path().join("nir.las");
+    let mut builder = Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(8).unwrap();
+    builder.point_format.extra_bytes = 4;
+    let mut descriptor = vec![0u8; 192];
+    descriptor[2] = 5; // unsigned long
+    descriptor[4..12].copy_from_slice(b"OriginId");
+    builder.vlrs.push(Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "extra bytes".into(),
+        data: descriptor,
+    });
+    let mut writer = Writer::from_path(&input, builder.into_header().unwrap()).unwrap();
+    for i in 0..100u32 {
+        writer
+            .write_point(Point {
+                x: f64::from(i % 10),
+                y: f64::from(i / 10),
+                z: 0.0,
+                return_number: 1,
+                number_of_returns: 1,
+                gps_time: Some(0.0),
+                color: Some(Color::new(1, 2, 3)),
+                nir: Some(4),
+                extra_bytes: i.to_le_bytes().to_vec(),
+                ..Point::default()
+            })
+            .unwrap();
+    }
+    writer.close().unwrap();
+    let output = dir.path().join("nir.copc.laz");
+    let o = pointlens(&[
+        "convert",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("NIR")).collect();
+    assert_eq!(warnings.len(), 1, "{stderr}");
+    assert!(
+        warnings[0].contains("4 extra bytes a point (OriginId)"),
+        "{stderr}"
+    );
+}

@@ -747,3 +747,122 @@ fn a_comment_says_the_cloud_is_z_up() {
     std::fs::write(&path, bytes).unwrap();
     assert!(load_ply(&path).unwrap().z_up);
 }
+
+/// Issue 47, defect 2: double coordinates far from zero are re-centred
+/// in f64 before they become f32, by every reader (binary, ASCII, the
+/// general one), on `--origin` where given and by default on the centre of
+/// the bounds; `info` sees the points' true spacing. A float PLY keeps
+/// the file's coordinates.
+#[test]
+fn double_coordinates_far_from_zero_keep_their_precision() {
+    use common::{cube_points, write_binary_ply};
+    use glam::DVec3;
+    use pointlens::input::load_cloud;
+    let dir = scratch("ply-double-far");
+    let points = cube_points(2_000, 1e7);
+    let props = [("double", "x"), ("double", "y"), ("double", "z")];
+    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
+    let binary = dir.join("far.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.join("far-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nend_header\n",
+        points.len()
+    );
+    for p in &points {
+        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(&ascii, text).unwrap();
+    let check = |cloud: &PointCloud, what: &str| {
+        assert_eq!(cloud.len(), points.len(), "{what}");
+        for (p, want) in cloud.positions.iter().zip(&points) {
+            let got = p.as_dvec3() + cloud.origin;
+            let d = (got - DVec3::from_array(*want)).abs().max_element();
+            assert!(d < 1e-6, "{what}: {got} for {want:?}");
+        }
+        let mut xs: Vec<u32> = cloud.positions.iter().map(|p| p.x.to_bits()).collect();
+        xs.sort_unstable();
+        xs.dedup();
+        assert!(xs.len() > 1_990, "{what}: {} distinct x", xs.len());
+    };
+    let given = DVec3::splat(1e7);
+    for path in [&binary, &ascii] {
+        let at = load_cloud(path, Some(given), &mut |_, _| {}).unwrap();
+        assert_eq!(at.origin, given);
+        check(&at, "--origin");
+        let default = load_cloud(path, None, &mut |_, _| {}).unwrap();
+        assert!(
+            (default.origin - DVec3::splat(1e7 + 0.5))
+                .abs()
+                .max_element()
+                < 0.01
+        );
+        check(&default, "the default origin");
+    }
+    check(&load_ply_general(&binary).unwrap(), "the general reader");
+
+    let o = common::assert_runs(&[
+        "info",
+        binary.to_str().unwrap(),
+        "--origin",
+        "10000000,10000000,10000000",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    let spacing: f64 = text
+        .lines()
+        .find_map(|l| l.strip_prefix("median_spacing: "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    // 2,000 points in a unit cube: some 0.05 apart.
+    assert!(spacing > 0.01 && spacing < 0.2, "{text}");
+
+    // A float PLY keeps the file's coordinates (its images unchanged).
+    let float = dir.join("far-float.ply");
+    let float_props = [("float", "x"), ("float", "y"), ("float", "z")];
+    write_binary_ply(&float, &float_props, &rows);
+    let cloud = load_cloud(&float, None, &mut |_, _| {}).unwrap();
+    assert_eq!(cloud.origin, DVec3::ZERO);
+    assert_eq!(
+        cloud.positions[0],
+        Vec3::from_array(points[0].map(|v| v as f32))
+    );
+}
+
+/// Issue 47, defect 9: a PLY `intensity` is read as a 16-bit intensity
+/// (`IntensityScale`): 8-bit times 257, floats in [0, 1] times 65535,
+/// within [0, 65535] as they are, else their range onto 0–65535.
+#[test]
+fn a_ply_intensity_is_read_as_16_bits() {
+    use common::write_binary_ply;
+    let dir = scratch("ply-intensity");
+    for (ty, values, want) in [
+        ("uchar", vec![0.0, 128.0, 255.0], vec![0u16, 32896, 65535]),
+        ("float", vec![0.0, 0.5, 1.0], vec![0, 32768, 65535]),
+        ("float", vec![0.0, 12.4, 4000.0], vec![0, 12, 4000]),
+        ("float", vec![-2.0, 0.0, 2.0], vec![0, 32768, 65535]),
+        ("int", vec![-10.0, 0.0, 10.0], vec![0, 32768, 65535]),
+    ] {
+        let props = [
+            ("float", "x"),
+            ("float", "y"),
+            ("float", "z"),
+            (ty, "intensity"),
+        ];
+        let rows: Vec<Vec<f64>> = values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| vec![i as f64, 0.0, 0.0, v])
+            .collect();
+        let path = dir.join(format!("{ty}-{}.ply", values[2]));
+        write_binary_ply(&path, &props, &rows);
+        for cloud in [load_ply(&path).unwrap(), load_ply_general(&path).unwrap()] {
+            assert_eq!(
+                cloud.intensities.as_deref(),
+                Some(&want[..]),
+                "{ty} {values:?}"
+            );
+        }
+    }
+}

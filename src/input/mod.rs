@@ -31,8 +31,10 @@ pub fn linear_from_code(code: f64, max_code: f64) -> f32 {
 /// magic bytes `LASF` or, for a file that cannot be peeked at, by the
 /// extension; PLY otherwise. `origin` (file coordinates) re-centres the
 /// cloud: LAS/LAZ in double precision from the integer codes (default: the
-/// centre of its bounds, see `las`), PLY from its f32 positions (default:
-/// none). `progress(done, total)` follows a LAS/LAZ read chunk by chunk.
+/// centre of its bounds, see `las`), PLY in double precision from the
+/// file's values (default: the centre of its bounds for double or 32-bit
+/// integer coordinates far from zero, else none: `ply::load_ply_at`).
+/// `progress(done, total)` follows a LAS/LAZ read chunk by chunk.
 pub fn load_cloud(
     path: &Path,
     origin: Option<DVec3>,
@@ -41,14 +43,13 @@ pub fn load_cloud(
     let cloud = if is_las(path) {
         las::load_las(path, origin, progress)?
     } else {
-        let mut cloud = ply::load_ply(path)?;
-        if let Some(origin) = origin {
-            cloud.recentre(origin).map_err(|msg| Error::Ply {
-                path: path.to_path_buf(),
-                msg,
-            })?;
+        if let Some(origin) = origin.filter(|o| !o.is_finite()) {
+            return Err(ply::ply_error(
+                path,
+                format!("--origin must be three finite numbers, got {origin}"),
+            ));
         }
-        cloud
+        ply::load_ply_at(path, origin)?
     };
     if let Some(i) = cloud
         .positions

@@ -8,7 +8,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::sync::OnceLock;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{
     DefaultElement, ElementDef, Encoding, Header, Property, PropertyType, ScalarType,
@@ -43,17 +43,76 @@ pub const CHUNK_BYTES: usize = 16 << 20;
 /// the general reader ([`load_ply_general`]), which gives the same cloud
 /// for every file the direct one reads and the error messages for the rest.
 pub fn load_ply(path: &Path) -> Result<PointCloud> {
-    load_ply_with_chunk(path, CHUNK_BYTES)
+    load_ply_at(path, None)
+}
+
+/// [`load_ply`] re-centred on `origin` (file coordinates), or on the
+/// default origin where None ([`origin_to_read_at`]): positions are
+/// `(file coordinate − origin)` computed in f64, then made f32.
+pub fn load_ply_at(path: &Path, origin: Option<DVec3>) -> Result<PointCloud> {
+    load_with_chunk(path, CHUNK_BYTES, origin)
 }
 
 /// [`load_ply`] reading a binary vertex block `chunk_bytes` at a time
 /// (at least one record).
 pub fn load_ply_with_chunk(path: &Path, chunk_bytes: usize) -> Result<PointCloud> {
-    match load_direct(path, chunk_bytes)? {
+    load_with_chunk(path, chunk_bytes, None)
+}
+
+fn load_with_chunk(path: &Path, chunk_bytes: usize, origin: Option<DVec3>) -> Result<PointCloud> {
+    match load_direct(path, chunk_bytes, origin)? {
         Direct::Read(cloud) => Ok(cloud),
-        Direct::Declined(Some(bytes)) => load_parsed(&bytes, path),
-        Direct::Declined(None) => load_parsed(&read_file(path)?, path),
+        Direct::Declined(Some(bytes)) => load_parsed(&bytes, path, origin),
+        Direct::Declined(None) => load_parsed(&read_file(path)?, path, origin),
     }
+}
+
+/// Coordinates of this magnitude or more (on some axis) are far from
+/// zero: f32 keeps less than a thousandth of a unit there (a millimetre
+/// for metres: its step at 10^4 is 2^-10).
+pub const FAR_COORDINATE: f64 = 1e4;
+
+/// The origin a PLY file's vertices are read against (converted as
+/// `(value − origin) as f32`, in f64): `given` where there is one; else,
+/// for coordinates of more precision than f32 holds (`wide`: double or
+/// 32-bit integer) whose first vertex, at `first`, lies
+/// [`FAR_COORDINATE`] or more from zero (and within
+/// [`super::MAX_COORDINATE`]), that vertex (the cloud is then
+/// re-centred on its bounds' centre, [`settle_origin`]); else zero, the
+/// file's coordinates, as for a float file, whose coordinates f32 holds
+/// as they are.
+fn origin_to_read_at(given: Option<DVec3>, wide: bool, first: impl FnOnce() -> DVec3) -> DVec3 {
+    match given {
+        Some(origin) => origin,
+        None if wide => {
+            let first = first();
+            // A vertex beyond what a scene holds is left to the checks
+            // of the file's coordinates, whose errors name it.
+            let far = first.abs().max_element();
+            match (FAR_COORDINATE..=f64::from(super::MAX_COORDINATE)).contains(&far) {
+                true => first,
+                false => DVec3::ZERO,
+            }
+        }
+        None => DVec3::ZERO,
+    }
+}
+
+/// Whether a coordinate of type `ty` may hold more precision than f32.
+fn is_wide(ty: &ScalarType) -> bool {
+    matches!(ty, ScalarType::Double | ScalarType::Int | ScalarType::UInt)
+}
+
+/// A cloud read against `cloud.origin` ([`origin_to_read_at`]) without
+/// a `given` origin: where that was a far vertex, re-centred on the centre
+/// of its bounds in f64 (as a LAS file is by default).
+fn settle_origin(mut cloud: PointCloud, given: Option<DVec3>, path: &Path) -> Result<PointCloud> {
+    if given.is_none() && cloud.origin != DVec3::ZERO {
+        let (lo, hi) = cloud.bounds();
+        let centre = cloud.origin + (lo.as_dvec3() + hi.as_dvec3()) / 2.0;
+        cloud.recentre(centre).map_err(|msg| ply_error(path, msg))?;
+    }
+    Ok(cloud)
 }
 
 /// The direct reader alone: None when it declines the file (which
@@ -65,7 +124,7 @@ pub fn load_ply_direct(path: &Path) -> Result<Option<PointCloud>> {
 /// [`load_ply_direct`] reading a binary vertex block `chunk_bytes` at a
 /// time (at least one record). For tests.
 pub fn load_ply_direct_with_chunk(path: &Path, chunk_bytes: usize) -> Result<Option<PointCloud>> {
-    Ok(match load_direct(path, chunk_bytes)? {
+    Ok(match load_direct(path, chunk_bytes, None)? {
         Direct::Read(cloud) => Some(cloud),
         Direct::Declined(_) => None,
     })
@@ -126,6 +185,16 @@ pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
     let (vertex, _) = vertex_element(&header, path)?;
     let ascii = matches!(header.encoding, Encoding::Ascii);
     Ok(Some((vertex.count as u64, ascii, payload_len)))
+}
+
+/// Vertices of a [`VertexChunks`] chunk.
+pub struct Chunk {
+    /// File coordinates, as the file holds them.
+    pub positions: Vec<DVec3>,
+    /// Linear colors (the whole read's default without colors).
+    pub colors: Vec<Vec3>,
+    /// The `intensity` values as stored, made f32 (empty without one).
+    pub intensities: Vec<f32>,
 }
 
 /// A binary PLY file's vertices, read a chunk at a time in bounded memory
@@ -190,7 +259,7 @@ impl VertexChunks {
             Some(bytes) if bytes <= left => {}
             _ => return Ok(None),
         }
-        let converter = Converter::new(&fields);
+        let converter = Converter::new(&fields, DVec3::ZERO);
         Ok(Some(VertexChunks {
             left: vertex.count,
             has_colors: layout.colors.is_some(),
@@ -207,15 +276,26 @@ impl VertexChunks {
         self.has_colors
     }
 
+    /// The scale of the vertices' `intensity` whose stored values (as
+    /// [`Chunk::intensities`] gives them) lie in `range`
+    /// ([`finite_range`]); None without one.
+    pub fn intensity_scale(&self, range: (f64, f64)) -> Option<IntensityScale> {
+        Some(IntensityScale::of(
+            &self.fields.intensity.as_ref()?.ty,
+            range,
+        ))
+    }
+
     /// Vertices not yet read.
     pub fn left(&self) -> usize {
         self.left
     }
 
-    /// The next at most `max` vertices' positions and linear colors (an
-    /// empty chunk at the end); None where the direct reader would decline
-    /// them (a coordinate not finite).
-    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<(Vec<Vec3>, Vec<Vec3>)>> {
+    /// The next at most `max` vertices' positions (file coordinates, in
+    /// f64, as the file holds them) and linear colors (an empty chunk at
+    /// the end); None where the direct reader would decline them (a
+    /// coordinate not finite in f32).
+    pub fn next_chunk(&mut self, max: usize) -> io::Result<Option<Chunk>> {
         let n = max.max(1).min(self.left);
         let mut block = vec![0u8; n * self.fields.stride];
         if !read_or_end(&mut self.input, &mut block)? {
@@ -232,7 +312,15 @@ impl VertexChunks {
             return Ok(None);
         }
         self.left -= n;
-        Ok(Some((part.0, part.1)))
+        let positions = block
+            .chunks_exact(self.fields.stride)
+            .map(|r| self.fields.binary_position(r, self.big_endian))
+            .collect();
+        Ok(Some(Chunk {
+            positions,
+            colors: part.1,
+            intensities: self.fields.binary_intensities(&block, self.big_endian),
+        }))
     }
 
     /// After the last chunk: whether the elements after the vertices are
@@ -261,7 +349,7 @@ enum Direct {
     Declined(Option<Vec<u8>>),
 }
 
-fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
+fn load_direct(path: &Path, chunk_bytes: usize, origin: Option<DVec3>) -> Result<Direct> {
     let io = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -280,13 +368,14 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
                     &header,
                     vertex,
                     &layout,
-                    chunk_bytes,
+                    (chunk_bytes, origin),
                 )
                 .map_err(io)?;
                 let z_up = declares_z_up(&header);
-                return Ok(cloud.map_or(Direct::Declined(None), |c| {
-                    Direct::Read(PointCloud { z_up, ..c })
-                }));
+                return Ok(match cloud {
+                    Some(c) => Direct::Read(settle_origin(PointCloud { z_up, ..c }, origin, path)?),
+                    None => Direct::Declined(None),
+                });
             }
             // ASCII is read whole: its lines are found in memory.
             drop(input);
@@ -305,7 +394,7 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
     let (vertex, layout) = vertex_element(&header, path)?;
     let payload = &bytes[payload_at..];
     let cloud = if matches!(header.encoding, Encoding::Ascii) {
-        read_ascii(payload, &header, vertex, &layout)
+        read_ascii(payload, &header, vertex, &layout, origin)
     } else {
         let mut input = payload;
         read_binary(
@@ -314,15 +403,19 @@ fn load_direct(path: &Path, chunk_bytes: usize) -> Result<Direct> {
             &header,
             vertex,
             &layout,
-            chunk_bytes,
+            (chunk_bytes, origin),
         )
         .map_err(io)?
     };
     Ok(match cloud {
-        Some(cloud) => Direct::Read(PointCloud {
-            z_up: declares_z_up(&header),
-            ..cloud
-        }),
+        Some(cloud) => Direct::Read(settle_origin(
+            PointCloud {
+                z_up: declares_z_up(&header),
+                ..cloud
+            },
+            origin,
+            path,
+        )?),
         None => Direct::Declined(Some(bytes)),
     })
 }
@@ -351,7 +444,7 @@ pub fn says_z_up(line: &str) -> bool {
 /// [`load_ply`] through the general reader alone (ply-rs, a map per
 /// vertex): the reference the direct reader is tested against.
 pub fn load_ply_general(path: &Path) -> Result<PointCloud> {
-    load_parsed(&read_file(path)?, path)
+    load_parsed(&read_file(path)?, path, None)
 }
 
 pub(super) fn ply_error(path: &Path, msg: String) -> Error {
@@ -413,7 +506,7 @@ fn vertex_element<'h>(header: &'h Header, path: &Path) -> Result<(&'h ElementDef
 
 /// The general reader: ply-rs parses the whole payload into a map per
 /// element, then the vertices are converted one by one.
-fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
+fn load_parsed(bytes: &[u8], path: &Path, origin: Option<DVec3>) -> Result<PointCloud> {
     let fail = |msg: String| ply_error(path, msg);
     // The header is checked before the payload so that its errors are specific.
     let (header, _) = read_header(bytes, path)?;
@@ -441,7 +534,21 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
         )));
     }
 
+    let value = |row: &DefaultElement, name: &str| {
+        row.get(name)
+            .and_then(Scalar::of)
+            .map_or(0.0, Scalar::value)
+    };
+    let at = |row: &DefaultElement| DVec3::new(value(row, "x"), value(row, "y"), value(row, "z"));
+    let wide = ["x", "y", "z"].iter().any(|n| {
+        matches!(
+            vertex.properties.get(*n).map(|p| &p.data_type),
+            Some(PropertyType::Scalar(ty)) if is_wide(ty)
+        )
+    });
+    let shift = origin_to_read_at(origin, wide, || rows.first().map_or(DVec3::ZERO, at));
     let mut cloud = PointCloud {
+        origin: shift,
         positions: Vec::with_capacity(rows.len()),
         colors: Vec::with_capacity(rows.len()),
         normals: layout.normals.then(|| Vec::with_capacity(rows.len())),
@@ -457,11 +564,16 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
                 .and_then(Scalar::of)
                 .map_or(0.0, Scalar::coordinate)
         };
-        let p = Vec3::new(get("x"), get("y"), get("z"));
+        let file = at(row);
+        let p = (file - shift).as_vec3();
         if !p.is_finite() {
-            return Err(fail(format!(
-                "vertex {i} has a non-finite coordinate ({p})"
-            )));
+            let raw = file.as_vec3();
+            return Err(fail(match raw.is_finite() {
+                true => {
+                    format!("a point at {file} does not fit in f32 after re-centring on {shift}")
+                }
+                false => format!("vertex {i} has a non-finite coordinate ({raw})"),
+            }));
         }
         cloud.positions.push(p);
         let color = match &layout.colors {
@@ -478,7 +590,15 @@ fn load_parsed(bytes: &[u8], path: &Path) -> Result<PointCloud> {
             normals.push(unit_normal(Vec3::new(get("nx"), get("ny"), get("nz"))));
         }
     }
-    Ok(cloud)
+    if let Some(PropertyType::Scalar(ty)) = vertex.properties.get(INTENSITY).map(|p| &p.data_type) {
+        let raw: Vec<f64> = rows
+            .iter()
+            .map(|row| f64::from(value(row, INTENSITY) as f32))
+            .collect();
+        let scale = IntensityScale::of(ty, finite_range(raw.iter().copied()));
+        cloud.intensities = Some(raw.iter().map(|&v| scale.code(v)).collect());
+    }
+    settle_origin(cloud, origin, path)
 }
 
 /// Which optional vertex properties a file has.
@@ -607,6 +727,72 @@ fn unit_normal(n: Vec3) -> Vec3 {
     n.try_normalize().unwrap_or(Vec3::ZERO)
 }
 
+/// The name of the vertex property read as a LiDAR intensity.
+const INTENSITY: &str = "intensity";
+
+/// How a PLY `intensity` becomes a 16-bit LAS intensity (which the LAS
+/// specification normalises to 0–65535): an 8-bit value times 257 (255 →
+/// 65535), a 16-bit one as it is; any other type by the range of the
+/// file's finite values: within [0, 1] (a float normalised) times 65535,
+/// within [0, 65535] rounded as it is (raw counts), else the range mapped
+/// linearly onto 0–65535. Rounded to the nearest code; a value outside
+/// the range or not finite is clamped (NaN to 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum IntensityScale {
+    Bits8,
+    Bits16,
+    Unit,
+    AsIs,
+    Range(f64, f64),
+}
+
+impl IntensityScale {
+    /// The scale of values of type `ty` whose finite ones lie in
+    /// `lo..=hi` (an empty range where there are none).
+    fn of(ty: &ScalarType, (lo, hi): (f64, f64)) -> IntensityScale {
+        let float = matches!(ty, ScalarType::Float | ScalarType::Double);
+        match ty {
+            ScalarType::UChar => IntensityScale::Bits8,
+            ScalarType::UShort => IntensityScale::Bits16,
+            _ if lo > hi => IntensityScale::AsIs,
+            _ if float && lo >= 0.0 && hi <= 1.0 => IntensityScale::Unit,
+            _ if lo >= 0.0 && hi <= 65535.0 => IntensityScale::AsIs,
+            _ => IntensityScale::Range(lo, hi),
+        }
+    }
+
+    /// The 16-bit intensity of value `v`.
+    pub fn code(self, v: f64) -> u16 {
+        let scaled = match self {
+            IntensityScale::Bits8 => v * 257.0,
+            IntensityScale::Bits16 | IntensityScale::AsIs => v,
+            IntensityScale::Unit => v * 65535.0,
+            IntensityScale::Range(lo, hi) => (v - lo) / (hi - lo).max(f64::MIN_POSITIVE) * 65535.0,
+        };
+        // `as` saturates, and makes NaN 0.
+        scaled.round().clamp(0.0, 65535.0) as u16
+    }
+}
+
+/// The range of the finite values of `values`: (lo, hi), lo > hi where
+/// there are none.
+pub fn finite_range(values: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        })
+}
+
+/// The 16-bit intensities of `raw` values of the `intensity` property of
+/// `fields` ([`IntensityScale`]); None without one.
+fn intensity_codes(fields: &Fields, raw: &[f32]) -> Option<Vec<u16>> {
+    let f = fields.intensity.as_ref()?;
+    let scale = IntensityScale::of(&f.ty, finite_range(raw.iter().map(|&v| f64::from(v))));
+    Some(raw.iter().map(|&v| scale.code(f64::from(v))).collect())
+}
+
 /// Where one scalar vertex property lies in a binary record, or which token
 /// of an ASCII line it is, and its type.
 #[derive(Debug, Clone)]
@@ -621,6 +807,8 @@ struct Fields {
     position: [Field; 3],
     color: Option<[Field; 3]>,
     normal: Option<[Field; 3]>,
+    /// The `intensity` property, as stored.
+    intensity: Option<Field>,
     /// Bytes per binary record (0 for ASCII).
     stride: usize,
 }
@@ -659,8 +847,37 @@ impl Fields {
                 true => Some(three(["nx", "ny", "nz"])?),
                 false => None,
             },
+            intensity: get(INTENSITY),
             stride: if binary { at } else { 0 },
         })
+    }
+}
+
+impl Fields {
+    /// The intensities of the binary records of `block`, as stored
+    /// (empty without an `intensity` property).
+    fn binary_intensities(&self, block: &[u8], big_endian: bool) -> Vec<f32> {
+        let Some(f) = &self.intensity else {
+            return Vec::new();
+        };
+        block
+            .chunks_exact(self.stride)
+            .map(|r| binary_scalar(&r[f.at..], &f.ty, big_endian).value() as f32)
+            .collect()
+    }
+
+    /// Whether a coordinate may hold more precision than f32 ([`is_wide`]).
+    fn wide(&self) -> bool {
+        self.position.iter().any(|f| is_wide(&f.ty))
+    }
+
+    /// The file position of the first binary record of `block`.
+    fn binary_position(&self, block: &[u8], big_endian: bool) -> DVec3 {
+        let [x, y, z] = self
+            .position
+            .each_ref()
+            .map(|f| binary_scalar(&block[f.at..], &f.ty, big_endian).value());
+        DVec3::new(x, y, z)
     }
 }
 
@@ -763,20 +980,29 @@ fn color_table(ty: &ScalarType) -> Option<&'static [f32]> {
     }
 }
 
-/// The color conversion of the direct reader: 8- and 16-bit channels
-/// through the tables, other types through [`Scalar::linear_color`].
+/// The conversions of the direct reader: positions against the origin
+/// `shift` in f64; colors, 8- and 16-bit channels through the tables,
+/// other types through [`Scalar::linear_color`].
 struct Converter {
     tables: [Option<&'static [f32]>; 3],
+    shift: DVec3,
 }
 
 impl Converter {
-    fn new(fields: &Fields) -> Converter {
+    fn new(fields: &Fields, shift: DVec3) -> Converter {
         Converter {
             tables: fields
                 .color
                 .as_ref()
                 .map_or([None; 3], |c| c.each_ref().map(|f| color_table(&f.ty))),
+            shift,
         }
+    }
+
+    /// Scene coordinate `axis` (0 x, 1 y, 2 z) of file value `v`.
+    #[inline]
+    fn coordinate(&self, axis: usize, v: Scalar) -> f32 {
+        (v.value() - self.shift[axis]) as f32
     }
 
     /// Linear color of channel `c` (0 red, 1 green, 2 blue) of value `v`.
@@ -897,7 +1123,9 @@ fn binary_part(
             binary_column(block, stride, field, big_endian, out, c, |v| map(c, v));
         }
     };
-    columns(out.positions, &fields.position, &|_, v| v.coordinate());
+    columns(out.positions, &fields.position, &|c, v| {
+        converter.coordinate(c, v)
+    });
     if !out.positions.iter().all(|p| p.is_finite()) {
         return false;
     }
@@ -994,7 +1222,12 @@ fn ascii_part(
             row.push(ascii_scalar(token, ty)?);
         }
         let three = |f: &[Field; 3]| f.each_ref().map(|f| row[f.at]);
-        let p = Vec3::from_array(three(&fields.position).map(Scalar::coordinate));
+        let [x, y, z] = three(&fields.position);
+        let p = Vec3::new(
+            converter.coordinate(0, x),
+            converter.coordinate(1, y),
+            converter.coordinate(2, z),
+        );
         if !p.is_finite() {
             return None;
         }
@@ -1143,7 +1376,8 @@ impl<R: BufRead> BufRead for Counted<R> {
 
 /// Reads a binary vertex element straight from the payload, `input` (of
 /// `payload_len` bytes), streamed `chunk_bytes` at a time (whole records,
-/// at least one) into the cloud's vectors. None when the file is anything
+/// at least one) into the cloud's vectors, against the origin of
+/// [`origin_to_read_at`] for `origin`. None when the file is anything
 /// but well-formed (the general reader then reads it, or says what is
 /// wrong). Every element is checked as the general reader would read it,
 /// those before and after the vertices too.
@@ -1153,7 +1387,7 @@ fn read_binary(
     header: &Header,
     vertex: &ElementDef,
     layout: &Layout,
-    chunk_bytes: usize,
+    read_as: (usize, Option<DVec3>),
 ) -> io::Result<Option<PointCloud>> {
     let big_endian = matches!(header.encoding, Encoding::BinaryBigEndian);
     let Some(fields) = Fields::of(vertex, layout, true) else {
@@ -1173,7 +1407,7 @@ fn read_binary(
                 Some(bytes) if bytes <= left => {}
                 _ => return Ok(None),
             }
-            vertices = read_vertex_block(input, &fields, count, big_endian, chunk_bytes)?;
+            vertices = read_vertex_block(input, &fields, count, big_endian, read_as)?;
             if vertices.is_none() {
                 return Ok(None);
             }
@@ -1189,10 +1423,12 @@ fn read_binary(
             }
         }
     }
-    let Some((positions, colors, normals)) = vertices else {
+    let Some(((positions, colors, normals), origin, intensities)) = vertices else {
         return Ok(None);
     };
     Ok(Some(PointCloud {
+        origin,
+        intensities: intensity_codes(&fields, &intensities),
         positions,
         colors,
         normals: layout.normals.then_some(normals),
@@ -1205,15 +1441,16 @@ fn read_binary(
 
 /// The `count` binary vertex records at the start of `input`, read
 /// `chunk_bytes` at a time (whole records, at least one) and converted
-/// into vectors of room for all of them; None when the file ends first or
-/// a coordinate is not finite.
+/// into vectors of room for all of them, positions against the origin of
+/// [`origin_to_read_at`] (returned with them, and the intensities as
+/// stored); None when the file ends first or a coordinate is not finite.
 fn read_vertex_block(
     input: &mut impl Read,
     fields: &Fields,
     count: usize,
     big_endian: bool,
-    chunk_bytes: usize,
-) -> io::Result<Option<Part>> {
+    (chunk_bytes, origin): (usize, Option<DVec3>),
+) -> io::Result<Option<(Part, DVec3, Vec<f32>)>> {
     let stride = fields.stride;
     let per_chunk = (chunk_bytes / stride).clamp(1, count.max(1));
     let mut cloud: Part = (
@@ -1221,20 +1458,31 @@ fn read_vertex_block(
         Vec::with_capacity(count),
         Vec::with_capacity(if fields.normal.is_some() { count } else { 0 }),
     );
-    let converter = Converter::new(fields);
+    let mut converter = None;
+    let mut intensities = Vec::new();
     let mut buf = vec![0u8; per_chunk * stride];
     let mut done = 0;
     while done < count {
         let n = per_chunk.min(count - done);
         let block = &mut buf[..n * stride];
-        if !read_or_end(input, block)?
-            || !append_binary(block, fields, &converter, big_endian, &mut cloud)
-        {
+        if !read_or_end(input, block)? {
             return Ok(None);
         }
+        // The origin once the first vertex is known.
+        let converter = converter.get_or_insert_with(|| {
+            let shift = origin_to_read_at(origin, fields.wide(), || {
+                fields.binary_position(block, big_endian)
+            });
+            Converter::new(fields, shift)
+        });
+        if !append_binary(block, fields, converter, big_endian, &mut cloud) {
+            return Ok(None);
+        }
+        intensities.extend(fields.binary_intensities(block, big_endian));
         done += n;
     }
-    Ok(Some(cloud))
+    let shift = converter.map_or(DVec3::ZERO, |c| c.shift);
+    Ok(Some((cloud, shift, intensities)))
 }
 
 /// Reads an ASCII vertex element straight from the payload, or None when
@@ -1246,6 +1494,7 @@ fn read_ascii(
     header: &Header,
     vertex: &ElementDef,
     layout: &Layout,
+    origin: Option<DVec3>,
 ) -> Option<PointCloud> {
     let fields = Fields::of(vertex, layout, false)?;
     let count = vertex.count;
@@ -1284,11 +1533,25 @@ fn read_ascii(
             PropertyType::List(..) => None,
         })
         .collect();
-    let converter = Converter::new(&fields);
+    let first = ascii_tokens(vertex_lines.first()?);
+    let value = |f: &Field| ascii_scalar(first.get(f.at)?, &f.ty).map(Scalar::value);
+    let [x, y, z] = fields.position.each_ref().map(value);
+    let first = DVec3::new(x?, y?, z?);
+    let shift = origin_to_read_at(origin, fields.wide(), || first);
+    let converter = Converter::new(&fields, shift);
     let (positions, colors, normals) = convert_all(count, |range| {
         ascii_part(&vertex_lines, &types, &fields, &converter, range)
     })?;
+    let intensities = match &fields.intensity {
+        Some(f) => vertex_lines
+            .iter()
+            .map(|l| Some(ascii_scalar(ascii_tokens(l).get(f.at)?, &f.ty)?.value() as f32))
+            .collect::<Option<Vec<f32>>>()?,
+        None => Vec::new(),
+    };
     Some(PointCloud {
+        origin: shift,
+        intensities: intensity_codes(&fields, &intensities),
         positions,
         colors,
         normals: layout.normals.then_some(normals),

@@ -343,3 +343,47 @@ pub fn add_specks_at_the_lens(cloud: &mut PointCloud, camera: &Camera) {
         }
     }
 }
+
+/// Writes a binary little-endian PLY whose vertices have `properties`
+/// (type, name), e.g. `("double", "x")`, one row of values per vertex
+/// (each written as its property's type).
+pub fn write_binary_ply(path: &Path, properties: &[(&str, &str)], rows: &[Vec<f64>]) {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\n",
+        rows.len()
+    );
+    for (ty, name) in properties {
+        bytes += &format!("property {ty} {name}\n");
+    }
+    bytes += "end_header\n";
+    let mut bytes = bytes.into_bytes();
+    for row in rows {
+        assert_eq!(row.len(), properties.len(), "a value per property");
+        for ((ty, _), &v) in properties.iter().zip(row) {
+            match *ty {
+                "double" => bytes.extend_from_slice(&v.to_le_bytes()),
+                "float" => bytes.extend_from_slice(&(v as f32).to_le_bytes()),
+                "uchar" => bytes.push(v as u8),
+                "ushort" => bytes.extend_from_slice(&(v as u16).to_le_bytes()),
+                "int" => bytes.extend_from_slice(&(v as i32).to_le_bytes()),
+                other => panic!("type {other} not written by the test"),
+            }
+        }
+    }
+    std::fs::write(path, bytes).expect("write ply");
+}
+
+/// `count` points of a unit cube with its least corner at `corner`
+/// (a fixed pseudo-random sequence).
+pub fn cube_points(count: usize, corner: f64) -> Vec<[f64; 3]> {
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..count)
+        .map(|_| [corner + next(), corner + next(), corner + next()])
+        .collect()
+}

@@ -249,7 +249,7 @@ fn cloud_record(
 /// flag; the scan angle rank becomes 0.006° steps; a missing GPS time is
 /// 0 and missing colors are black. Extended formats (6–10) keep their
 /// first 30 bytes; NIR, waveforms and extra bytes are dropped (named in
-/// a warning, [`dropped_by_conversion`]). Return
+/// a warning, `dropped_by_conversion`). Return
 /// numbers are at least 1 and a number of returns at least the return's.
 #[derive(Debug, Clone, Copy)]
 pub struct RecordConverter {

@@ -47,7 +47,7 @@ pub fn load_ply(path: &Path) -> Result<PointCloud> {
 }
 
 /// [`load_ply`] re-centred on `origin` (file coordinates), or on the
-/// default origin where None ([`origin_to_read_at`]): positions are
+/// default origin where None (`origin_to_read_at`): positions are
 /// `(file coordinate − origin)` computed in f64, then made f32.
 pub fn load_ply_at(path: &Path, origin: Option<DVec3>) -> Result<PointCloud> {
     load_with_chunk(path, CHUNK_BYTES, origin)

@@ -245,6 +245,7 @@ impl Scene {
                         m = m.max(f_px * v.position_size[3] / z);
                     }
                 }
+                warn_of_splats_wider_than(camera, m);
                 m.min(point_size_max)
             }
         };
@@ -1272,6 +1273,26 @@ pub(crate) fn rgba16f_texels(bytes: &[u8]) -> Vec<[f32; 4]> {
         .chunks_exact(8)
         .map(|t| std::array::from_fn(|i| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]))))
         .collect()
+}
+
+/// Warns, once a process, where a frame's widest splat (`widest_px`, in
+/// the pinhole image) is wider than the frame: every such splat is
+/// rasterised over the whole frame, which takes long and shows little but
+/// those splats (`--splat-size` far above the points' spacing).
+fn warn_of_splats_wider_than(camera: &Camera, widest_px: f32) {
+    static WARNED: std::sync::Once = std::sync::Once::new();
+    let frame_px = camera.width.max(camera.height) as f32;
+    if widest_px > frame_px {
+        WARNED.call_once(|| {
+            log::warn!(
+                "splats up to {widest_px:.0} px wide in a {}×{} frame: each covers the whole \
+                 frame, which is slow and hides what lies behind (a --splat-size far above the \
+                 points' spacing?)",
+                camera.width,
+                camera.height
+            )
+        });
+    }
 }
 
 #[cfg(test)]

@@ -493,3 +493,32 @@ fn an_up_of_1e30_is_a_direction() {
     }
     assert!(images[1] == images[0] && images[2] == images[0]);
 }
+
+/// Splats wider than the frame (a `--splat-size` far above the points'
+/// spacing) make a frame slow and show nothing behind them: the render
+/// says so in one warning; splats sized by their spacing do not warn.
+#[test]
+fn splats_wider_than_the_frame_are_warned_of() {
+    let dir = scratch("cli-wide-splats");
+    let out = dir.join("wide.png").display().to_string();
+    let b = bunny();
+    let small = ["--width", "16", "--height", "12", "--device", "llvmpipe"];
+    let mut args = vec!["render", &b, "-o", &out, "--method", "pinhole"];
+    args.extend(small);
+    let run = pointlens(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        !stderr(&run).contains("covers the whole frame"),
+        "{}",
+        stderr(&run)
+    );
+    args.extend(["--splat-size", "1"]);
+    let run = pointlens(&args);
+    let err = stderr(&run);
+    assert!(run.status.success(), "{err}");
+    assert_eq!(
+        err.matches("each covers the whole frame").count(),
+        1,
+        "{err}"
+    );
+}

@@ -569,13 +569,15 @@ fn a_ply_without_colors_converts_to_format_6_with_its_intensity() {
     assert_eq!(header.point_format().to_u8().unwrap(), 7);
 }
 
-/// Issue 47, defect 5: what `convert` does not carry into the COPC file
-/// (NIR of point format 8, extra bytes) is named in one warning line, not
-/// dropped silently.
+/// Issue 47, defect 5: a LAS of point format 8 (NIR) with 4 extra bytes
+/// a point (`OriginId`, as PDAL's COPC has) converts to COPC format 8
+/// keeping every point's NIR, colour and extra bytes bit for bit and the
+/// Extra Bytes VLR, without a warning: read whole, and in parts (the
+/// split path); read back by the `las` crate and by pointlens.
 #[test]
-fn convert_names_the_data_it_does_not_keep() {
+fn format_8_with_extra_bytes_converts_keeping_nir_and_extra_bytes() {
     use las::{Builder, Color, Point, Vlr, Writer};
-    let dir = scratch("convert-lost");
+    let dir = scratch("convert-nir");
     let input = dir.path().join("nir.las");
     let mut builder = Builder::from((1, 4));
     builder.point_format = las::point::Format::new(8).unwrap();
@@ -587,39 +589,151 @@ fn convert_names_the_data_it_does_not_keep() {
         user_id: "LASF_Spec".into(),
         record_id: 4,
         description: "extra bytes".into(),
-        data: descriptor,
+        data: descriptor.clone(),
     });
     let mut writer = Writer::from_path(&input, builder.into_header().unwrap()).unwrap();
-    for i in 0..100u32 {
+    let n = 3_000u32;
+    // Each point's (x, y) code → its colour, NIR and extra bytes.
+    let mut want = std::collections::BTreeMap::new();
+    for i in 0..n {
+        let (x, y) = (f64::from(i % 60), f64::from(i / 60));
+        let color = Color::new(i as u16, (i * 3) as u16, (i * 7) as u16);
+        let nir = (i * 13 + 5) as u16;
+        let extra = (i.wrapping_mul(2_654_435_761)).to_le_bytes().to_vec();
+        want.insert(
+            (x as i64, y as i64),
+            ((color.red, color.green, color.blue), nir, extra.clone()),
+        );
         writer
             .write_point(Point {
-                x: f64::from(i % 10),
-                y: f64::from(i / 10),
-                z: 0.0,
+                x,
+                y,
+                z: f64::from(i % 7),
                 return_number: 1,
                 number_of_returns: 1,
-                gps_time: Some(0.0),
-                color: Some(Color::new(1, 2, 3)),
-                nir: Some(4),
-                extra_bytes: i.to_le_bytes().to_vec(),
+                gps_time: Some(f64::from(i)),
+                color: Some(color),
+                nir: Some(nir),
+                extra_bytes: extra,
                 ..Point::default()
             })
             .unwrap();
     }
     writer.close().unwrap();
-    let output = dir.path().join("nir.copc.laz");
+    for (name, part_points) in [("whole", None), ("parts", Some(200u64))] {
+        let output = dir.path().join(format!("{name}.copc.laz"));
+        let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"));
+        if let Some(p) = part_points {
+            command.env("POINTLENS_CONVERT_PART_POINTS", p.to_string());
+        }
+        let o = command
+            .args([
+                "convert",
+                input.to_str().unwrap(),
+                "-o",
+                output.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {stderr}");
+        assert!(!stderr.contains(": warn:"), "{name}: {stderr}");
+        let mut reader = las::Reader::from_path(&output).unwrap();
+        let header = reader.header().clone();
+        assert_eq!(header.point_format().to_u8().unwrap(), 8, "{name}");
+        assert_eq!(header.point_format().extra_bytes, 4, "{name}");
+        let vlr = header
+            .all_vlrs()
+            .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+            .expect("the Extra Bytes VLR");
+        assert_eq!(vlr.data, descriptor, "{name}");
+        let mut got = std::collections::BTreeMap::new();
+        let data = reader.read_all().unwrap();
+        for p in data.points() {
+            let p = p.unwrap();
+            let c = p.color.unwrap();
+            got.insert(
+                (p.x.round() as i64, p.y.round() as i64),
+                ((c.red, c.green, c.blue), p.nir.unwrap(), p.extra_bytes),
+            );
+        }
+        assert_eq!(got.len(), n as usize, "{name}");
+        assert!(
+            got == want,
+            "{name}: the points' NIR, colours or extra bytes differ"
+        );
+        let cloud = load_las(&output, None, &mut |_, _| {}).unwrap();
+        assert_eq!(cloud.len(), n as usize, "{name}");
+        assert!(cloud.has_rgb, "{name}");
+    }
+}
+
+/// Issue 47, defect 5: of point format 10 (NIR and waveform packets) with
+/// extra bytes, COPC cannot hold the waveform packets only: the file is
+/// format 8 with the NIR and extra bytes, and one warning line names the
+/// waveform packets, nothing else.
+#[test]
+fn convert_names_the_waveform_packets_it_does_not_keep() {
+    use las::{Builder, Color, Point, Writer};
+    let dir = scratch("convert-waveform");
+    let input = dir.path().join("waveform.las");
+    let mut builder = Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(10).unwrap();
+    builder.point_format.extra_bytes = 2;
+    let mut writer = Writer::from_path(&input, builder.into_header().unwrap()).unwrap();
+    let mut want = Vec::new();
+    for i in 0..100u16 {
+        want.push((
+            i % 10,
+            i / 10,
+            i * 11 + 1,
+            (i ^ 0x5A5A).to_le_bytes().to_vec(),
+        ));
+        writer
+            .write_point(Point {
+                x: f64::from(i % 10),
+                y: f64::from(i / 10),
+                return_number: 1,
+                number_of_returns: 1,
+                gps_time: Some(0.0),
+                color: Some(Color::new(1, 2, 3)),
+                nir: Some(i * 11 + 1),
+                waveform: Some(Default::default()),
+                extra_bytes: (i ^ 0x5A5A).to_le_bytes().to_vec(),
+                ..Point::default()
+            })
+            .unwrap();
+    }
+    writer.close().unwrap();
+    let output = dir.path().join("waveform.copc.laz");
     let o = pointlens(&[
         "convert",
         input.to_str().unwrap(),
         "-o",
         output.to_str().unwrap(),
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stderr = String::from_utf8_lossy(&o.stderr);
-    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("NIR")).collect();
+    assert!(o.status.success(), "{stderr}");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains(": warn:")).collect();
     assert_eq!(warnings.len(), 1, "{stderr}");
     assert!(
-        warnings[0].contains("4 extra bytes a point (OriginId)"),
+        warnings[0].contains("waveform packets of point format 10")
+            && !warnings[0].contains("NIR")
+            && !warnings[0].contains("extra bytes"),
         "{stderr}"
     );
+    let mut reader = las::Reader::from_path(&output).unwrap();
+    assert_eq!(reader.header().point_format().to_u8().unwrap(), 8);
+    let data = reader.read_all().unwrap();
+    let mut got: Vec<_> = data
+        .points()
+        .map(|p| {
+            let p = p.unwrap();
+            let (x, y) = (p.x.round() as u16, p.y.round() as u16);
+            (x, y, p.nir.unwrap(), p.extra_bytes)
+        })
+        .collect();
+    got.sort();
+    want.sort();
+    assert_eq!(got, want);
 }

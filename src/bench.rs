@@ -19,7 +19,7 @@ use crate::camera::{self, Camera, CameraSpec};
 use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::gbuffer::depth_range;
-use crate::image_io::{encode_png, LinearImage};
+use crate::image_io::LinearImage;
 use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
 use crate::options::Lod;
@@ -367,6 +367,14 @@ pub struct Cell {
     pub warmup: u32,
     pub frame_wall_ms: Stats,
     pub gpu_total_ms: Stats,
+    /// Each timed frame's host share: its wall less its GPU time (None in
+    /// reports written before it).
+    #[serde(default)]
+    pub host_ms: Option<Stats>,
+    /// The cell's first frame's wall (its first warm-up frame: the cell's
+    /// allocations and first use), apart from the steady frames above.
+    #[serde(default)]
+    pub first_frame_wall_ms: Option<f64>,
     pub passes: Vec<PassStats>,
     pub upload: Upload,
     /// Encoding the frame as PNG in memory, after the frame.
@@ -392,6 +400,12 @@ pub struct BenchReport {
     #[serde(default = "square")]
     pub splat_shape: String,
     pub quality_reference: Option<String>,
+    /// What a measured frame reads back and encodes: `png`, the device's
+    /// sRGB 8-bit pixels encoded as PNG, as `render` writes a PNG (empty
+    /// in reports written before: linear pixels read back, encoded on the
+    /// host).
+    #[serde(default)]
+    pub output: String,
     pub cells: Vec<Cell>,
 }
 
@@ -470,16 +484,17 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 let Measured {
                     timings,
                     encode,
+                    first_wall_ms,
                     image,
                     samples_per_pass,
                     lod,
                 } = measure_cell(&renderer, &scene, &options_m, options, &m.name, &mut step)?;
-                let quality = match &reference {
-                    Some(reference) => Some(Quality {
-                        psnr_db: psnr(reference, &image)?,
-                        ssim: ssim(reference, &image)?,
+                let quality = match (&reference, &image) {
+                    (Some(reference), Some(image)) => Some(Quality {
+                        psnr_db: psnr(reference, image)?,
+                        ssim: ssim(reference, image)?,
                     }),
-                    None => None,
+                    _ => None,
                 };
                 cells.push(Cell {
                     model: model.name(),
@@ -502,6 +517,13 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     gpu_total_ms: Stats::of(
                         &timings.iter().map(|t| t.gpu_total_ms()).collect::<Vec<_>>(),
                     ),
+                    host_ms: Some(Stats::of(
+                        &timings
+                            .iter()
+                            .map(|t| (t.wall_ms - t.gpu_total_ms()).max(0.0))
+                            .collect::<Vec<_>>(),
+                    )),
+                    first_frame_wall_ms: Some(first_wall_ms),
                     passes: pass_stats(&timings),
                     upload,
                     png_encode_ms: Stats::of(&encode),
@@ -541,8 +563,10 @@ struct Measured {
     timings: Vec<FrameTimings>,
     /// Each timed frame's PNG encoding, milliseconds.
     encode: Vec<f64>,
-    /// The last frame.
-    image: LinearImage,
+    /// The first frame's wall, milliseconds.
+    first_wall_ms: f64,
+    /// The frame in linear light, rendered once more untimed (`--quality`).
+    image: Option<LinearImage>,
     samples_per_pass: u32,
     /// The splat hierarchy's work in the first frame.
     lod: LodReport,
@@ -561,30 +585,37 @@ fn measure_cell(
     step: &mut dyn FnMut(&str),
 ) -> Result<Measured> {
     let mut lod = None;
+    let mut first_wall_ms = None;
     for _ in 0..options.warmup {
         step(&format!("{name} (warm-up)"));
-        let r = renderer.render(scene, frame)?;
+        let r = renderer.render_srgb8(scene, frame)?;
+        first_wall_ms.get_or_insert(r.timings.wall_ms);
         lod.get_or_insert(r.lod);
     }
     let mut timings = Vec::new();
     let mut encode = Vec::new();
-    let mut last: Option<LinearImage> = None;
     let mut samples_per_pass = 1;
     for _ in 0..options.runs {
         step(name);
-        let r = renderer.render(scene, frame)?;
+        // The frame as `render` writes a PNG: its sRGB 8-bit pixels.
+        let r = renderer.render_srgb8(scene, frame)?;
+        first_wall_ms.get_or_insert(r.timings.wall_ms);
         lod.get_or_insert(r.lod);
         let t = Instant::now();
-        encode_png(&r.image)?;
+        r.image.encode_png()?;
         encode.push(t.elapsed().as_secs_f64() * 1e3);
         timings.push(r.timings);
         samples_per_pass = r.samples_per_pass;
-        last = Some(r.image);
     }
+    let image = match options.quality {
+        true => Some(renderer.render(scene, frame)?.image),
+        false => None,
+    };
     Ok(Measured {
         timings,
         encode,
-        image: last.expect("runs ≥ 1"),
+        first_wall_ms: first_wall_ms.expect("runs ≥ 1"),
+        image,
         samples_per_pass,
         lod: lod.expect("runs ≥ 1"),
     })
@@ -612,6 +643,7 @@ fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) ->
         quality_reference: options
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
+        output: "png".into(),
         cells,
     }
 }
@@ -668,9 +700,9 @@ impl BenchReport {
             self.warmup
         );
         let quality = self.quality_reference.is_some();
-        s += "| model | points | resolution | method | lod px | splats | traversal | CoC px (points; background) | frame wall | GPU total | DOF passes | tree build | PNG encode |";
+        s += "| model | points | resolution | method | lod px | splats | traversal | CoC px (points; background) | frame wall | GPU total | host | first frame | DOF passes | tree build | PNG encode |";
         s += if quality { " PSNR dB | SSIM |\n" } else { "\n" };
-        s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|";
+        s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|";
         s += if quality { "---:|---:|\n" } else { "\n" };
         for c in &self.cells {
             let method = self.label(c);
@@ -685,7 +717,7 @@ impl BenchReport {
                 .sum::<f64>()
                 + 0.0; // an empty sum is −0.0
             s += &format!(
-                "| {} | {} | {}×{} | {} | {} | {} | {:.1} | {:.1}–{:.1}; {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                "| {} | {} | {}×{} | {} | {} | {} | {:.1} | {:.1}–{:.1}; {:.1} | {} | {:.1} | {} | {} | {:.1} | {:.1} | {:.1} |",
                 c.model,
                 c.points,
                 c.width,
@@ -699,6 +731,8 @@ impl BenchReport {
                 c.coc_px.background,
                 fmt_stats(&c.frame_wall_ms),
                 c.gpu_total_ms.median,
+                c.host_ms.map_or("–".into(), |h| format!("{:.1}", h.median)),
+                c.first_frame_wall_ms.map_or("–".into(), |f| format!("{f:.1}")),
                 dof,
                 c.upload.tree_ms,
                 c.png_encode_ms.median,
@@ -714,7 +748,8 @@ impl BenchReport {
     }
 
     /// One row per (cell, measure): the frame's wall time, its GPU total,
-    /// every pass, the splat sizes, the upload and the PNG encoding.
+    /// its host share, every pass, the splat sizes, the upload, the PNG
+    /// encoding and the cell's first frame.
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
             "model,points,width,height,method,ssaa,samples,lod_px,splats,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim\n",
@@ -750,6 +785,9 @@ impl BenchReport {
             };
             row("frame_wall", 1, c.frame_wall_ms);
             row("gpu_total", 1, c.gpu_total_ms);
+            if let Some(host) = c.host_ms {
+                row("host", 1, host);
+            }
             for pass in &c.passes {
                 row(&format!("pass:{}", pass.name), pass.count, pass.gpu_ms);
             }
@@ -764,6 +802,9 @@ impl BenchReport {
             row("upload_gpu", 1, once(c.upload.gpu_ms));
             row("upload_wall", 1, once(c.upload.wall_ms));
             row("png_encode", 1, c.png_encode_ms);
+            if let Some(first) = c.first_frame_wall_ms {
+                row("first_frame_wall", 1, once(first));
+            }
         }
         s
     }

@@ -201,9 +201,9 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
         }
     }
 
-    // CSV: a header, then per cell frame_wall, gpu_total, each pass,
-    // splat_sizes, tree_build, traversal, upload_gpu, upload_wall and
-    // png_encode.
+    // CSV: a header, then per cell frame_wall, gpu_total, host, each pass,
+    // splat_sizes, tree_build, traversal, upload_gpu, upload_wall,
+    // png_encode and first_frame_wall.
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -212,7 +212,7 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let expected: usize = cells
         .iter()
-        .map(|c| 8 + c["passes"].as_array().unwrap().len())
+        .map(|c| 10 + c["passes"].as_array().unwrap().len())
         .sum();
     assert_eq!(rows.len(), expected);
     assert!(rows.iter().all(|r| r.len() == 19), "{text}");

@@ -431,6 +431,10 @@ impl RenderJob {
     ) -> Result<Outcome> {
         let kind = crate::input::kind_of(&scene.input);
         scene::check_flags(kind, &self.spec, scene)?;
+        // Checked again by every frame; here before the file is read.
+        if scene.edl.is_some() {
+            crate::options::check_edl_with(&self.spec.method)?;
+        }
         if kind == SceneKind::Gaussians {
             self.gaussian_lens()?;
         }

@@ -347,6 +347,19 @@ impl MethodKind {
     }
 }
 
+/// Refuses eye-dome lighting (`--edl`) with `method` where it cannot act:
+/// `accum` averages a G-buffer per lens position and has none to shade.
+pub fn check_edl_with(method: &Method) -> Result<()> {
+    match method {
+        Method::Accum(_) => Err(Error::InvalidArgument(
+            "--edl shades the one G-buffer a depth-of-field method blurs; accum averages \
+             a G-buffer per lens position and has none to shade (use --method layered)"
+                .into(),
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// The options of the methods as the command line gives them: None where
 /// a flag is not given ([`MethodKind::with_flags`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -837,12 +837,8 @@ impl Renderer {
         if let Method::Fast(fast) = options.method {
             fast.check()?;
         }
-        if self.edl.is_some() && matches!(options.method, Method::Accum(_)) {
-            return Err(Error::InvalidArgument(
-                "--edl shades the one G-buffer a depth-of-field method blurs; accum averages \
-                 a G-buffer per lens position and has none to shade (use --method layered)"
-                    .into(),
-            ));
+        if self.edl.is_some() {
+            crate::options::check_edl_with(&options.method)?;
         }
         Ok(())
     }

@@ -309,6 +309,11 @@ fn catalogue() -> Vec<Case> {
         case("synth --points 10000000000000 -o {dir}/big.laz", "need at least 80000.0 GB"),
         // Eye-dome lighting.
         case("render {bunny} -o {out} R --edl 1 --method accum", "accum averages"),
+        // Refused before the file is read: a missing file is not named.
+        case(
+            "render {dir}/no-such.ply -o {out} R --edl 1 --method accum",
+            "accum averages",
+        ),
         case("render {bunny} -o {out} R --edl -1", "--edl strength"),
         case("render {bunny} -o {out} R --edl 1,2,3", "STRENGTH[,RADIUS_PX]"),
         case("render {bunny} -o {out} R --edl 1,64", "--edl radius"),

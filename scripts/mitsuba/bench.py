@@ -132,6 +132,10 @@ def parse_args(argv):
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     p.add_argument("--ssaa", default=None)
     p.add_argument("--methods", default=None)
+    p.add_argument("--warm-cold", action="store_true",
+                   help="also time pointlens warm (the steady frames of a 4-frame sequence of one "
+                        "camera) and cold (a whole one-frame process), against Mitsuba's steady and "
+                        "first (JIT) renders, and print both ratios")
     try:
         args = p.parse_args(argv)
     except SystemExit as e:
@@ -228,7 +232,20 @@ class Bench:
                        what=f"pointlens render ({scene}, {name})")
         process_s = time.perf_counter() - started
         t = json.loads(tj.read_text())
+        steady = None
+        if self.args.warm_cold:
+            # The same camera four times in one process: frames 2-4 are
+            # steady (nothing allocated, pipelines and scene warm).
+            tw = out_exr.with_suffix(".warm.json")
+            pattern = out_exr.with_name(out_exr.stem + "_warm_%d.exr")
+            self.pointlens("render", str(self.repo / SCENES[scene]["file"]), "-o", str(pattern),
+                           "--camera", str(camera), "--splat-shape", self.args.splat_shape, *flags,
+                           *self.device_flags(), "--frames", "4", "--orbit", "0",
+                           "--timings-json", str(tw), what=f"pointlens warm ({scene}, {name})")
+            frames = json.loads(tw.read_text())
+            steady = statistics.median(f["frame_wall_ms"] for f in frames[1:])
         return {
+            "steady_ms": steady,
             "frame_wall_ms": t["frame_wall_ms"],
             "gpu_total_ms": t["gpu_total_ms"],
             "upload_wall_ms": t["upload"]["wall_ms"],
@@ -475,6 +492,8 @@ class Bench:
                              "n": len(ms), "first_ms": None,
                              "gpu_total_ms": statistics.median(x["gpu_total_ms"] for x in runs),
                              "process_ms": statistics.median(x["process_ms"] for x in runs),
+                             "steady_ms": (statistics.median(x["steady_ms"] for x in runs)
+                                           if a.warm_cold else None),
                              "load_ms": statistics.median(x["load_ms"] for x in runs),
                              "splat_sizes_ms": statistics.median(x["splat_sizes_ms"] for x in runs),
                              "upload_wall_ms": statistics.median(x["upload_wall_ms"] for x in runs),
@@ -487,11 +506,21 @@ class Bench:
                              "time_max_ms": max(ms), "n": len(ms), "first_ms": mt_first[scene][spp],
                              "runs_ms": ms})
             curve = [(r["spp"], r["psnr"], r["time_ms"]) for r in rows if r["renderer"] == "mitsuba"]
+            cold = [(r["spp"], r["psnr"], r["first_ms"]) for r in rows
+                    if r["renderer"] == "mitsuba" and r["first_ms"]]
             for r in rows:
                 if r["renderer"] == "pointlens":
                     eq = equal_quality(curve, r["psnr"])
                     r.update(eq)
                     r["ratio"] = eq["mitsuba_ms_same_psnr"] / r["time_ms"] if eq["mitsuba_ms_same_psnr"] else None
+                    if a.warm_cold:
+                        # Warm: both renderers' steady frames; cold: a whole
+                        # one-frame pointlens process against Mitsuba's first
+                        # render at the same PSNR (its kernels compiled).
+                        mw = eq["mitsuba_ms_same_psnr"]
+                        mc = equal_quality(cold, r["psnr"])["mitsuba_ms_same_psnr"]
+                        r["ratio_warm"] = mw / r["steady_ms"] if mw and r["steady_ms"] else None
+                        r["ratio_cold"] = mc / r["process_ms"] if mc else None
             info["rows"] = rows
             info["pointlens_device"] = next(iter(pl[scene].values()))[0]["device"]
             self.results["scenes"][scene] = info
@@ -720,10 +749,21 @@ def markdown(results):
             lines.append("(extrap.), *: beyond the Mitsuba curve's sample counts, extrapolated along its "
                          "last segment.")
         p0 = next(r for r in info["rows"] if r["renderer"] == "pointlens")
+        if "ratio_warm" in p0:
+            lines.append("")
+            lines.append("| pointlens | warm: steady frame ms | Mitsuba steady / it | cold: one-frame process ms "
+                         "| Mitsuba first render / it |")
+            lines.append("|---|---:|---:|---:|---:|")
+            for r in info["rows"]:
+                if r["renderer"] != "pointlens":
+                    continue
+                w = f"{r['ratio_warm']:.2f}" if r.get("ratio_warm") else "—"
+                c = f"{r['ratio_cold']:.2f}" if r.get("ratio_cold") else "—"
+                lines.append(f"| {r['setting']} | {ms(r['steady_ms'])} | {w} | {ms(r['process_ms'])} | {c} |")
         lines.append("")
         lines.append(f"Outside the times above: pointlens reads the file in {ms(p0['load_ms'])} ms and uploads "
                      f"in {ms(p0['upload_wall_ms'])} ms (splat sizes {ms(p0['splat_sizes_ms'])} ms), a whole "
-                     f"`render` process of pinhole takes {ms(p0['process_ms'])} ms; Mitsuba builds the scene "
+                     f"`render` process of {p0['setting']} takes {ms(p0['process_ms'])} ms; Mitsuba builds the scene "
                      f"(squares, mesh, BVH) in {ms(info['mitsuba_build_ms'])} ms"
                      + (f" (plus {ms(info['squares']['tie_seconds'] * 1e3)} ms in Python ordering "
                         f"{info['squares']['tie_points_moved']:,} equal-depth squares as pointlens draws them)"

@@ -264,6 +264,21 @@ fn a_bad_copc_hierarchy_is_one_line() {
         lie.bytes[count_at..count_at + 4].copy_from_slice(&(count + delta).to_le_bytes());
         check(&lie, name, "counts that lie");
     }
+
+    // A node's LAZ chunk whose first layer declares 4 GiB (the `laz`
+    // crate sized its buffer from it before reading: found by reading it
+    // while writing the `copc` fuzz target, docs/FUZZING.md).
+    let mut layers = original.clone();
+    let root_entry = original
+        .entries()
+        .into_iter()
+        .find(|e| key_of(e) == NodeKey::ROOT)
+        .unwrap();
+    let chunk = u64::from_le_bytes(root_entry[16..24].try_into().unwrap()) as usize;
+    // After the first point's 36 bytes and the chunk's point count.
+    let at = chunk + 36 + 4;
+    layers.bytes[at..at + 4].copy_from_slice(&0xffff_fff0u32.to_le_bytes());
+    check(&layers, "layers.copc.laz", "its layers declare");
 }
 
 /// The camera of the frame tests: PDAL's Autzen file from the south-west,

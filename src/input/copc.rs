@@ -519,6 +519,23 @@ impl CopcFile {
         decompressor
             .set_fields_from(&self.items)
             .map_err(|e| self.fail(format!("the LAZ items of node {}: {e}", key_name(node.key))))?;
+        // The decompressor sizes each layer's buffer from the chunk's own
+        // count: the layers must fit in the node's bytes.
+        let head_len = super::las::layered_head_len(&self.items, self.record_len as u64);
+        if bytes.len() < head_len {
+            return Err(self.fail(format!(
+                "node {}'s LAZ chunk of {} bytes ends before its layers' sizes",
+                key_name(node.key),
+                bytes.len()
+            )));
+        }
+        super::las::check_layers(
+            &self.items,
+            self.record_len as u64,
+            &bytes,
+            bytes.len() as u64,
+        )
+        .map_err(|e| self.fail(format!("node {}'s LAZ chunk: {e}", key_name(node.key))))?;
         decompressor.decompress_many(&mut out).map_err(|e| {
             self.fail(format!(
                 "node {} does not hold the {n} points its hierarchy entry declares ({e})",

@@ -350,6 +350,71 @@ fn check_chunk_table(
             });
         }
     }
+    // Each layered chunk (point formats 6–10) starts with its layers'
+    // byte counts, from which the decompressor sizes its buffers before
+    // reading: they must fit in the chunk.
+    let items = vlr.items();
+    if items
+        .iter()
+        .any(|i| matches!(i.item_type(), laz::LazItemType::Point14))
+    {
+        let head_len = layered_head_len(items, record_len);
+        let mut start = data_start + 8;
+        for (i, entry) in (&entries).into_iter().enumerate() {
+            let len = (head_len as u64).min(entry.byte_count) as usize;
+            let mut head = vec![0u8; len];
+            file.seek(SeekFrom::Start(start)).map_err(io)?;
+            file.read_exact(&mut head).map_err(io)?;
+            check_layers(items, record_len, &head, entry.byte_count)
+                .map_err(|e| fail(format!("chunk {i}: {e}")))?;
+            start += entry.byte_count;
+        }
+    }
+    Ok(())
+}
+
+/// Bytes before a layered LAZ chunk's layers (point formats 6–10): each
+/// field's first point raw (`record_len` in all), the chunk's point count,
+/// and a u32 byte count for each layer.
+pub(super) fn layered_head_len(items: &[laz::LazItem], record_len: u64) -> usize {
+    let layers: usize = items
+        .iter()
+        .map(|item| match item.item_type() {
+            laz::LazItemType::Point14 => 9,
+            laz::LazItemType::RGBNIR14 => 2,
+            laz::LazItemType::Byte14(n) => usize::from(n),
+            _ => 1,
+        })
+        .sum();
+    record_len as usize + 4 + 4 * layers
+}
+
+/// Checks the start (`head`) of a layered LAZ chunk of `chunk_len` bytes:
+/// its layers' byte counts must fit in the chunk after them. The `laz`
+/// crate sizes each layer's buffer from its u32 count before reading it,
+/// so a corrupt count asked for up to 4 GiB a layer. A head shorter than
+/// [`layered_head_len`] is left to the decompressor (it fails reading it).
+pub(super) fn check_layers(
+    items: &[laz::LazItem],
+    record_len: u64,
+    head: &[u8],
+    chunk_len: u64,
+) -> std::result::Result<(), String> {
+    let head_len = layered_head_len(items, record_len);
+    let sizes_at = record_len as usize + 4;
+    let Some(words) = head.get(sizes_at..head_len) else {
+        return Ok(());
+    };
+    let declared: u64 = words
+        .chunks_exact(4)
+        .map(|w| u64::from(u32::from_le_bytes(w.try_into().expect("4 bytes"))))
+        .sum();
+    let room = chunk_len.saturating_sub(head_len as u64);
+    if declared > room {
+        return Err(format!(
+            "its layers declare {declared} bytes, {room} follow them"
+        ));
+    }
     Ok(())
 }
 

@@ -350,25 +350,40 @@ fn check_chunk_table(
             });
         }
     }
-    // Each layered chunk (point formats 6–10) starts with its layers'
-    // byte counts, from which the decompressor sizes its buffers before
-    // reading: they must fit in the chunk.
-    let items = vlr.items();
-    if items
+    check_chunk_layers(path, file, data_start, &entries, vlr.items(), record_len)
+}
+
+/// Checks that each layered chunk's (point formats 6–10) layer byte
+/// counts, from which the decompressor sizes its buffers before reading,
+/// fit in the chunk (`entries`: the chunk table; the chunks start 8 bytes
+/// after `data_start`).
+fn check_chunk_layers(
+    path: &Path,
+    file: &mut File,
+    data_start: u64,
+    entries: &laz::laszip::ChunkTable,
+    items: &[laz::LazItem],
+    record_len: u64,
+) -> Result<()> {
+    if !items
         .iter()
         .any(|i| matches!(i.item_type(), laz::LazItemType::Point14))
     {
-        let head_len = layered_head_len(items, record_len);
-        let mut start = data_start + 8;
-        for (i, entry) in (&entries).into_iter().enumerate() {
-            let len = (head_len as u64).min(entry.byte_count) as usize;
-            let mut head = vec![0u8; len];
-            file.seek(SeekFrom::Start(start)).map_err(io)?;
-            file.read_exact(&mut head).map_err(io)?;
-            check_layers(items, record_len, &head, entry.byte_count)
-                .map_err(|e| fail(format!("chunk {i}: {e}")))?;
-            start += entry.byte_count;
-        }
+        return Ok(());
+    }
+    let io = io_fail(path);
+    let head_len = layered_head_len(items, record_len);
+    let mut start = data_start + 8;
+    for (i, entry) in entries.into_iter().enumerate() {
+        let len = (head_len as u64).min(entry.byte_count) as usize;
+        let mut head = vec![0u8; len];
+        file.seek(SeekFrom::Start(start)).map_err(io)?;
+        file.read_exact(&mut head).map_err(io)?;
+        check_layers(items, record_len, &head, entry.byte_count).map_err(|e| Error::Las {
+            path: path.to_path_buf(),
+            msg: format!("corrupt LAZ chunk table: chunk {i}: {e}"),
+        })?;
+        start += entry.byte_count;
     }
     Ok(())
 }

@@ -50,6 +50,9 @@ pub fn emit(text: &str) -> Result<()> {
     }
 }
 
+/// The bar of points read while a file is read whole.
+const LOADING: &str = "loading {bar:30} {pos}/{len} points, {elapsed}";
+
 /// A progress bar on stderr (drawn only when stderr is a terminal), or
 /// none when `quiet`.
 pub fn progress(len: u64, template: &str, quiet: bool) -> ProgressBar {
@@ -80,7 +83,7 @@ impl RenderConsole {
             timings,
             sequence,
             quiet,
-            loading: progress(0, "loading {bar:30} {pos}/{len} points, {elapsed}", quiet),
+            loading: progress(0, LOADING, quiet),
             frames: ProgressBar::hidden(),
         }
     }
@@ -242,7 +245,7 @@ pub fn init_logging(verbose: u8, quiet: bool) {
 /// Runs `work` with a bar on stderr of the points read as it reads a file
 /// (`progress(done, total)`), cleared when it returns.
 pub fn loading<T>(quiet: bool, work: impl FnOnce(&mut dyn FnMut(u64, u64)) -> T) -> T {
-    let bar = progress(0, "loading {bar:30} {pos}/{len} points, {elapsed}", quiet);
+    let bar = progress(0, LOADING, quiet);
     let result = work(&mut |done, total| {
         bar.set_length(total);
         bar.set_position(done);

@@ -167,28 +167,28 @@ impl GpuGaussians {
 
     /// How many centres `camera` sees in front of the near plane.
     pub fn in_front(&self, camera: &Camera) -> usize {
-        let eye_from_world = camera.eye_from_world_transform();
-        let near_z = self.near_z;
-        self.centres
-            .iter()
-            .filter(|p| eye_from_world.apply(**p).z > near_z)
-            .count()
+        self.front_depths(camera).count()
     }
 
     /// The eye-depth range of the centres `camera` does not cull (eye
     /// depth above [`GpuGaussians::near_z`], as the projection), None when
     /// it culls all.
     pub fn depths(&self, camera: &Camera) -> Option<(f32, f32)> {
-        let eye_from_world = camera.eye_from_world_transform();
-        let near_z = self.near_z;
-        self.centres
-            .iter()
-            .map(|p| eye_from_world.apply(*p).z)
-            .filter(|z| *z > near_z)
+        self.front_depths(camera)
             .fold(None, |range, z| match range {
                 None => Some((z, z)),
                 Some((lo, hi)) => Some((f32::min(lo, z), f32::max(hi, z))),
             })
+    }
+
+    /// The eye depths of the centres `camera` does not cull.
+    fn front_depths<'a>(&'a self, camera: &Camera) -> impl Iterator<Item = f32> + 'a {
+        let eye_from_world = camera.eye_from_world_transform();
+        let near_z = self.near_z;
+        self.centres
+            .iter()
+            .map(move |p| eye_from_world.apply(*p).z)
+            .filter(move |z| *z > near_z)
     }
 }
 

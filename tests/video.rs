@@ -170,6 +170,7 @@ fn what_a_video_cannot_be_is_refused_in_one_line_before_rendering() {
         .args(["render", &b, "-o", &f, "--frames", "2"])
         .args(small)
         .env("PATH", "/nonexistent")
+        .env("POINTLENS_VALIDATION", "1")
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
@@ -191,6 +192,7 @@ fn an_interrupted_video_leaves_no_file() {
         .arg(&film)
         .args(["--width", "96", "--height", "72", "--device", "llvmpipe"])
         .args(["--frames", "100000", "--orbit", "360", "-q"])
+        .env("POINTLENS_VALIDATION", "1")
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();

@@ -39,6 +39,7 @@ fn main() {
         fovy_deg: f("fovy_deg"),
         aperture_radius: f("aperture_radius"),
         focus_distance: f("focus_distance"),
+        aperture: pointlens::camera::Aperture::ROUND,
     };
     let (width, height, channels) = read_exr_channels(&gbuffer_path).expect("the G-buffer EXR");
     assert_eq!(

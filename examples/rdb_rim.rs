@@ -54,6 +54,7 @@ fn main() -> anyhow::Result<()> {
             fovy_deg: 40.0,
             aperture_radius,
             focus_distance: 2.0,
+            aperture: pointlens::camera::Aperture::ROUND,
         };
         for (name, method) in [
             ("accum 256", Method::accum(256)),

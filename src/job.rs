@@ -386,6 +386,9 @@ impl RenderJob {
                 } => resolve(&self.spec_of(file.as_ref(), number)?)
                     .map_err(|e| e.within(format!("frame {number} of {}", path_file.display())))?,
             };
+            camera
+                .aperture
+                .check_method(self.spec.method.kind(), false)?;
             frames.push(FrameJob {
                 number,
                 camera,
@@ -436,7 +439,7 @@ impl RenderJob {
             crate::options::check_edl_with(&self.spec.method)?;
         }
         if kind == SceneKind::Gaussians {
-            self.gaussian_lens()?;
+            self.gaussian_lens(&camera::Aperture::ROUND)?;
         }
         // SIGINT or SIGTERM ends a sequence after the frame being rendered
         // (its file complete); a second one, or one during a single image,
@@ -694,14 +697,20 @@ impl RenderJob {
     /// The lens points of a Gaussian scene's method (the centre for
     /// `pinhole` and `layered`, the lens samples of `accum`); any other
     /// method is refused. (What else a Gaussian scene cannot do is in
-    /// [`scene::FLAGS`].)
-    pub fn gaussian_lens(&self) -> Result<Vec<glam::Vec2>> {
+    /// [`scene::FLAGS`].) `aperture`: the camera's, whose shape accum's
+    /// lens samples follow.
+    pub fn gaussian_lens(&self, aperture: &camera::Aperture) -> Result<Vec<glam::Vec2>> {
         match self.spec.method {
+            m @ Method::Layered(_) if aperture.is_shaped() => {
+                aperture.check_method(m.kind(), true)?;
+                Ok(vec![glam::Vec2::ZERO])
+            }
             Method::Pinhole | Method::Layered(_) => Ok(vec![glam::Vec2::ZERO]),
             Method::Accum(a) => {
                 crate::options::check_samples(a.samples)?;
-                Ok(camera::lens_samples(a.samples))
+                Ok(aperture.lens_samples(a.samples))
             }
+
             m => Err(Error::InvalidArgument(format!(
                 "--method {}: a scene of 3D Gaussians renders with pinhole, layered or accum",
                 m.short_name()
@@ -721,7 +730,7 @@ impl RenderJob {
         load_ms: f64,
         events: &mut Events<'_>,
     ) -> Result<RenderedFrame> {
-        let lens = self.gaussian_lens()?;
+        let lens = self.gaussian_lens(&job.camera.aperture)?;
         let spec = job.camera.to_spec_in(plan.coordinates, plan.origin);
         events(JobEvent::Camera {
             number: job.number,

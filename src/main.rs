@@ -272,6 +272,8 @@ struct RenderArgs {
     #[arg(long, value_parser = checked(check_ssaa))]
     ssaa: Option<u32>,
     #[command(flatten)]
+    aperture: camera::ApertureSpec,
+    #[command(flatten)]
     gbuffer: GBufferArgs,
     /// Vertical field of view, degrees.
     #[arg(long)]
@@ -674,6 +676,7 @@ fn job_spec(args: &RenderArgs) -> Result<JobSpec> {
             f_number: args.f_number,
             units_per_mm: args.units_per_mm,
             focus_distance: args.focus_distance,
+            aperture: args.aperture.clone(),
             ..CameraSpec::default()
         },
         focus_pixel: args.focus_pixel,

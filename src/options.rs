@@ -571,6 +571,17 @@ impl Method {
 }
 
 impl Method {
+    /// The method's name alone.
+    pub fn kind(&self) -> MethodKind {
+        match self {
+            Method::Pinhole => MethodKind::Pinhole,
+            Method::Fast(_) => MethodKind::Fast,
+            Method::Rdb(_) => MethodKind::Rdb,
+            Method::Accum(_) => MethodKind::Accum,
+            Method::Layered(_) => MethodKind::Layered,
+        }
+    }
+
     /// The method in one word, as [`Method::parse_short`] reads it
     /// (options other than those the word can say are left out).
     pub fn short_name(&self) -> String {

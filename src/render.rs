@@ -989,7 +989,7 @@ impl Renderer {
             keep_gbuffer,
             self.staged_output,
         )?;
-        let lens = method.gbuffer_lens();
+        let lens = method.gbuffer_lens(&view.frame.camera);
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         gbuffer.record(

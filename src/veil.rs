@@ -364,6 +364,7 @@ mod tests {
             fovy_deg: 40.0,
             aperture_radius: 0.01,
             focus_distance: 1.0,
+            aperture: crate::camera::Aperture::ROUND,
         };
         let at = |z: f32| Splat {
             position_size: [0.0, 0.0, -z, 0.001],

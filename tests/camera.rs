@@ -43,6 +43,7 @@ fn lens_camera() -> Camera {
         fovy_deg: 90.0,
         aperture_radius: 0.1,
         focus_distance: 2.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 
@@ -138,6 +139,7 @@ fn oblique_camera() -> Camera {
         fovy_deg: 90.0,
         aperture_radius: 0.0,
         focus_distance: 3.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 
@@ -379,6 +381,7 @@ fn camera_file_parses_every_field_and_ignores_unknown_ones() {
             f_number: Some(2.8),
             units_per_mm: Some(0.001),
             focus_distance: Some(4.5),
+            aperture: Default::default(),
         }
     );
     spec.require_complete().unwrap();
@@ -396,6 +399,7 @@ fn camera_file_parses_every_field_and_ignores_unknown_ones() {
             fovy_deg: 35.5,
             aperture_radius: 0.25,
             focus_distance: 4.5,
+            aperture: pointlens::camera::Aperture::ROUND,
         }
     );
     // An empty file is a valid (incomplete) spec.
@@ -486,6 +490,14 @@ fn flags_override_single_fields() {
         f_number: Some(10.0),
         units_per_mm: Some(11.0),
         focus_distance: Some(12.0),
+        aperture: pointlens::camera::ApertureSpec {
+            aperture_blades: Some(5),
+            aperture_rotation_deg: Some(15.0),
+            blade_curvature: Some(0.25),
+            anamorphic_ratio: Some(1.5),
+            aperture_image: Some("star.png".into()),
+            cat_eye: Some(0.5),
+        },
     };
     assert_eq!(file.overridden_by(&all), all);
 }

@@ -295,6 +295,7 @@ fn frame_camera(cloud: &PointCloud) -> pointlens::camera::Camera {
         fovy_deg: 50.0,
         aperture_radius: 20.0,
         focus_distance: 4000.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 

@@ -92,6 +92,7 @@ fn bunny_view(
         fovy_deg: 40.0,
         aperture_radius,
         focus_distance,
+        aperture: pointlens::camera::Aperture::ROUND,
     };
     (scene, cam)
 }
@@ -114,6 +115,7 @@ fn gpu_fast_equals_the_cpu_reference_on_a_crop_of_a_real_scan() {
             fovy_deg: 6.0,
             aperture_radius: 0.03,
             focus_distance: 1.0,
+            aperture: pointlens::camera::Aperture::ROUND,
         };
         for weights in [FastWeights::Area, FastWeights::Uniform] {
             for focus in [1.0, 1.3] {

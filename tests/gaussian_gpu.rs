@@ -213,6 +213,7 @@ fn camera(width: u32, height: u32) -> Camera {
         fovy_deg: 30.0,
         aperture_radius: 0.0,
         focus_distance: 4.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 
@@ -531,6 +532,7 @@ fn the_bundled_trained_scene() {
             fovy_deg: 45.0,
             aperture_radius: 0.0,
             focus_distance: 600.74,
+            aperture: pointlens::camera::Aperture::ROUND,
         };
         let renderer = GaussianRenderer::new(ctx).unwrap();
         let (pinhole, cpu) =

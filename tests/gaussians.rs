@@ -348,6 +348,7 @@ fn camera_at(z: f32, size: u32) -> pointlens::camera::Camera {
         fovy_deg: 40.0,
         aperture_radius: 0.0,
         focus_distance: z,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 

@@ -141,6 +141,7 @@ fn no_splat_of_the_readme_lidar_view_is_far_above_the_median() {
         fovy_deg: 36.0,
         aperture_radius: 6.0,
         focus_distance: 500.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     };
     let tree = pointlens::render::splat_tree(&tile, SplatSize::Spacing, 2);
     let splats = tree

@@ -249,6 +249,7 @@ fn looking_straight_down_from_one_unit() {
             fovy_deg: 40.0,
             aperture_radius: 0.5,
             focus_distance: 10.0,
+            aperture: pointlens::camera::Aperture::ROUND,
         };
         let measured = against_accum(&renderer, &scene, camera);
         check_floors(
@@ -289,6 +290,7 @@ fn an_orbit_through_the_lidar_tile() {
                 fovy_deg: 40.0,
                 aperture_radius: 2.0,
                 focus_distance: 150.0,
+                aperture: pointlens::camera::Aperture::ROUND,
             };
             for (name, db) in against_accum(&renderer, &scene, camera) {
                 match worst.iter_mut().find(|(n, _)| *n == name) {

@@ -48,6 +48,7 @@ fn gpu_rdb_equals_the_cpu_reference_on_a_crop_of_a_real_scan_and_is_deterministi
             fovy_deg: 5.0,
             aperture_radius: 0.02,
             focus_distance: 1.1,
+            aperture: pointlens::camera::Aperture::ROUND,
         };
         for (bins, mode) in [
             (5, RdbMode::Centre),
@@ -223,6 +224,7 @@ fn mug_camera(width: u32, height: u32) -> Camera {
         fovy_deg: 5.0 * height as f32 / 32.0,
         aperture_radius: 0.02,
         focus_distance: 1.1,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 

@@ -97,6 +97,7 @@ fn lens_and_concentric_includes_agree_with_the_cpu() {
         fovy_deg: 40.0,
         aperture_radius: 0.05,
         focus_distance: 2.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     };
     let mut next = uniform(7);
     let mut inputs = Vec::new();

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::Camera;
+use super::{ApertureSpec, Camera};
 use crate::error::{Error, Result};
 
 /// Default image size without a camera (the paper's demo resolution).
@@ -99,6 +99,9 @@ pub struct CameraSpec {
     /// Focus distance S (eye-space depth of the plane in focus).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub focus_distance: Option<f32>,
+    /// The aperture's shape (absent fields: round).
+    #[serde(flatten)]
+    pub aperture: ApertureSpec,
 }
 
 impl CameraSpec {
@@ -111,7 +114,12 @@ impl CameraSpec {
             path: path.to_path_buf(),
             source,
         })?;
-        parse_json(&text, path)
+        let spec = parse_json(&text, path)?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        Ok(CameraSpec {
+            aperture: spec.aperture.clone().relative_to(dir),
+            ..spec
+        })
     }
 
     /// Parses a camera file's text; errors as [`CameraSpec::from_json_file`],
@@ -139,6 +147,7 @@ impl CameraSpec {
             f_number: flags.f_number.or(self.f_number),
             units_per_mm: flags.units_per_mm.or(self.units_per_mm),
             focus_distance: flags.focus_distance.or(self.focus_distance),
+            aperture: self.aperture.overridden_by(&flags.aperture),
         }
     }
 
@@ -348,7 +357,7 @@ pub(super) fn validate(spec: &CameraSpec) -> Result<()> {
         }
     }
     check_positive("focus_distance", spec.focus_distance)?;
-    Ok(())
+    spec.aperture.validate()
 }
 
 /// The vertical field of view in degrees for a `width` × `height` image:
@@ -399,6 +408,7 @@ impl Camera {
             fovy_deg: Some(self.fovy_deg),
             aperture_radius: Some(self.aperture_radius),
             focus_distance: Some(self.focus_distance),
+            aperture: self.aperture.to_spec(),
             ..CameraSpec::default()
         }
     }

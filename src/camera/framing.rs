@@ -82,6 +82,7 @@ fn auto_frame_eye(
         fovy_deg,
         aperture_radius: 0.0,
         focus_distance: 1.0,
+        aperture: crate::camera::Aperture::ROUND,
     };
     let (right, up, forward) = probe.basis();
     let f = probe.f_px();
@@ -252,6 +253,7 @@ pub fn resolve_for(
         fovy_deg,
         aperture_radius: 0.0,
         focus_distance,
+        aperture: spec.aperture.resolve()?,
     };
     camera.aperture_radius = match (spec.aperture_radius, spec.f_number) {
         (Some(r), _) => r,

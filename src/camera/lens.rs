@@ -4,6 +4,8 @@
 
 use glam::{Vec2, Vec3};
 
+use super::Aperture;
+
 /// The resolved thin-lens camera of DESIGN §2.
 ///
 /// Built by [`resolve`] from a [`CameraSpec`], or directly. `up` need not be
@@ -30,6 +32,9 @@ pub struct Camera {
     pub aperture_radius: f32,
     /// Focus distance S: the eye-space depth of the plane in focus (> 0).
     pub focus_distance: f32,
+    /// The aperture's shape within the lens's circle of radius R
+    /// ([`Aperture::ROUND`]: DESIGN §2's round lens).
+    pub aperture: Aperture,
 }
 
 /// The widest guard band of any frame, pixels: a quarter of 16384 px,

@@ -21,6 +21,9 @@
 //!   ([`concentric_disk`], [`concentric_square`]), the ray distribution
 //!   buffer's lens cells ([`rdb_lens_table`], [`rdb_bin`]) and
 //!   [`lens_samples`].
+//! * `aperture`: the aperture's shape ([`Aperture`], its flags and
+//!   fields [`ApertureSpec`], an [`ApertureImage`]): the transmission
+//!   T(u), the cat's eye and the lens samples that follow the shape.
 //! * `file`: the camera file: [`CameraSpec`], parsing, overrides,
 //!   completeness and value checks, the cloud-free defaults
 //!   ([`DEFAULT_WIDTH`], [`DEFAULT_HEIGHT`], [`DEFAULT_FOVY_DEG`]) and
@@ -28,11 +31,13 @@
 //! * `framing`: [`resolve`], with auto-framing ([`FRAMING_MARGIN`]) and the
 //!   automatic aperture.
 
+mod aperture;
 mod file;
 mod framing;
 mod lens;
 mod tables;
 
+pub use aperture::{Aperture, ApertureImage, ApertureSpec, MAX_APERTURE_IMAGE_SIDE, MAX_BLADES};
 pub use file::{
     CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_PIXELS,
     MAX_SIDE_PX,

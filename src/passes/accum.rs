@@ -8,7 +8,7 @@ use std::sync::Arc;
 use glam::Vec2;
 
 use super::{DofFrame, DofInput, DofMethod, FrameView, VeilRule};
-use crate::camera::{lens_samples, Camera};
+use crate::camera::Camera;
 use crate::error::Result;
 use crate::options::{check_samples, AccumOptions};
 use crate::vk::{Context, Frame, Image};
@@ -21,10 +21,11 @@ impl DofMethod for Accum {
         "accum"
     }
 
-    /// Every lens sample (a Fibonacci lattice through the concentric map),
+    /// Every lens sample (a Fibonacci lattice through the concentric map,
+    /// taken to the aperture's shape: [`crate::camera::Aperture::lens_samples`]),
     /// each with every K×K sub-pixel sample: S·K² raster samples.
-    fn gbuffer_lens(&self) -> Vec<Vec2> {
-        lens_samples(self.0.samples)
+    fn gbuffer_lens(&self, camera: &Camera) -> Vec<Vec2> {
+        camera.aperture.lens_samples(self.0.samples)
     }
 
     /// None: each lens sample's own (sheared) projection places every

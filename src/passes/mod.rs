@@ -170,8 +170,9 @@ pub trait DofMethod {
     }
 
     /// The normalised lens positions the G-buffer is rasterised through,
-    /// each with all K×K sub-pixel samples: the lens centre by default.
-    fn gbuffer_lens(&self) -> Vec<Vec2> {
+    /// each with all K×K sub-pixel samples, for the camera's aperture:
+    /// the lens centre by default.
+    fn gbuffer_lens(&self, _camera: &Camera) -> Vec<Vec2> {
         vec![Vec2::ZERO]
     }
 

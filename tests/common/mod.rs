@@ -222,6 +222,7 @@ pub fn camera(width: u32, height: u32) -> Camera {
         fovy_deg: 40.0,
         aperture_radius: 0.0,
         focus_distance: 1.0,
+        aperture: pointlens::camera::Aperture::ROUND,
     }
 }
 

@@ -1,0 +1,824 @@
+//! The aperture's shape (docs/decisions/aperture-shape.md): the one
+//! definition of the lens's transmission T(u) over the normalised lens
+//! position u (pixel axes, |u| ≤ 1) and of the cat's eye C(u; p), the
+//! stratified lens samples that follow T (the accumulation reference), and
+//! the camera flags and camera-file fields that set it. `glsl/aperture.glsl`
+//! mirrors [`Aperture::transmission`]; tests/aperture.rs checks that both
+//! sides agree and that a far highlight images to the shape.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use glam::{DVec2, Vec2};
+use serde::{Deserialize, Serialize};
+
+use super::file::camera_error;
+use super::tables::lens_samples;
+use crate::error::{Error, Result};
+use crate::options::MethodKind;
+
+/// The most blades of a shaped aperture (Blender's range, 3–16).
+pub const MAX_BLADES: u32 = 16;
+
+/// The aperture fields of a camera file and their flags (every field
+/// optional; absent: a round aperture). Flattened into
+/// [`super::CameraSpec`] and into `render`'s flags.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, clap::Args)]
+pub struct ApertureSpec {
+    /// Aperture blades: 0 = round (the default), 3 to 16 = a regular
+    /// polygon inscribed in the lens's circle, a corner at the top.
+    #[arg(long, value_name = "N")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_blades: Option<u32>,
+    /// The aperture's rotation, degrees counter-clockwise on screen (of
+    /// the blades or the aperture image).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_rotation_deg: Option<f32>,
+    /// Blade curvature, 0 (straight blades, the default) to 1 (round).
+    #[arg(long, value_name = "C")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blade_curvature: Option<f32>,
+    /// Anamorphic ratio: the aperture's height over its width (default 1;
+    /// Blender's aperture_ratio). The longer axis keeps the lens radius.
+    #[arg(long, value_name = "R")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anamorphic_ratio: Option<f32>,
+    /// An aperture image: a grayscale PNG (8 or 16 bits) or a grey EXR,
+    /// the lens's transmission over the square around its circle (row 0
+    /// at the top). In a camera file, relative to the file's directory.
+    #[arg(long, value_name = "FILE")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_image: Option<PathBuf>,
+    /// Cat's-eye vignetting, 0 (off, the default) to 1 (at the frame's
+    /// corner the lens is seen through two touching circles).
+    #[arg(long, value_name = "S")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cat_eye: Option<f32>,
+}
+
+impl ApertureSpec {
+    /// This spec with every field set in `flags` replaced by the flag's.
+    pub fn overridden_by(self, flags: &ApertureSpec) -> ApertureSpec {
+        ApertureSpec {
+            aperture_blades: flags.aperture_blades.or(self.aperture_blades),
+            aperture_rotation_deg: flags.aperture_rotation_deg.or(self.aperture_rotation_deg),
+            blade_curvature: flags.blade_curvature.or(self.blade_curvature),
+            anamorphic_ratio: flags.anamorphic_ratio.or(self.anamorphic_ratio),
+            aperture_image: flags.aperture_image.clone().or(self.aperture_image),
+            cat_eye: flags.cat_eye.or(self.cat_eye),
+        }
+    }
+
+    /// A relative `aperture_image` taken as relative to `dir` (a camera
+    /// file's directory).
+    pub fn relative_to(mut self, dir: &Path) -> ApertureSpec {
+        if let Some(p) = &self.aperture_image {
+            if p.is_relative() {
+                self.aperture_image = Some(dir.join(p));
+            }
+        }
+        self
+    }
+
+    /// Checks every value present on its own and together (one line
+    /// naming the field).
+    pub fn validate(&self) -> Result<()> {
+        if let Some(n) = self.aperture_blades {
+            if n != 0 && !(3..=MAX_BLADES).contains(&n) {
+                return Err(camera_error(
+                    "aperture_blades",
+                    format!("must be 0 (round) or 3 to {MAX_BLADES}, got {n}"),
+                ));
+            }
+        }
+        let blades = self.aperture_blades.unwrap_or(0) > 0;
+        if let Some(d) = self.aperture_rotation_deg {
+            if !d.is_finite() {
+                return Err(camera_error(
+                    "aperture_rotation_deg",
+                    format!("must be a finite number of degrees, got {d}"),
+                ));
+            }
+            if !blades && self.aperture_image.is_none() {
+                return Err(camera_error(
+                    "aperture_rotation_deg",
+                    "turns the blades or the aperture image: give aperture_blades (3 to 16) or aperture_image (a round aperture has no rotation)",
+                ));
+            }
+        }
+        if let Some(c) = self.blade_curvature {
+            if !(0.0..=1.0).contains(&c) {
+                return Err(camera_error(
+                    "blade_curvature",
+                    format!("must be between 0 (straight) and 1 (round), got {c}"),
+                ));
+            }
+            if !blades {
+                return Err(camera_error(
+                    "blade_curvature",
+                    "bends the blades: give aperture_blades (3 to 16)",
+                ));
+            }
+        }
+        if let Some(r) = self.anamorphic_ratio {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(camera_error(
+                    "anamorphic_ratio",
+                    format!("must be a finite number > 0, got {r}"),
+                ));
+            }
+        }
+        if let Some(s) = self.cat_eye {
+            if !(0.0..=1.0).contains(&s) {
+                return Err(camera_error(
+                    "cat_eye",
+                    format!("must be between 0 (off) and 1, got {s}"),
+                ));
+            }
+            if s > 0.0 {
+                return Err(camera_error(
+                    "cat_eye",
+                    "no method renders the cat's eye yet (docs/decisions/aperture-shape.md defines it; the Mitsuba reference follows it)",
+                ));
+            }
+        }
+        if blades && self.aperture_image.is_some() {
+            return Err(camera_error(
+                "aperture_image",
+                "the image is the aperture's whole shape: give aperture_blades or aperture_image, not both",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The aperture it describes, reading the aperture image.
+    pub fn resolve(&self) -> Result<Aperture> {
+        self.validate()?;
+        let image = match &self.aperture_image {
+            Some(path) => Some(ApertureImage::read(path)?.intern()),
+            None => None,
+        };
+        Ok(Aperture {
+            blades: self.aperture_blades.unwrap_or(0),
+            rotation_deg: self.aperture_rotation_deg.unwrap_or(0.0),
+            curvature: self.blade_curvature.unwrap_or(0.0),
+            ratio: self.anamorphic_ratio.unwrap_or(1.0),
+            cat_eye: self.cat_eye.unwrap_or(0.0),
+            image,
+        })
+    }
+}
+
+/// A part of the aperture's shape and the methods that render it: the one
+/// table [`Aperture::check_method`] refuses by.
+pub struct ApertureFeature {
+    /// The camera-file field (the flag is `--` and the field with `-`).
+    pub field: &'static str,
+    /// Whether the aperture uses it.
+    pub used: fn(&Aperture) -> bool,
+    /// The methods that follow it on a point cloud.
+    pub kinds: &'static [MethodKind],
+    /// The methods that follow it on a scene of 3D Gaussians.
+    pub gaussian_kinds: &'static [MethodKind],
+}
+
+/// Every part of the shape, the methods that follow it.
+pub const APERTURE_FEATURES: &[ApertureFeature] = &[
+    ApertureFeature {
+        field: "aperture_image",
+        used: |a| a.image.is_some(),
+        kinds: &[MethodKind::Accum],
+        gaussian_kinds: &[MethodKind::Accum],
+    },
+    ApertureFeature {
+        field: "aperture_blades",
+        used: |a| a.blades != 0,
+        kinds: &[MethodKind::Accum],
+        gaussian_kinds: &[MethodKind::Accum],
+    },
+    ApertureFeature {
+        field: "anamorphic_ratio",
+        used: |a| a.ratio != 1.0,
+        kinds: &[MethodKind::Accum],
+        gaussian_kinds: &[MethodKind::Accum],
+    },
+];
+
+/// An aperture image: linear transmission in [0, 1], row-major, row 0 at
+/// the top, over the square [−1, 1]² of the lens's circle.
+#[derive(Clone, PartialEq)]
+pub struct ApertureImage {
+    /// The file it was read from (for the camera file written back).
+    pub path: PathBuf,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Transmission per pixel.
+    pub transmission: Vec<f32>,
+}
+
+impl std::fmt::Debug for ApertureImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "ApertureImage({}, {}x{})",
+            self.path.display(),
+            self.width,
+            self.height
+        )
+    }
+}
+
+/// The aperture images of this process, each kept once for the process's
+/// life so that [`Aperture`] stays `Copy` (a handful of small images at
+/// most: one per distinct file a process renders with).
+static IMAGES: Mutex<Vec<&'static ApertureImage>> = Mutex::new(Vec::new());
+
+/// The largest aperture image side, pixels (a transmission table, not a
+/// photograph: 4096 resolves far below any CoC).
+pub const MAX_APERTURE_IMAGE_SIDE: u32 = 4096;
+
+impl ApertureImage {
+    /// Reads a grayscale PNG (8 or 16 bits, no alpha) or an EXR whose
+    /// pixels are grey (R = G = B); errors in one line naming the file.
+    pub fn read(path: &Path) -> Result<ApertureImage> {
+        let bad =
+            |msg: String| camera_error("aperture_image", format!("{}: {msg}", path.display()));
+        let bytes = std::fs::read(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let img = image::load_from_memory(&bytes)
+            .map_err(|e| bad(format!("cannot be read as PNG or EXR ({e})")))?;
+        let (width, height) = (img.width(), img.height());
+        if width == 0 || height == 0 {
+            return Err(bad("is empty".into()));
+        }
+        if width.max(height) > MAX_APERTURE_IMAGE_SIDE {
+            return Err(bad(format!(
+                "is {width}x{height}, larger than {MAX_APERTURE_IMAGE_SIDE} pixels on a side"
+            )));
+        }
+        let transmission: Vec<f32> = match img {
+            image::DynamicImage::ImageLuma8(g) => {
+                g.pixels().map(|p| f32::from(p.0[0]) / 255.0).collect()
+            }
+            image::DynamicImage::ImageLuma16(g) => {
+                g.pixels().map(|p| f32::from(p.0[0]) / 65535.0).collect()
+            }
+            image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_) => {
+                let rgba = img.to_rgba32f();
+                let mut out = Vec::with_capacity(rgba.len() / 4);
+                for p in rgba.pixels() {
+                    let [r, g, b, _] = p.0;
+                    if r != g || g != b {
+                        return Err(bad(format!(
+                            "is not grey (a pixel has R, G, B = {r}, {g}, {b}); an aperture image is one transmission per pixel"
+                        )));
+                    }
+                    if r.is_nan() {
+                        return Err(bad("has a NaN pixel".into()));
+                    }
+                    out.push(r.clamp(0.0, 1.0));
+                }
+                out
+            }
+            other => {
+                return Err(bad(format!(
+                    "is {:?}, not a grayscale image without alpha (an aperture image is one transmission per pixel)",
+                    other.color()
+                )))
+            }
+        };
+        let image = ApertureImage {
+            path: path.to_path_buf(),
+            width,
+            height,
+            transmission,
+        };
+        if image.mean_in_circle() <= 0.0 {
+            return Err(bad("lets no light through the lens's circle".into()));
+        }
+        Ok(image)
+    }
+
+    /// This image, kept for the process's life (one copy per distinct
+    /// image).
+    pub fn intern(self) -> &'static ApertureImage {
+        let mut images = IMAGES.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(found) = images.iter().find(|i| ***i == self) {
+            return found;
+        }
+        let kept: &'static ApertureImage = Box::leak(Box::new(self));
+        images.push(kept);
+        kept
+    }
+
+    /// The pixel holding base point w ∈ [−1, 1]² (clamped to the image).
+    pub fn pixel_of(&self, w: Vec2) -> (u32, u32) {
+        let cell = |v: f32, n: u32| {
+            (((v + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1) as u32
+        };
+        (cell(w.x, self.width), cell(w.y, self.height))
+    }
+
+    /// The transmission at base point w (no circle test).
+    pub fn at(&self, w: Vec2) -> f32 {
+        let (i, j) = self.pixel_of(w);
+        self.transmission[(j * self.width + i) as usize]
+    }
+
+    /// The mean transmission over the lens's circle (8×8 points per pixel).
+    pub fn mean_in_circle(&self) -> f64 {
+        let (sum, area) = self
+            .weights_in_circle()
+            .iter()
+            .fold((0.0, 0.0), |(s, a), (t, f)| (s + t * f, a + f));
+        if area > 0.0 {
+            sum / area
+        } else {
+            0.0
+        }
+    }
+
+    /// Per pixel, (transmission, fraction of the pixel inside the circle),
+    /// the fraction from 8×8 points.
+    fn weights_in_circle(&self) -> Vec<(f64, f64)> {
+        let (w, h) = (f64::from(self.width), f64::from(self.height));
+        (0..self.height)
+            .flat_map(|j| (0..self.width).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let mut inside = 0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let x = -1.0 + 2.0 * (f64::from(i) + (f64::from(sx) + 0.5) / 8.0) / w;
+                        let y = -1.0 + 2.0 * (f64::from(j) + (f64::from(sy) + 0.5) / 8.0) / h;
+                        inside += u32::from(x * x + y * y <= 1.0);
+                    }
+                }
+                let t = f64::from(self.transmission[(j * self.width + i) as usize]);
+                (t, f64::from(inside) / 64.0)
+            })
+            .collect()
+    }
+}
+
+/// The aperture's shape (docs/decisions/aperture-shape.md). `Copy`: an
+/// aperture image is held by reference (see [`ApertureImage::intern`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aperture {
+    /// 0 = round, 3 to [`MAX_BLADES`] = a regular polygon.
+    pub blades: u32,
+    /// Rotation, degrees counter-clockwise on screen.
+    pub rotation_deg: f32,
+    /// Blade curvature C ∈ [0, 1].
+    pub curvature: f32,
+    /// Anamorphic ratio A > 0: height over width.
+    pub ratio: f32,
+    /// Cat's eye S ∈ [0, 1] (0: off).
+    pub cat_eye: f32,
+    /// The aperture image, if the shape is one.
+    pub image: Option<&'static ApertureImage>,
+}
+
+impl Default for Aperture {
+    fn default() -> Self {
+        Aperture::ROUND
+    }
+}
+
+impl Aperture {
+    /// The round aperture of DESIGN §2.
+    pub const ROUND: Aperture = Aperture {
+        blades: 0,
+        rotation_deg: 0.0,
+        curvature: 0.0,
+        ratio: 1.0,
+        cat_eye: 0.0,
+        image: None,
+    };
+
+    /// Whether this is the round aperture (every method's images as
+    /// without a shape, byte for byte).
+    pub fn is_round(&self) -> bool {
+        *self == Aperture::ROUND
+    }
+
+    /// Whether T(u) differs from the round aperture's (blades, squeeze or
+    /// image; the cat's eye apart).
+    pub fn is_shaped(&self) -> bool {
+        Aperture {
+            cat_eye: 0.0,
+            ..*self
+        } != Aperture::ROUND
+    }
+
+    /// Refuses, in one line, a shape the method does not render (on a
+    /// scene of 3D Gaussians when `gaussians`): [`APERTURE_FEATURES`].
+    pub fn check_method(&self, method: MethodKind, gaussians: bool) -> Result<()> {
+        for f in APERTURE_FEATURES.iter().filter(|f| (f.used)(self)) {
+            let kinds = if gaussians { f.gaussian_kinds } else { f.kinds };
+            if !kinds.contains(&method) {
+                let names: Vec<&str> = kinds.iter().map(|k| k.name()).collect();
+                let scene = if gaussians { " on 3D Gaussians" } else { "" };
+                return Err(Error::InvalidArgument(format!(
+                    "--{} ({}) is rendered by --method {} only{scene}, not {}",
+                    f.field.replace('_', "-"),
+                    f.field,
+                    names.join(" or "),
+                    method.name()
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The camera-file fields of this aperture: only those that differ
+    /// from the round aperture's (a round camera file prints as before).
+    pub fn to_spec(&self) -> ApertureSpec {
+        let set = |v: f32, default: f32| (v != default).then_some(v);
+        ApertureSpec {
+            aperture_blades: (self.blades != 0).then_some(self.blades),
+            aperture_rotation_deg: set(self.rotation_deg, 0.0),
+            blade_curvature: set(self.curvature, 0.0),
+            anamorphic_ratio: set(self.ratio, 1.0),
+            aperture_image: self.image.map(|i| i.path.clone()),
+            cat_eye: set(self.cat_eye, 0.0),
+        }
+    }
+
+    /// The base point w of lens position u: the squeeze undone, then the
+    /// rotation (step 1 and 2 of the definition).
+    pub fn base_of(&self, u: Vec2) -> Vec2 {
+        let s = if self.ratio >= 1.0 {
+            Vec2::new(self.ratio * u.x, u.y)
+        } else {
+            Vec2::new(u.x, u.y / self.ratio)
+        };
+        let (sin, cos) = self.rotation_deg.to_radians().sin_cos();
+        Vec2::new(cos * s.x - sin * s.y, sin * s.x + cos * s.y)
+    }
+
+    /// The lens position u of base point w (the inverse of
+    /// [`Aperture::base_of`]).
+    pub fn lens_of(&self, w: Vec2) -> Vec2 {
+        let (sin, cos) = self.rotation_deg.to_radians().sin_cos();
+        let s = Vec2::new(cos * w.x + sin * w.y, -sin * w.x + cos * w.y);
+        if self.ratio >= 1.0 {
+            Vec2::new(s.x / self.ratio, s.y)
+        } else {
+            Vec2::new(s.x, s.y * self.ratio)
+        }
+    }
+
+    /// The blades' boundary radius ρ at screen angle φ (radians) of the
+    /// base shape: (1 − C)·cos(π/N)/cos δ + C.
+    pub fn blade_radius(&self, phi: f32) -> f32 {
+        let n = self.blades as f32;
+        let sector = std::f32::consts::TAU / n;
+        let delta = (phi - std::f32::consts::FRAC_PI_2).rem_euclid(sector) - sector / 2.0;
+        (1.0 - self.curvature) * (std::f32::consts::PI / n).cos() / delta.cos() + self.curvature
+    }
+
+    /// The transmission T(u) ∈ [0, 1] at lens position u (pixel axes).
+    pub fn transmission(&self, u: Vec2) -> f32 {
+        let w = self.base_of(u);
+        let r2 = w.length_squared();
+        if r2 > 1.0 {
+            return 0.0;
+        }
+        if let Some(image) = self.image {
+            return image.at(w);
+        }
+        if self.blades == 0 {
+            return 1.0;
+        }
+        let rho = self.blade_radius((-w.y).atan2(w.x));
+        if r2 <= rho * rho {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// The cat's eye's centre for the frame's pixel (x, y) of a
+    /// `width` × `height` frame: −2S·d (the second circle's centre in lens
+    /// positions).
+    pub fn cat_eye_centre(&self, x: u32, y: u32, width: u32, height: u32) -> Vec2 {
+        let half = Vec2::new(width as f32, height as f32) * 0.5;
+        let d = (Vec2::new(x as f32 + 0.5, y as f32 + 0.5) - half) / half.length();
+        -2.0 * self.cat_eye * d
+    }
+
+    /// C(u; p): whether lens position u passes the cat's eye of the pixel
+    /// whose second circle is centred at `centre`.
+    pub fn cat_eye_passes(u: Vec2, centre: Vec2) -> bool {
+        (u - centre).length_squared() <= 1.0
+    }
+
+    /// The area of the aperture in lens units, ∫T du (π for the round
+    /// aperture), by `n`×`n` points over the square.
+    pub fn area(&self, n: u32) -> f64 {
+        let cell = 2.0 / f64::from(n);
+        let mut sum = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                let u = DVec2::new(
+                    -1.0 + (f64::from(i) + 0.5) * cell,
+                    -1.0 + (f64::from(j) + 0.5) * cell,
+                );
+                sum += f64::from(self.transmission(u.as_vec2()));
+            }
+        }
+        sum * cell * cell
+    }
+
+    /// `count` lens positions distributed as T(u) with equal weights and
+    /// stratified: the Fibonacci lattice of [`lens_samples`] taken to the
+    /// shape by an area-preserving map (the round aperture's are exactly
+    /// [`lens_samples`]'s, squeezed). Deterministic.
+    pub fn lens_samples(&self, count: u32) -> Vec<Vec2> {
+        if let Some(image) = self.image {
+            return image_samples(image, count)
+                .into_iter()
+                .map(|w| self.lens_of(w))
+                .collect();
+        }
+        if self.blades == 0 {
+            if self.ratio == 1.0 {
+                return lens_samples(count);
+            }
+            return lens_samples(count)
+                .into_iter()
+                .map(|w| self.lens_of(w))
+                .collect();
+        }
+        let warp = BladeWarp::new(self);
+        lens_samples(count)
+            .into_iter()
+            .map(|v| self.lens_of(warp.apply(v)))
+            .collect()
+    }
+}
+
+/// The area-preserving map from the unit disk onto the blades' base shape:
+/// a disk point at radius r and screen angle α goes to radius r·ρ(β) at
+/// angle β, where β's share of the shape's area, ∫₀^β ρ² dφ over ∫₀^{2π},
+/// equals α's share of the disk's, α / 2π (tabulated in 4096 steps).
+struct BladeWarp<'a> {
+    aperture: &'a Aperture,
+    /// Cumulative ∫ρ² at the table's angles, normalised to end at 1.
+    cumulative: Vec<f64>,
+}
+
+impl<'a> BladeWarp<'a> {
+    const STEPS: usize = 4096;
+
+    fn new(aperture: &'a Aperture) -> Self {
+        let step = std::f64::consts::TAU / Self::STEPS as f64;
+        let mut cumulative = Vec::with_capacity(Self::STEPS + 1);
+        let mut sum = 0.0;
+        cumulative.push(0.0);
+        for k in 0..Self::STEPS {
+            let mid = ((k as f64 + 0.5) * step) as f32;
+            let rho = f64::from(aperture.blade_radius(mid));
+            sum += rho * rho * step;
+            cumulative.push(sum);
+        }
+        for c in &mut cumulative {
+            *c /= sum;
+        }
+        BladeWarp {
+            aperture,
+            cumulative,
+        }
+    }
+
+    /// The base point of disk point v.
+    fn apply(&self, v: Vec2) -> Vec2 {
+        let r = v.length();
+        if r == 0.0 {
+            return Vec2::ZERO;
+        }
+        let tau = std::f64::consts::TAU;
+        let alpha = f64::from((-v.y).atan2(v.x)).rem_euclid(tau);
+        let share = alpha / tau;
+        let k = self
+            .cumulative
+            .partition_point(|&c| c <= share)
+            .clamp(1, Self::STEPS);
+        let (c0, c1) = (self.cumulative[k - 1], self.cumulative[k]);
+        let t = if c1 > c0 {
+            (share - c0) / (c1 - c0)
+        } else {
+            0.0
+        };
+        let beta = ((k as f64 - 1.0 + t) * tau / Self::STEPS as f64) as f32;
+        let rho = self.aperture.blade_radius(beta);
+        r * rho * Vec2::new(beta.cos(), -beta.sin())
+    }
+}
+
+/// `count` base points distributed as an aperture image inside the lens's
+/// circle: the lattice of [`lens_samples`]'s square, through the inverse
+/// of the image's cumulative distribution (rows, then the columns of the
+/// row), each pixel weighted by its transmission times its share inside
+/// the circle; a point that falls outside the circle at the rim is moved
+/// onto it.
+fn image_samples(image: &ApertureImage, count: u32) -> Vec<Vec2> {
+    let weights: Vec<f64> = image
+        .weights_in_circle()
+        .iter()
+        .map(|(t, f)| t * f)
+        .collect();
+    let (w, h) = (image.width as usize, image.height as usize);
+    let row_sums: Vec<f64> = (0..h)
+        .map(|j| weights[j * w..(j + 1) * w].iter().sum())
+        .collect();
+    let rows = Cdf::new(&row_sums);
+    let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
+    (0..count)
+        .map(|i| {
+            let x = (f64::from(i) + 0.5) / f64::from(count);
+            let y = (f64::from(i) * inv_phi + 0.5).fract();
+            let (j, fy) = rows.sample(y);
+            let (i, fx) = Cdf::new(&weights[j * w..(j + 1) * w]).sample(x);
+            let p = Vec2::new(
+                (-1.0 + 2.0 * (i as f64 + fx) / w as f64) as f32,
+                (-1.0 + 2.0 * (j as f64 + fy) / h as f64) as f32,
+            );
+            if p.length_squared() > 1.0 {
+                p.normalize()
+            } else {
+                p
+            }
+        })
+        .collect()
+}
+
+/// A discrete cumulative distribution over cells of given weights.
+struct Cdf(Vec<f64>);
+
+impl Cdf {
+    fn new(weights: &[f64]) -> Cdf {
+        let mut c = Vec::with_capacity(weights.len() + 1);
+        let mut sum = 0.0;
+        c.push(0.0);
+        for w in weights {
+            sum += w;
+            c.push(sum);
+        }
+        Cdf(c)
+    }
+
+    /// The cell of x ∈ [0, 1) and x's place within it, in [0, 1).
+    fn sample(&self, x: f64) -> (usize, f64) {
+        let total = *self.0.last().unwrap_or(&0.0);
+        let n = self.0.len() - 1;
+        if total <= 0.0 {
+            return (n / 2, 0.5);
+        }
+        let target = x * total;
+        let k = self.0.partition_point(|&c| c <= target).clamp(1, n);
+        let (c0, c1) = (self.0[k - 1], self.0[k]);
+        let f = if c1 > c0 {
+            (target - c0) / (c1 - c0)
+        } else {
+            0.5
+        };
+        (k - 1, f.clamp(0.0, 1.0 - 1e-9))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blades(n: u32, rotation_deg: f32) -> Aperture {
+        Aperture {
+            blades: n,
+            rotation_deg,
+            ..Aperture::ROUND
+        }
+    }
+
+    #[test]
+    fn polygon_area_is_the_inscribed_polygons() {
+        for n in [3, 5, 6, 9, 16] {
+            let exact = 0.5 * f64::from(n) * (std::f64::consts::TAU / f64::from(n)).sin();
+            let area = blades(n, 17.0).area(1024);
+            assert!(
+                (area - exact).abs() < 2e-3 * exact,
+                "{n} blades: {area} against {exact}"
+            );
+        }
+        let round = Aperture::ROUND.area(1024);
+        assert!((round - std::f64::consts::PI).abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_corner_points_up_and_rotation_turns_counter_clockwise() {
+        let five = blades(5, 0.0);
+        // Up on screen is −y in pixel axes.
+        assert_eq!(five.transmission(Vec2::new(0.0, -0.99)), 1.0);
+        assert_eq!(five.transmission(Vec2::new(0.0, 0.99)), 0.0);
+        // Turned 90° counter-clockwise the corner points left (−x).
+        let turned = blades(5, 90.0);
+        assert_eq!(turned.transmission(Vec2::new(-0.99, 0.0)), 1.0);
+        assert_eq!(turned.transmission(Vec2::new(0.99, 0.0)), 0.0);
+    }
+
+    #[test]
+    fn samples_lie_in_the_shape_and_round_is_unchanged() {
+        assert_eq!(Aperture::ROUND.lens_samples(64), lens_samples(64));
+        for a in [
+            blades(5, 10.0),
+            Aperture {
+                blades: 7,
+                curvature: 0.4,
+                ratio: 2.0,
+                ..Aperture::ROUND
+            },
+            Aperture {
+                ratio: 0.5,
+                ..Aperture::ROUND
+            },
+        ] {
+            let s = a.lens_samples(256);
+            for u in &s {
+                // On or inside the shape (the rim within f32 rounding).
+                assert!(a.transmission(*u * 0.999) > 0.0, "{a:?}: {u}");
+            }
+            // Equal areas: the mean of the samples is the shape's centroid
+            // (0 for a shape symmetric under a half turn, and near 0 for
+            // odd blades: their centroid is at the centre too).
+            let mean = s.iter().copied().sum::<Vec2>() / s.len() as f32;
+            assert!(mean.length() < 0.02, "{a:?}: mean {mean}");
+        }
+    }
+
+    #[test]
+    fn base_and_lens_are_inverse() {
+        let a = Aperture {
+            blades: 6,
+            rotation_deg: 33.0,
+            ratio: 0.6,
+            ..Aperture::ROUND
+        };
+        for u in [Vec2::new(0.3, -0.2), Vec2::new(-0.5, 0.1)] {
+            assert!((a.lens_of(a.base_of(u)) - u).length() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn validation_refuses_what_cannot_be() {
+        let bad = [
+            ApertureSpec {
+                aperture_blades: Some(1),
+                ..Default::default()
+            },
+            ApertureSpec {
+                aperture_blades: Some(2),
+                ..Default::default()
+            },
+            ApertureSpec {
+                aperture_blades: Some(17),
+                ..Default::default()
+            },
+            ApertureSpec {
+                anamorphic_ratio: Some(0.0),
+                ..Default::default()
+            },
+            ApertureSpec {
+                anamorphic_ratio: Some(f32::NAN),
+                ..Default::default()
+            },
+            ApertureSpec {
+                blade_curvature: Some(0.5),
+                ..Default::default()
+            },
+            ApertureSpec {
+                aperture_rotation_deg: Some(10.0),
+                ..Default::default()
+            },
+            ApertureSpec {
+                cat_eye: Some(1.5),
+                ..Default::default()
+            },
+        ];
+        for spec in bad {
+            assert!(spec.validate().is_err(), "{spec:?}");
+        }
+        let good = ApertureSpec {
+            aperture_blades: Some(6),
+            aperture_rotation_deg: Some(-15.0),
+            blade_curvature: Some(0.3),
+            anamorphic_ratio: Some(1.5),
+            cat_eye: Some(0.5),
+            aperture_image: None,
+        };
+        assert!(good.validate().is_ok());
+    }
+}

@@ -22,4 +22,10 @@ layout(push_constant, std430) uniform LayeredPush {
     // one slice each, no ramp between slices, and their light signed (a
     // layer darker than what it covers takes light away).
     uint gaussian_layers;
+    // 1: a shaped aperture (src/camera/aperture.rs, ShapeRows): fragments
+    // spread over its chords (binding 5 of the spread) instead of the disk.
+    uint shaped;
+    float shape_y_min;    // the shape's vertical extent, lens units
+    float shape_y_max;
+    int shape_rows;       // rows of the chord table
 } pc;

@@ -34,6 +34,10 @@ layout(binding = 3, std430) readonly buffer SliceLists { uint slice_lists[]; };
 // the composite to skip the rest: max(width - first column), max(last + 1)
 // (0, 0: none).
 layout(binding = 4, std430) buffer RowSpans { uint row_spans[]; };
+// A shaped aperture's chords (pc.shaped): per row of equal height over the
+// lens's y ∈ [−1, 1], the shape's [x_lo, x_hi] (src/camera/aperture.rs,
+// Aperture::shape_rows).
+layout(binding = 5, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
 
 // The box of G-buffer pixels this workgroup's fragments wrote differences
 // at: x from, x to, y from, y to.
@@ -61,6 +65,71 @@ vec2 disk_row(float r, int dy) {
     float height = clamp(r + 0.5 - ady, 0.0, 1.0);
     float y = height < 1.0 ? 0.5 * (ady - 0.5 + r) : ady;
     return vec2(height, max(sqrt(max(r * r - y * y, 0.0)), 0.5));
+}
+
+// Adds v, spread over the span [a, b] of row y (px), to the row's
+// differences: each pixel takes its overlap with the span.
+void spread_span(int y, float a, float b, vec4 v) {
+    int x0 = int(floor(a)), x1 = int(floor(b));
+    if (x1 < 0 || x0 >= pc.extent.x) {
+        return;
+    }
+    if (x0 == x1) {
+        ivec4 part = to_fixed(v * (b - a));
+        add(x0, y, part);
+        add(x0 + 1, y, -part);
+        return;
+    }
+    // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those between
+    // all of it; the differences sum to exactly zero. Where x1 is x0 + 1
+    // its two differences are added as one (the same integer sum).
+    ivec4 first = to_fixed(v * (float(x0 + 1) - a));
+    ivec4 last = to_fixed(v * (b - float(x1)));
+    ivec4 whole = to_fixed(v);
+    add(x0, y, first);
+    if (x1 == x0 + 1) {
+        add(x1, y, last - first);
+    } else {
+        add(x0 + 1, y, whole - first);
+        add(x1, y, last - whole);
+    }
+    add(x1 + 1, y, -last);
+}
+
+// Row dy (from the fragment's centre, px) of the shaped aperture scaled to
+// radius r, turned by 180° in front of the focus plane (front): the part
+// of the row's height inside the shape's vertical extent, and the shape's
+// span there relative to the centre (its chord halfway through that part),
+// at least a pixel wide; height 0: the row misses the shape.
+vec3 shape_row(float r, int dy, bool front) {
+    float y_lo = r * (front ? -pc.shape_y_max : pc.shape_y_min);
+    float y_hi = r * (front ? -pc.shape_y_min : pc.shape_y_max);
+    if (y_hi - y_lo < 1.0) {
+        // At least a pixel high, as the disk (the row of the centre then
+        // holds it, for any radius under half a pixel).
+        float m = 0.5 * (y_lo + y_hi);
+        y_lo = m - 0.5;
+        y_hi = m + 0.5;
+    }
+    float lo = max(float(dy) - 0.5, y_lo);
+    float hi = min(float(dy) + 0.5, y_hi);
+    if (hi <= lo) {
+        return vec3(0.0);
+    }
+    float y = r > 0.0 ? 0.5 * (lo + hi) / r : 0.0;
+    float yn = front ? -y : y;
+    int k = clamp(int(floor((yn + 1.0) * 0.5 * float(pc.shape_rows))), 0, pc.shape_rows - 1);
+    vec2 chord = shape_chords[k];
+    if (chord.x > chord.y) {
+        // The row's centre is past the shape's last chord: its middle.
+        chord = vec2(0.5 * (chord.x + chord.y));
+    }
+    vec2 span = front ? -chord.yx * r : chord * r;
+    if (span.y - span.x < 1.0) {
+        float m = 0.5 * (span.x + span.y);
+        span = vec2(m - 0.5, m + 0.5);
+    }
+    return vec3(hi - lo, span);
 }
 
 // Spreads this invocation's fragment, if it has one in the slice; returns
@@ -117,35 +186,27 @@ bool spread_fragment(out ivec4 box) {
     float reach = max(r, 0.5);
     box = ivec4(max(int(floor(centre - reach)), 0),
                 min(int(floor(centre + reach)) + 1, pc.extent.x - 1), y_lo, y_hi);
+    if (pc.shaped != 0u) {
+        // A shaped aperture: its chords instead of the disk's rows.
+        bool front = c_signed < 0.0;
+        float shape_area = 0.0;
+        for (int dy = -rows; dy <= rows; ++dy) {
+            vec3 row = shape_row(r, dy, front);
+            shape_area += row.x * (row.z - row.y);
+        }
+        vec4 shape_unit = v * (weight / shape_area);
+        for (int y = y_lo; y <= y_hi; ++y) {
+            vec3 row = shape_row(r, y - p.y, front);
+            if (row.x > 0.0) {
+                spread_span(y, centre + row.y, centre + row.z, shape_unit * row.x);
+            }
+        }
+        return true;
+    }
     for (int y = y_lo; y <= y_hi; ++y) {
         vec2 row = disk_row(r, y - p.y);
         float h = row.y;
-        vec4 v = unit * row.x;
-        float a = centre - h, b = centre + h;
-        int x0 = int(floor(a)), x1 = int(floor(b));
-        if (x1 < 0 || x0 >= pc.extent.x) {
-            continue;
-        }
-        if (x0 == x1) {
-            ivec4 part = to_fixed(v * (b - a));
-            add(x0, y, part);
-            add(x0 + 1, y, -part);
-            continue;
-        }
-        // Pixel x0 takes x0 + 1 - a of it, x1 takes b - x1, those between
-        // all of it; the differences sum to exactly zero. Where x1 is x0 + 1
-        // its two differences are added as one (the same integer sum).
-        ivec4 first = to_fixed(v * (float(x0 + 1) - a));
-        ivec4 last = to_fixed(v * (b - float(x1)));
-        ivec4 whole = to_fixed(v);
-        add(x0, y, first);
-        if (x1 == x0 + 1) {
-            add(x1, y, last - first);
-        } else {
-            add(x0 + 1, y, whole - first);
-            add(x1, y, last - whole);
-        }
-        add(x1 + 1, y, -last);
+        spread_span(y, centre - h, centre + h, unit * row.x);
     }
     return true;
 }

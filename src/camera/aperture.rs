@@ -194,13 +194,13 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
     ApertureFeature {
         field: "aperture_blades",
         used: |a| a.blades != 0,
-        kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Layered],
         gaussian_kinds: &[MethodKind::Accum],
     },
     ApertureFeature {
         field: "anamorphic_ratio",
         used: |a| a.ratio != 1.0,
-        kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Layered],
         gaussian_kinds: &[MethodKind::Accum],
     },
 ];
@@ -563,6 +563,73 @@ impl Aperture {
     }
 }
 
+/// A convex shape as horizontal chords (the layered method's spreading,
+/// `glsl/layered_spread.comp`): its vertical extent in lens units and,
+/// for each of `chords.len()` rows of equal height over y ∈ [−1, 1], the
+/// chord [x_lo, x_hi] through the row's centre (x_lo > x_hi: the row
+/// misses the shape).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeRows {
+    /// The shape's least y (lens units, pixel axes: its top).
+    pub y_min: f32,
+    /// The shape's greatest y.
+    pub y_max: f32,
+    /// Per row, [x_lo, x_hi].
+    pub chords: Vec<[f32; 2]>,
+}
+
+/// Boundary points of [`Aperture::shape_rows`]'s polygon.
+const BOUNDARY_POINTS: usize = 2048;
+
+impl Aperture {
+    /// The shape (blades, curvature, squeeze and rotation; not an image)
+    /// as `rows` chords: the boundary found along 2048 rays from the
+    /// centre (every such shape is star-shaped about it) by bisection,
+    /// each row cut with that polygon.
+    pub fn shape_rows(&self, rows: u32) -> ShapeRows {
+        let boundary: Vec<Vec2> = (0..BOUNDARY_POINTS)
+            .map(|i| {
+                let angle = std::f32::consts::TAU * i as f32 / BOUNDARY_POINTS as f32;
+                let dir = Vec2::new(angle.cos(), angle.sin());
+                let (mut inside, mut outside) = (0.0f32, 1.0001f32);
+                for _ in 0..30 {
+                    let mid = 0.5 * (inside + outside);
+                    if self.transmission(dir * mid) > 0.0 {
+                        inside = mid;
+                    } else {
+                        outside = mid;
+                    }
+                }
+                dir * inside
+            })
+            .collect();
+        let y_min = boundary.iter().map(|b| b.y).fold(f32::INFINITY, f32::min);
+        let y_max = boundary
+            .iter()
+            .map(|b| b.y)
+            .fold(f32::NEG_INFINITY, f32::max);
+        let chords = (0..rows)
+            .map(|k| {
+                let y = -1.0 + (k as f32 + 0.5) * 2.0 / rows as f32;
+                let mut chord = [1.0f32, -1.0f32];
+                for (i, a) in boundary.iter().enumerate() {
+                    let b = boundary[(i + 1) % BOUNDARY_POINTS];
+                    if (a.y <= y) != (b.y <= y) {
+                        let x = a.x + (y - a.y) / (b.y - a.y) * (b.x - a.x);
+                        chord = [chord[0].min(x), chord[1].max(x)];
+                    }
+                }
+                chord
+            })
+            .collect();
+        ShapeRows {
+            y_min,
+            y_max,
+            chords,
+        }
+    }
+}
+
 /// The area-preserving map from the unit disk onto the blades' base shape:
 /// a disk point at radius r and screen angle α goes to radius r·ρ(β) at
 /// angle β, where β's share of the shape's area, ∫₀^β ρ² dφ over ∫₀^{2π},
@@ -760,6 +827,31 @@ mod tests {
     }
 
     #[test]
+    fn shape_rows_cut_the_shape() {
+        // A hexagon with a corner up: extent ±1 vertically, the middle
+        // row as wide as the flat sides' distance, cos 30°.
+        let rows = blades(6, 0.0).shape_rows(512);
+        assert!((rows.y_min + 1.0).abs() < 1e-3 && (rows.y_max - 1.0).abs() < 1e-3);
+        let mid = rows.chords[256];
+        let half = 3f32.sqrt() / 2.0;
+        assert!(
+            (mid[0] + half).abs() < 2e-3 && (mid[1] - half).abs() < 2e-3,
+            "{mid:?}"
+        );
+        // The pentagon's bottom is its flat side at cos 36°.
+        let five = blades(5, 0.0).shape_rows(512);
+        assert!(
+            (five.y_max - 36f32.to_radians().cos()).abs() < 1e-3,
+            "{}",
+            five.y_max
+        );
+        assert!(
+            five.chords[511][0] > five.chords[511][1],
+            "the last row misses"
+        );
+    }
+
+    #[test]
     fn base_and_lens_are_inverse() {
         let a = Aperture {
             blades: 6,
@@ -816,7 +908,7 @@ mod tests {
             aperture_rotation_deg: Some(-15.0),
             blade_curvature: Some(0.3),
             anamorphic_ratio: Some(1.5),
-            cat_eye: Some(0.5),
+            cat_eye: Some(0.0),
             aperture_image: None,
         };
         assert!(good.validate().is_ok());

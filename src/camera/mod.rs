@@ -37,7 +37,10 @@ mod framing;
 mod lens;
 mod tables;
 
-pub use aperture::{Aperture, ApertureImage, ApertureSpec, MAX_APERTURE_IMAGE_SIDE, MAX_BLADES};
+pub use aperture::{
+    Aperture, ApertureFeature, ApertureImage, ApertureSpec, ShapeRows, APERTURE_FEATURES,
+    MAX_APERTURE_IMAGE_SIDE, MAX_BLADES,
+};
 pub use file::{
     CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_PIXELS,
     MAX_SIDE_PX,

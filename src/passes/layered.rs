@@ -29,7 +29,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView};
-use crate::camera::Camera;
+use crate::camera::{Camera, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{check_layers, LayeredOptions};
 use crate::push_constants;
@@ -78,6 +78,10 @@ push_constants! {
         slice_lo: f32,
         slice_width: f32,
         gaussian_layers: u32,
+        shaped: u32,
+        shape_y_min: f32,
+        shape_y_max: f32,
+        shape_rows: i32,
     }
 }
 
@@ -108,7 +112,7 @@ impl Layered {
                     ctx,
                     "layered_spread",
                     SPREAD,
-                    &[I, I, B, B, B],
+                    &[I, I, B, B, B, B],
                 )?),
                 false => None,
             },
@@ -235,6 +239,10 @@ struct LayeredImages {
     fragment_coc: Image,
     /// The spread radius per CoC (`spread_disk::radius_table_words`).
     spread_radius: Buffer,
+    /// A shaped aperture's chords (None: the round disk).
+    shape: Option<ShapeRows>,
+    /// The chords on the device (one unused entry for the disk).
+    shape_chords: Buffer,
     /// Two 64-bit words per pixel of one band of rows.
     differences: Buffer,
     /// Per row of the band, the columns a slice's differences touch (two
@@ -254,6 +262,10 @@ struct LayeredImages {
     /// the length of its list, 1, 1).
     slice_dispatch: Buffer,
 }
+
+/// Rows of a shaped aperture's chord table: a row per pixel of a CoC up
+/// to 512 px across.
+const SHAPE_ROWS: u32 = 512;
 
 /// Bytes of the row differences per pixel.
 const DIFFERENCE_BYTES: u64 = 16;
@@ -300,8 +312,21 @@ impl LayeredImages {
             table,
             vk::BufferUsageFlags::STORAGE_BUFFER,
         )?;
+        let aperture = &view.camera.aperture;
+        let shape = aperture
+            .is_shaped()
+            .then(|| aperture.shape_rows(SHAPE_ROWS));
+        let chords: Vec<[f32; 2]> = shape.as_ref().map_or(vec![[0.0; 2]], |s| s.chords.clone());
+        let shape_chords = Buffer::with_bytes(
+            ctx,
+            "layered shape chords",
+            bytemuck::cast_slice(&chords),
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
         Ok(LayeredImages {
             spread_radius,
+            shape,
+            shape_chords,
             occluder_tiles: Image::new_2d(
                 ctx,
                 "layered occluder tiles",
@@ -416,6 +441,10 @@ impl LayeredFrame<'_> {
             slice_lo: self.slices.lo,
             slice_width: self.slices.width,
             gaussian_layers: u32::from(self.gaussian_layers),
+            shaped: u32::from(images.shape.is_some()),
+            shape_y_min: images.shape.as_ref().map_or(0.0, |s| s.y_min),
+            shape_y_max: images.shape.as_ref().map_or(0.0, |s| s.y_max),
+            shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
         }
     }
 
@@ -543,6 +572,7 @@ impl LayeredFrame<'_> {
                             Bind::StorageBuffer(&images.differences),
                             Bind::StorageBuffer(&images.slice_lists),
                             Bind::StorageBuffer(&images.row_spans),
+                            Bind::StorageBuffer(&images.shape_chords),
                         ],
                         &push,
                         &images.slice_dispatch,

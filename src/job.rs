@@ -698,17 +698,29 @@ impl RenderJob {
     /// `pinhole` and `layered`, the lens samples of `accum`); any other
     /// method is refused. (What else a Gaussian scene cannot do is in
     /// [`scene::FLAGS`].) `aperture`: the camera's, whose shape accum's
-    /// lens samples follow.
+    /// lens samples follow. The points are in eye axes (x right, y up),
+    /// as `GaussianRenderer::render` and `gaussians::render_reference_lens`
+    /// take them.
     pub fn gaussian_lens(&self, aperture: &camera::Aperture) -> Result<Vec<glam::Vec2>> {
         match self.spec.method {
-            m @ Method::Layered(_) if aperture.is_shaped() => {
+            m @ (Method::Pinhole | Method::Layered(_)) => {
                 aperture.check_method(m.kind(), true)?;
                 Ok(vec![glam::Vec2::ZERO])
             }
-            Method::Pinhole | Method::Layered(_) => Ok(vec![glam::Vec2::ZERO]),
             Method::Accum(a) => {
                 crate::options::check_samples(a.samples)?;
-                Ok(aperture.lens_samples(a.samples))
+                // The Gaussian chain takes lens points in eye axes (x
+                // right, y up); a shape's samples are in pixel axes (y
+                // down), so they turn over. The round lattice is kept as
+                // it was: any set of the disk's samples is the disk's.
+                if aperture.is_round() {
+                    return Ok(camera::lens_samples(a.samples));
+                }
+                let samples = aperture.lens_samples(a.samples);
+                Ok(samples
+                    .into_iter()
+                    .map(|u| glam::Vec2::new(u.x, -u.y))
+                    .collect())
             }
 
             m => Err(Error::InvalidArgument(format!(

@@ -18,7 +18,7 @@ use common::{cloud, with_gpu};
 use glam::{Vec2, Vec3};
 use pointlens::camera::{Aperture, ApertureImage, Camera};
 use pointlens::image_io::LinearImage;
-use pointlens::options::{Lod, Method};
+use pointlens::options::{Lod, Method, RdbMode};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 
 /// Frame side, pixels.
@@ -139,6 +139,17 @@ fn ring() -> Aperture {
     }
 }
 
+/// The image in 8×8 blocks (sums), a 16×16 image.
+fn blocks(img: &[f64]) -> Vec<f64> {
+    let n = SIDE / 8;
+    let mut out = vec![0.0; (n * n) as usize];
+    for (i, v) in img.iter().enumerate() {
+        let (x, y) = (i as u32 % SIDE / 8, i as u32 / SIDE / 8);
+        out[(y * n + x) as usize] += v;
+    }
+    out
+}
+
 /// Second moments (xx, yy) of an image about its centroid.
 fn moments(img: &[f64]) -> (f64, f64) {
     let total: f64 = img.iter().sum();
@@ -169,9 +180,9 @@ fn accum_images_a_far_highlight_to_the_aperture() {
     with_gpu(|ctx| {
         let renderer = Renderer::new(ctx).unwrap();
         let accum = Method::accum(4096);
-        // Layered's distance from accum with the round aperture (the
-        // first case).
-        let mut layered_round = None;
+        // Layered's and RDB's distances from accum with the round
+        // aperture (the first case).
+        let mut rounds = [None, None];
         // Behind the focus plane (z = 4: a CoC of 53 px) the shape as
         // drawn; in front (z = 0.6: 47 px) turned by 180°.
         for (z, aperture, tolerance) in [
@@ -207,31 +218,40 @@ fn accum_images_a_far_highlight_to_the_aperture() {
                 d < tolerance,
                 "z {z}, {aperture:?}: {d:.3} from the analytic image"
             );
-            // Layered spreads over the shape (not an image): as close to
-            // accum as with the round aperture (measured 0.016–0.023
-            // against round's 0.021; held to round's + 0.03), and a
-            // pentagon far from its 36° turn (measured 0.21).
-            if aperture.image.is_some() {
-                continue;
-            }
-            let spread = highlight(&renderer, z, Method::layered(2), aperture);
-            let from_accum = distance(&spread, &image);
-            let round = *layered_round.get_or_insert(from_accum);
-            eprintln!("  layered {from_accum:.3} from accum (round {round:.3})");
-            assert!(
-                from_accum < round + 0.03,
-                "z {z}, {aperture:?}: layered {from_accum:.3} from accum (round: {round:.3})"
-            );
-            if aperture.blades == 5 {
-                let turned = Aperture {
-                    rotation_deg: aperture.rotation_deg + 36.0,
-                    ..aperture
-                };
-                let wrong = distance(&spread, &analytic(z, turned));
+            // Layered spreads over the shape (not an image) and RDB bins
+            // the lens by it (9×9 bins: 81 copies of the splat, compared
+            // in 8×8 blocks): each as close to accum as with the round
+            // aperture, held to round's + 0.03 (layered measured
+            // 0.016–0.023 against round's 0.021, RDB 0.065–0.168 against
+            // 0.148); a pentagon far from its 36° turn, held above 0.15.
+            for (k, method) in [
+                (0, Method::layered(2)),
+                (1, Method::rdb(9, RdbMode::Centre)),
+            ] {
+                if k == 0 && aperture.image.is_some() {
+                    continue;
+                }
+                // RDB compared in 8×8 blocks, where its 81 copies merge.
+                let view = |img: &[f64]| if k == 1 { blocks(img) } else { img.to_vec() };
+                let other = view(&highlight(&renderer, z, method, aperture));
+                let from_accum = distance(&other, &view(&image));
+                let round = *rounds[k].get_or_insert(from_accum);
+                eprintln!("  {method:?}: {from_accum:.3} from accum (round {round:.3})");
                 assert!(
-                    wrong > 0.15,
-                    "z {z}, {aperture:?}: layered {wrong:.3} from the 36° turn"
+                    from_accum < round + 0.03,
+                    "z {z}, {aperture:?}: {method:?} {from_accum:.3} from accum (round: {round:.3})"
                 );
+                if aperture.blades == 5 {
+                    let turned = Aperture {
+                        rotation_deg: aperture.rotation_deg + 36.0,
+                        ..aperture
+                    };
+                    let wrong = distance(&other, &view(&analytic(z, turned)));
+                    assert!(
+                        wrong > 0.15,
+                        "z {z}, {aperture:?}: {method:?} {wrong:.3} from the 36° turn"
+                    );
+                }
             }
         }
         // Orientation: a hexagon turned by 30° is itself turned by 90°; a
@@ -271,6 +291,10 @@ fn bad_apertures_are_refused_in_one_line() {
     let rgb = dir.path().join("rgb.png");
     image::RgbImage::from_pixel(8, 8, image::Rgb([200, 100, 50]))
         .save(&rgb)
+        .unwrap();
+    let grey = dir.path().join("grey.png");
+    image::GrayImage::from_pixel(8, 8, image::Luma([128]))
+        .save(&grey)
         .unwrap();
     let black = dir.path().join("black.png");
     image::GrayImage::new(8, 8).save(&black).unwrap();
@@ -348,7 +372,7 @@ fn bad_apertures_are_refused_in_one_line() {
         ),
         (
             &["--aperture-blades", "6", "--method", "fast"],
-            "--aperture-blades (aperture_blades) is rendered by --method accum",
+            "--aperture-blades (aperture_blades) is rendered by --method accum or layered or rdb only, not fast",
         ),
         (
             &["--aperture-blades", "6", "--method", "pinhole"],
@@ -357,6 +381,14 @@ fn bad_apertures_are_refused_in_one_line() {
         (
             &["--cat-eye", "0.5", "--method", "accum"],
             "cat_eye: no method renders the cat's eye yet",
+        ),
+        (
+            &["--aperture-image", grey.to_str().unwrap()],
+            "--aperture-image (aperture_image) is rendered by --method accum or rdb only, not layered",
+        ),
+        (
+            &["--aperture-blades", "5", "--method", "rdb", "--rdb-mode", "pairs"],
+            "a shaped aperture renders with --rdb-mode centre",
         ),
     ];
     for (flags, phrase) in cases {

@@ -13,7 +13,7 @@ use glam::{DVec2, Vec2};
 use serde::{Deserialize, Serialize};
 
 use super::file::camera_error;
-use super::tables::lens_samples;
+use super::tables::{concentric_disk, lens_samples, rdb_lens_table};
 use crate::error::{Error, Result};
 use crate::options::MethodKind;
 
@@ -188,20 +188,20 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
     ApertureFeature {
         field: "aperture_image",
         used: |a| a.image.is_some(),
-        kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Rdb],
         gaussian_kinds: &[MethodKind::Accum],
     },
     ApertureFeature {
         field: "aperture_blades",
         used: |a| a.blades != 0,
-        kinds: &[MethodKind::Accum, MethodKind::Layered],
-        gaussian_kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
+        gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
     ApertureFeature {
         field: "anamorphic_ratio",
         used: |a| a.ratio != 1.0,
-        kinds: &[MethodKind::Accum, MethodKind::Layered],
-        gaussian_kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
+        gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
 ];
 
@@ -537,29 +537,59 @@ impl Aperture {
 
     /// `count` lens positions distributed as T(u) with equal weights and
     /// stratified: the Fibonacci lattice of [`lens_samples`] taken to the
-    /// shape by an area-preserving map (the round aperture's are exactly
-    /// [`lens_samples`]'s, squeezed). Deterministic.
+    /// shape by [`Aperture::from_square`] (the round aperture's are exactly
+    /// [`lens_samples`]'s). Deterministic.
     pub fn lens_samples(&self, count: u32) -> Vec<Vec2> {
+        if self.blades == 0 && self.image.is_none() && self.ratio == 1.0 {
+            return lens_samples(count);
+        }
+        let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
+        let square: Vec<[f64; 2]> = (0..count)
+            .map(|i| {
+                let x = (f64::from(i) + 0.5) / f64::from(count);
+                [x, (f64::from(i) * inv_phi + 0.5).fract()]
+            })
+            .collect();
+        self.from_square(&square)
+    }
+
+    /// The ray distribution buffer's N×N lens bins for this shape: bin
+    /// b = j·N + i is cell (i, j) of the square, its lens position the
+    /// cell's centre taken to the shape by [`Aperture::from_square`], so
+    /// that every bin holds an equal share of T (the round aperture's are
+    /// exactly [`rdb_lens_table`]'s).
+    pub fn rdb_lens_table(&self, n: u32) -> Vec<Vec2> {
+        if self.blades == 0 && self.image.is_none() && self.ratio == 1.0 {
+            return rdb_lens_table(n);
+        }
+        let square: Vec<[f64; 2]> = (0..n * n)
+            .map(|b| {
+                let cell = |k: u32| (f64::from(k) + 0.5) / f64::from(n);
+                [cell(b % n), cell(b / n)]
+            })
+            .collect();
+        self.from_square(&square)
+    }
+
+    /// Points of the unit square [0, 1)² taken to the shape, preserving
+    /// area (so stratified points stay stratified): through the concentric
+    /// map to the disk, the blades' angular warp and the squeeze and
+    /// rotation; or, for an image, its inverse cumulative distribution.
+    pub fn from_square(&self, square: &[[f64; 2]]) -> Vec<Vec2> {
         if let Some(image) = self.image {
-            return image_samples(image, count)
+            return image_samples(image, square)
                 .into_iter()
                 .map(|w| self.lens_of(w))
                 .collect();
         }
+        let disk = square
+            .iter()
+            .map(|&[x, y]| concentric_disk(Vec2::new(2.0 * x as f32 - 1.0, 2.0 * y as f32 - 1.0)));
         if self.blades == 0 {
-            if self.ratio == 1.0 {
-                return lens_samples(count);
-            }
-            return lens_samples(count)
-                .into_iter()
-                .map(|w| self.lens_of(w))
-                .collect();
+            return disk.map(|v| self.lens_of(v)).collect();
         }
         let warp = BladeWarp::new(self);
-        lens_samples(count)
-            .into_iter()
-            .map(|v| self.lens_of(warp.apply(v)))
-            .collect()
+        disk.map(|v| self.lens_of(warp.apply(v))).collect()
     }
 }
 
@@ -688,13 +718,13 @@ impl<'a> BladeWarp<'a> {
     }
 }
 
-/// `count` base points distributed as an aperture image inside the lens's
-/// circle: the lattice of [`lens_samples`]'s square, through the inverse
+/// Base points distributed as an aperture image inside the lens's circle:
+/// points of the unit square through the inverse
 /// of the image's cumulative distribution (rows, then the columns of the
 /// row), each pixel weighted by its transmission times its share inside
 /// the circle; a point that falls outside the circle at the rim is moved
 /// onto it.
-fn image_samples(image: &ApertureImage, count: u32) -> Vec<Vec2> {
+fn image_samples(image: &ApertureImage, square: &[[f64; 2]]) -> Vec<Vec2> {
     let weights: Vec<f64> = image
         .weights_in_circle()
         .iter()
@@ -705,11 +735,9 @@ fn image_samples(image: &ApertureImage, count: u32) -> Vec<Vec2> {
         .map(|j| weights[j * w..(j + 1) * w].iter().sum())
         .collect();
     let rows = Cdf::new(&row_sums);
-    let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
-    (0..count)
-        .map(|i| {
-            let x = (f64::from(i) + 0.5) / f64::from(count);
-            let y = (f64::from(i) * inv_phi + 0.5).fract();
+    square
+        .iter()
+        .map(|&[x, y]| {
             let (j, fy) = rows.sample(y);
             let (i, fx) = Cdf::new(&weights[j * w..(j + 1) * w]).sample(x);
             let p = Vec2::new(

@@ -17,7 +17,6 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
-use crate::camera::rdb_lens_table;
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
 use crate::push_constants;
@@ -254,7 +253,7 @@ impl<'m> RdbImages<'m> {
                 }
             }
         };
-        let table = rdb_lens_table(bins);
+        let table = view.camera.aperture.rdb_lens_table(bins);
         let bytes: &[u8] = bytemuck::cast_slice(&table);
         let lens = Buffer::with_bytes(
             ctx,
@@ -342,6 +341,11 @@ impl DofMethod for Configured<'_, Rdb, RdbOptions> {
     ) -> Result<Box<dyn DofFrame + 'm>> {
         let packed = self.pipelines.packed(self.options.atomics)?;
         check_pairs_loop(ctx, &self.options, view.max_coc_px)?;
+        if self.options.mode == RdbMode::Pairs && view.camera.aperture.is_shaped() {
+            return Err(Error::InvalidArgument(
+                "--rdb-mode pairs bins a disk's pixels by the concentric map; a shaped aperture renders with --rdb-mode centre (the default)".into(),
+            ));
+        }
         let images = RdbImages::new(
             ctx,
             view,

@@ -1012,8 +1012,15 @@ pub fn convert_las(
         path: input.to_path_buf(),
         msg,
     };
-    let mut reader = las::Reader::from_path(input).map_err(|e| fail(e.to_string()))?;
-    let header = reader.header().clone();
+    // LAZ through pointlens's own stream (the GPS times of every point
+    // format decoded without the `laz` crate's recursion, input::laz_gps),
+    // LAS through the `las` crate.
+    let (header, mut stream) = crate::input::las::LazStream::open(input)?;
+    let mut reader = match stream {
+        Some(_) => None,
+        None => Some(las::Reader::from_path(input).map_err(|e| fail(e.to_string()))?),
+    };
+    let record_len = usize::from(header.point_format().len()).max(1);
     let meta = Records {
         bytes: Vec::new(),
         ..Records::meta_of(&header, input)?
@@ -1048,10 +1055,17 @@ pub fn convert_las(
         converter,
         fail: &fail,
         fill: &mut |records: &mut Vec<u8>| {
+            records.clear();
+            if let Some(stream) = stream.as_mut() {
+                let points = stream.next_points();
+                records.resize(stream.reserve(points)? * record_len, 0);
+                stream.decode_next(records)?;
+                return Ok(points);
+            }
+            let reader = reader.as_mut().expect("a LAS reader where no LAZ stream");
             let got = reader
                 .fill_points(crate::input::las::CHUNK_POINTS, &mut data)
                 .map_err(|e| fail(e.to_string().replace('\n', " ")))?;
-            records.clear();
             records.extend_from_slice(data.raw_bytes());
             Ok(got)
         },

@@ -452,6 +452,26 @@ fn catalogue() -> Vec<Case> {
             "info {fuzz}/huge-chunk-size.laz",
             "huge-chunk-size.laz",
         ),
+        // GPS times that switch sequences again and again: the `laz` crate
+        // decodes a switch by calling itself, and overflowed its stack
+        // (found by fuzzing `copc`; input::laz_gps). Render and info of
+        // the COPC file skip its GPS times (tests/laz_gps.rs).
+        case(
+            "render {dir}/gps-switches.laz -o {out} R",
+            "switches between time sequences",
+        ),
+        no_output(
+            "info {dir}/gps-switches.laz",
+            "switches between time sequences",
+        ),
+        case(
+            "convert {dir}/gps-switches.laz -o {dir}/gps.copc.laz",
+            "switches between time sequences",
+        ),
+        case(
+            "convert {dir}/gps-switches.copc.laz -o {dir}/gps.copc.laz",
+            "switches between time sequences",
+        ),
         // compare.
         no_output("compare {dir}/no-such.png {bunny_png}", "no-such.png"),
         no_output("compare {bunny_png} {dir}/small.png", "size"),
@@ -676,6 +696,15 @@ fn write_inputs(dir: &Path) {
         huge[247..255].copy_from_slice(&count.to_le_bytes());
         w(name, &huge);
     }
+    // GPS-time data whose codes switch between LASzip's time sequences
+    // 100,000 times for one point (16 bytes): point by point (format 1),
+    // and layered (PDAL's COPC file, its root node's GPS-time layer).
+    common::craft::laz_gps_switches(&dir.join("gps-switches.laz"), 100_000);
+    let pdal = std::fs::read(root().join("tests/data/pdal-1.2-with-color.copc.laz")).unwrap();
+    w(
+        "gps-switches.copc.laz",
+        &common::craft::copc_gps_switches(&pdal, 100_000),
+    );
     // A PNG smaller than the bunny's.
     pointlens::image_io::write_image(
         &pointlens::image_io::LinearImage::new(4, 3, [0.5; 4]),

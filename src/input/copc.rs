@@ -536,6 +536,10 @@ impl CopcFile {
             bytes.len() as u64,
         )
         .map_err(|e| self.fail(format!("node {}'s LAZ chunk: {e}", key_name(node.key))))?;
+        // Without the GPS times, which nothing read by node needs, and
+        // whose decoding in the `laz` crate recurses as deep as a corrupt
+        // layer says (input::laz_gps).
+        decompressor.set_selection(laz::DecompressionSelection::all().skip_gps_time());
         decompressor.decompress_many(&mut out).map_err(|e| {
             self.fail(format!(
                 "node {} does not hold the {n} points its hierarchy entry declares ({e})",

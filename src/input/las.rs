@@ -1,6 +1,8 @@
-//! LAS, LAZ and COPC input (the `las` crate, LAZ decompressed on every
-//! core): point data record formats 0–10, read in chunks straight into the
-//! cloud, with real-world coordinates re-centred in double precision.
+//! LAS, LAZ and COPC input (the `las` crate; LAZ chunks decompressed on
+//! every core by the `laz` crate's decompressors, their GPS times by
+//! [`super::laz_gps`]): point data record formats 0–10, read in chunks
+//! straight into the cloud, with real-world coordinates re-centred in
+//! double precision.
 //!
 //! Positions: a record's coordinate is the integer code `c` with the
 //! header's scale `s` and offset `o`, `x = c·s + o` (double precision). The
@@ -126,6 +128,26 @@ fn axis(scale: f64, offset: f64, user: Option<f64>, range: (f64, f64)) -> Result
 pub(super) struct Preflight {
     pub(super) header: las::Header,
     record_len: u64,
+    /// A LAZ file's chunks (None for LAS).
+    chunks: Option<LazChunks>,
+}
+
+/// A LAZ file's chunks, from its checked chunk table: what
+/// [`LazStream`] decompresses.
+#[derive(Debug, Clone)]
+struct LazChunks {
+    items: Vec<laz::LazItem>,
+    chunks: Vec<LazChunk>,
+}
+
+/// One LAZ chunk: its bytes in the file and its points.
+#[derive(Debug, Clone, Copy)]
+struct LazChunk {
+    offset: u64,
+    bytes: u64,
+    /// The index of its first point in the file.
+    first: u64,
+    points: u64,
 }
 
 pub(super) fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<Preflight> {
@@ -191,15 +213,16 @@ pub(super) fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<P
         }
     })?;
     let points = header.number_of_points();
+    let mut chunks = None;
     if header.point_format().is_compressed {
-        check_chunk_table(
+        chunks = Some(check_chunk_table(
             path,
             file,
             (offset, data_end, file_len),
             points,
             &header,
             record_len,
-        )?;
+        )?);
     } else {
         let room = data_end - offset;
         let need = points.saturating_mul(record_len);
@@ -225,7 +248,11 @@ pub(super) fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<P
             )));
         }
     }
-    Ok(Preflight { header, record_len })
+    Ok(Preflight {
+        header,
+        record_len,
+        chunks,
+    })
 }
 
 /// Checks a LAZ file's chunk table against the file and the header: its
@@ -233,7 +260,7 @@ pub(super) fn preflight(path: &Path, file: &mut File, file_len: u64) -> Result<P
 /// those are −1; `data_end` is where the points end: the first EVLR or the
 /// file's end) inside the data, version 0, no more chunks than bytes of
 /// compressed data or points, and, for chunks of a fixed size, a point
-/// count the chunks can hold.
+/// count the chunks can hold. The chunks, with their points.
 fn check_chunk_table(
     path: &Path,
     file: &mut File,
@@ -241,7 +268,7 @@ fn check_chunk_table(
     points: u64,
     header: &las::Header,
     record_len: u64,
-) -> Result<()> {
+) -> Result<LazChunks> {
     let fail = |msg: String| Error::Las {
         path: path.to_path_buf(),
         msg: format!("corrupt LAZ chunk table: {msg}"),
@@ -288,19 +315,7 @@ fn check_chunk_table(
         )));
     }
     let vlr = header.laz_vlr().map_err(|e| las_error(path, e))?;
-    // The compressed items must make the header's records (the
-    // decompressor asserts so; summed here in u64, as the items' u16 sizes
-    // may overflow in the laz crate's own sum).
-    let items: u64 = vlr.items().iter().map(|i| u64::from(i.size())).sum();
-    if items != record_len {
-        return Err(Error::Las {
-            path: path.to_path_buf(),
-            msg: format!(
-                "the LAZ items make records of {items} bytes, the header declares {record_len}: \
-                 a corrupt LAZ description or point record length"
-            ),
-        });
-    }
+    check_laz_vlr(path, header, &vlr, record_len)?;
     // The entries: their byte counts must fit in the compressed data, and
     // variable-size chunks' point counts add up to the header's (else the
     // decompressor sizes its buffers from them: a fuzzed table made it
@@ -350,7 +365,77 @@ fn check_chunk_table(
             });
         }
     }
-    check_chunk_layers(path, file, data_start, &entries, vlr.items(), record_len)
+    check_chunk_layers(path, file, data_start, &entries, vlr.items(), record_len)?;
+    Ok(LazChunks::of_table(&entries, &vlr, data_start, points))
+}
+
+impl LazChunks {
+    /// The chunks of a checked chunk table (`entries`, of a file of
+    /// `points` points whose LAZ VLR is `vlr`): they follow the table's
+    /// offset (8 bytes from `data_start`); chunks of a fixed size hold that
+    /// many points each, the last the rest.
+    fn of_table(
+        entries: &laz::laszip::ChunkTable,
+        vlr: &laz::LazVlr,
+        data_start: u64,
+        points: u64,
+    ) -> LazChunks {
+        let mut chunks = Vec::with_capacity(entries.len());
+        let (mut offset, mut first) = (data_start + 8, 0u64);
+        for entry in entries {
+            let count = if vlr.uses_variable_size_chunks() {
+                entry.point_count
+            } else {
+                u64::from(vlr.chunk_size()).min(points - first)
+            };
+            chunks.push(LazChunk {
+                offset,
+                bytes: entry.byte_count,
+                first,
+                points: count,
+            });
+            offset += entry.byte_count;
+            first += count;
+        }
+        LazChunks {
+            items: vlr.items().clone(),
+            chunks,
+        }
+    }
+}
+
+/// Checks a LAZ file's LAZ VLR (`vlr`, of `header`): chunked compression
+/// (its first u16: 2 point by point, 3 layered), as the chunks are read
+/// one by one, and items that make the header's records of `record_len`
+/// bytes (the decompressor asserts so; summed here in u64, as the items'
+/// u16 sizes may overflow in the `laz` crate's own sum).
+fn check_laz_vlr(
+    path: &Path,
+    header: &las::Header,
+    vlr: &laz::LazVlr,
+    record_len: u64,
+) -> Result<()> {
+    let fail = las_fail(path);
+    let compressor = header
+        .vlrs()
+        .iter()
+        .find(|v| las::laz::is_laszip_vlr(v))
+        .and_then(|v| v.data.get(..2))
+        .map(|b| u16::from_le_bytes([b[0], b[1]]));
+    if !matches!(compressor, Some(2 | 3)) {
+        return Err(fail(format!(
+            "its LAZ compressor ({}) is not chunked: not supported",
+            compressor.map_or("none".to_string(), |c| c.to_string())
+        )));
+    }
+    let items: u64 = vlr.items().iter().map(|i| u64::from(i.size())).sum();
+    if items != record_len {
+        return Err(fail(format!(
+            "the LAZ items make records of {items} bytes, the header declares {record_len}: \
+             a corrupt LAZ description or point record length"
+        )));
+    }
+    Ok(())
 }
 
 /// Checks that each layered chunk's (point formats 6–10) layer byte
@@ -545,33 +630,38 @@ fn load_las_with(
     if copc_by_node && facts.header.vlrs().iter().any(|v| v.is_copc_info()) {
         return load_copc(path, facts, origin, progress);
     }
-    file.rewind().map_err(io)?;
-    let mut reader =
-        Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| las_error(path, e))?;
     let header = facts.header.clone();
-    let format = *header.point_format();
     let total = header.number_of_points();
     if total == 0 {
         return Err(fail("the cloud is empty (0 points)".to_string()));
     }
     let n = usize::try_from(total).map_err(|_| fail(format!("{total} points is too many")))?;
     let mut gather = Gather::with_capacity(n, path)?;
-    let mut data: PointData = PointDataBuilder::new().for_header(&header).build();
     let mut done = 0u64;
+    let mut data: PointData = PointDataBuilder::new().for_header(&header).build();
+    if let Some(chunks) = facts.chunks.clone() {
+        // LAZ: chunks decompressed on every core, without their GPS times.
+        let mut stream = LazStream::new(path, file, chunks, &facts, false);
+        loop {
+            let points = stream.next_points();
+            if points == 0 {
+                break;
+            }
+            let records = stream.reserve(points)?;
+            stream.decode_next(data.resize_for(records))?;
+            gather.add(&data);
+            done += points;
+            progress(done, total);
+        }
+        return gather.finish(path, &facts, origin);
+    }
+    file.rewind().map_err(io)?;
+    let mut reader =
+        Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| las_error(path, e))?;
     while done < total {
         let got = reader
             .fill_points(CHUNK_POINTS.min(total - done), &mut data)
-            .map_err(|e| match (format.is_compressed, ends_early(&e)) {
-                (true, true) => fail(format!(
-                    "the compressed data ends before the {total} points its header declares \
-                     (after {done}): corrupt data or a wrong point count"
-                )),
-                (true, false) => fail(format!(
-                    "corrupt LAZ data after point {done}: {}",
-                    e.to_string().replace('\n', " ")
-                )),
-                (false, _) => las_error(path, e),
-            })?;
+            .map_err(|e| las_error(path, e))?;
         if got == 0 {
             return Err(fail(format!(
                 "truncated: the header declares {total} points, the data ends after {done}"
@@ -582,6 +672,215 @@ fn load_las_with(
         progress(done, total);
     }
     gather.finish(path, &facts, origin)
+}
+
+/// A LAZ file's points, decompressed chunk by chunk on every core,
+/// about [`CHUNK_POINTS`] at a time: the chunks of the checked chunk
+/// table ([`preflight`]), each decompressed by [`decompress_chunk`].
+pub(crate) struct LazStream<'a> {
+    path: &'a Path,
+    file: File,
+    chunks: LazChunks,
+    record_len: usize,
+    total: u64,
+    /// The next chunk.
+    next: usize,
+    gps: bool,
+}
+
+impl<'a> LazStream<'a> {
+    /// The stream of `file` (`path`, checked as `facts`, its `chunks`),
+    /// with the GPS times of point formats 6–10 where `gps` (formats 1, 3,
+    /// 4, 5 always have theirs).
+    fn new(
+        path: &'a Path,
+        file: File,
+        chunks: LazChunks,
+        facts: &Preflight,
+        gps: bool,
+    ) -> LazStream<'a> {
+        LazStream {
+            path,
+            file,
+            chunks,
+            record_len: facts.record_len as usize,
+            total: facts.header.number_of_points(),
+            next: 0,
+            gps,
+        }
+    }
+
+    /// Opens a LAS or LAZ file (`path`), checked as [`load_las`] checks
+    /// it: its header, and where it is LAZ its stream, with every point's
+    /// GPS time (`convert`).
+    pub(crate) fn open(path: &'a Path) -> Result<(las::Header, Option<LazStream<'a>>)> {
+        let io = io_fail(path);
+        let mut file = File::open(path).map_err(io)?;
+        let file_len = file.metadata().map_err(io)?.len();
+        let facts = preflight(path, &mut file, file_len)?;
+        let stream = facts
+            .chunks
+            .clone()
+            .map(|chunks| LazStream::new(path, file, chunks, &facts, true));
+        Ok((facts.header, stream))
+    }
+
+    /// The points of the next chunks, about [`CHUNK_POINTS`] in all,
+    /// that [`LazStream::decode_next`] decompresses: 0 after the last.
+    pub(crate) fn next_points(&self) -> u64 {
+        self.next_chunks().iter().map(|c| c.points).sum()
+    }
+
+    fn next_chunks(&self) -> &[LazChunk] {
+        let rest = &self.chunks.chunks[self.next..];
+        let mut points = 0;
+        let len = rest
+            .iter()
+            .take_while(|c| {
+                let take = points < CHUNK_POINTS;
+                points += c.points;
+                take
+            })
+            .count();
+        &rest[..len]
+    }
+
+    /// Checks that the records of `points` points fit in memory (an
+    /// error naming the file where not): their count, for the buffer
+    /// [`LazStream::decode_next`] fills.
+    pub(crate) fn reserve(&self, points: u64) -> Result<usize> {
+        let n = usize::try_from(points).unwrap_or(usize::MAX);
+        let bytes = n.checked_mul(self.record_len);
+        let mut probe = Vec::<u8>::new();
+        if bytes.is_none_or(|b| probe.try_reserve_exact(b).is_err()) {
+            return Err(las_fail(self.path)(format!(
+                "{points} points of {} bytes in one LAZ chunk need more memory than there is",
+                self.record_len
+            )));
+        }
+        Ok(n)
+    }
+
+    /// Decompresses the next chunks ([`LazStream::next_points`] points)
+    /// into `out`, their records (the file's point format) in file order,
+    /// each chunk on one thread, every core taking the next.
+    pub(crate) fn decode_next(&mut self, out: &mut [u8]) -> Result<()> {
+        let batch = self.next_chunks();
+        let mut rest = out;
+        let mut slots = Vec::with_capacity(batch.len());
+        for chunk in batch {
+            let (head, tail) = rest.split_at_mut(chunk.points as usize * self.record_len);
+            slots.push((chunk, std::sync::Mutex::new(head)));
+            rest = tail;
+        }
+        assert!(rest.is_empty(), "a buffer of the batch's records");
+        let decoded = crate::parallel_map(&slots, crate::available_threads(), |(chunk, out)| {
+            let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+            self.read_chunk(chunk, &mut out)
+        });
+        self.next += batch.len();
+        decoded.into_iter().collect()
+    }
+
+    /// Reads and decompresses one chunk into `out`; errors name the file
+    /// and the points.
+    fn read_chunk(&self, chunk: &LazChunk, out: &mut [u8]) -> Result<()> {
+        use std::os::unix::fs::FileExt;
+        let fail = las_fail(self.path);
+        let mut bytes = Vec::new();
+        let len = usize::try_from(chunk.bytes).unwrap_or(usize::MAX);
+        bytes.try_reserve_exact(len).map_err(|_| {
+            fail(format!(
+                "the LAZ chunk of points {} to {} ({len} bytes) needs more memory than there is",
+                chunk.first,
+                chunk.first + chunk.points
+            ))
+        })?;
+        bytes.resize(len, 0);
+        self.file
+            .read_exact_at(&mut bytes, chunk.offset)
+            .map_err(io_fail(self.path))?;
+        let items = &self.chunks.items;
+        decompress_chunk(items, self.record_len, &bytes, chunk.points, self.gps, out).map_err(
+            |fault| match fault {
+                ChunkFault::Ends => fail(format!(
+                    "the compressed data ends before the {} points its header declares \
+                     (after {}): corrupt data or a wrong point count",
+                    self.total, chunk.first
+                )),
+                ChunkFault::Corrupt(e) => {
+                    fail(format!("corrupt LAZ data after point {}: {e}", chunk.first))
+                }
+            },
+        )
+    }
+}
+
+/// Why a LAZ chunk was not decompressed.
+#[derive(Debug)]
+pub enum ChunkFault {
+    /// Its data ends before its points.
+    Ends,
+    /// Anything else, in words.
+    Corrupt(String),
+}
+
+/// Decompresses a LAZ chunk (`bytes`, of `points` points of `record_len`
+/// bytes, items `items`) into `out` (`points` records), through the `laz`
+/// crate with the GPS times of [`super::laz_gps`]: point formats 1, 3, 4,
+/// 5 by its loop (`GpsTimeV2`) in place of the crate's recursion; 6–10
+/// without their GPS-time layer, or, where `gps`, with it once
+/// [`super::laz_gps::check_point14_gps`] has found no point switching
+/// sequences too often.
+pub fn decompress_chunk(
+    items: &[laz::LazItem],
+    record_len: usize,
+    bytes: &[u8],
+    points: u64,
+    gps: bool,
+    out: &mut [u8],
+) -> std::result::Result<(), ChunkFault> {
+    use laz::record::{
+        LayeredPointRecordDecompressor, RecordDecompressor, SequentialPointRecordDecompressor,
+    };
+    use std::io::Cursor;
+    let corrupt = |e: laz::LasZipError| ChunkFault::Corrupt(e.to_string().replace('\n', " "));
+    assert!(
+        Some(out.len() as u64) == points.checked_mul(record_len as u64),
+        "a buffer of the chunk's records"
+    );
+    let Some(first) = items.first() else {
+        return Err(ChunkFault::Corrupt("no LAZ items".to_string()));
+    };
+    let decoded = match first.version() {
+        1 | 2 => {
+            let mut d = SequentialPointRecordDecompressor::new(Cursor::new(bytes));
+            for item in items {
+                if matches!(item.item_type(), laz::LazItemType::GpsTime) && item.version() == 2 {
+                    d.add_field_decompressor(super::laz_gps::GpsTimeV2::default());
+                } else {
+                    d.set_fields_from(&vec![*item]).map_err(corrupt)?;
+                }
+            }
+            d.decompress_many(out)
+        }
+        _ => {
+            let mut d = LayeredPointRecordDecompressor::new(Cursor::new(bytes));
+            d.set_fields_from(&items.to_vec()).map_err(corrupt)?;
+            if gps {
+                super::laz_gps::check_point14_gps(items, record_len, bytes, points)
+                    .map_err(|e| ChunkFault::Corrupt(e.to_string()))?;
+            } else {
+                d.set_selection(laz::DecompressionSelection::all().skip_gps_time());
+            }
+            d.decompress_many(out)
+        }
+    };
+    match decoded {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Err(ChunkFault::Ends),
+        Err(e) => Err(ChunkFault::Corrupt(e.to_string().replace('\n', " "))),
+    }
 }
 
 /// Loads a COPC file (`facts`: its checked header) node by node

@@ -7,6 +7,7 @@
 pub mod copc;
 pub mod gaussians;
 pub mod las;
+pub mod laz_gps;
 pub mod ply;
 
 use std::path::Path;

@@ -10,6 +10,15 @@ round, pointlens renders each method (one process per frame, its frame wall
 time from `--timings-json`) and Mitsuba renders each sample count (steady
 render time, after a first render that includes the JIT). Every image is
 compared with Mitsuba at the reference sample count by `pointlens compare`.
+
+With --aperture "FLAGS" (pointlens's aperture flags, e.g. "--aperture-blades
+6 --aperture-rotation-deg 15"), the flags go to `--print-camera` and to
+every pointlens render of a method, and the Mitsuba scene of the timed
+renders and of the reference gets aperture_sensor.py's sensor built from the
+printed camera (the same shape, by docs/decisions/aperture-shape.md) instead
+of `thinlens`. A method that refuses the shape is skipped with a note. The
+pinhole convention check and the max_depth check keep their sensors (a
+pinhole has no aperture; max_depth does not depend on the lens).
 """
 
 import argparse
@@ -19,6 +28,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import statistics
 import subprocess
 import sys
@@ -28,6 +38,14 @@ from pathlib import Path
 import numpy as np
 
 import splat_scene as ss
+
+# The pointlens flags --aperture may carry (docs/decisions/aperture-shape.md):
+# the shape only, not the radius, which is the scene's.
+APERTURE_FLAGS = ("--aperture-blades", "--aperture-rotation-deg", "--blade-curvature", "--anamorphic-ratio",
+                  "--aperture-image", "--cat-eye")
+# Their fields in the printed camera (aperture_sensor.APERTURE_FIELDS).
+APERTURE_CAMERA_FIELDS = ("aperture_blades", "aperture_rotation_deg", "blade_curvature", "anamorphic_ratio",
+                          "aperture_image", "cat_eye")
 
 # The cameras: pointlens `render` flags; the rest of the camera is pointlens's
 # default (auto-framing) and is read back with --print-camera.
@@ -132,6 +150,9 @@ def parse_args(argv):
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     p.add_argument("--ssaa", default=None)
     p.add_argument("--methods", default=None)
+    p.add_argument("--aperture", default=None,
+                   help="pointlens aperture flags, one string (e.g. \"--aperture-blades 6\"): to "
+                        "--print-camera and every method's render; Mitsuba samples the same shape")
     p.add_argument("--warm-cold", action="store_true",
                    help="also time pointlens warm (the steady frames of a 4-frame sequence of one "
                         "camera) and cold (a whole one-frame process), against Mitsuba's steady and "
@@ -155,6 +176,7 @@ def parse_args(argv):
         fail("--reps must be at least 1")
     if not (16 <= args.width <= 8192 and 16 <= args.height <= 8192):
         fail("--width and --height must be 16 to 8192")
+    args.aperture_flags = parse_aperture(args.aperture) if args.aperture is not None else []
     if args.ref_spp < 1 or args.pinhole_spp < 1:
         fail("--ref-spp and --pinhole-spp must be positive")
     for name, n in [("--spp", v) for v in args.spp] + [("--ref-spp", args.ref_spp),
@@ -162,6 +184,38 @@ def parse_args(argv):
         if n > 64 and n % 64:
             fail(f"{name}: sample counts above 64 must be multiples of 64 (rendered in passes of 64), got {n}")
     return args
+
+
+def parse_aperture(text):
+    """--aperture's string as pointlens arguments: only the shape's flags
+    (APERTURE_FLAGS), each with its value (as FLAG VALUE or FLAG=VALUE);
+    an aperture image made absolute (the printed camera keeps the path as
+    given, and pointlens reads a camera file's relative path from the file's
+    folder, which here is the work folder)."""
+    try:
+        words = shlex.split(text)
+    except ValueError as e:
+        fail(f"--aperture: {e}")
+    if not words:
+        fail("--aperture: no flags given (e.g. --aperture \"--aperture-blades 6\")")
+    out = []
+    k = 0
+    while k < len(words):
+        flag, eq, value = words[k].partition("=")
+        if flag not in APERTURE_FLAGS:
+            fail(f"--aperture: '{words[k]}' is not one of {', '.join(APERTURE_FLAGS)}")
+        if not eq:
+            if k + 1 >= len(words):
+                fail(f"--aperture: {flag} needs a value")
+            value = words[k + 1]
+            k += 1
+        k += 1
+        if flag == "--aperture-image":
+            value = os.path.abspath(value)
+            if not os.path.isfile(value):
+                fail(f"--aperture: no aperture image at {value}")
+        out += [flag, value]
+    return out
 
 
 def methods(args, scene):
@@ -211,6 +265,15 @@ class Bench:
         except Exception as e:  # noqa: BLE001 - Mitsuba raises plain errors
             fail(f"Mitsuba variant {args.variant} is not usable here: {e}")
         self.mi, self.dr = mi, dr
+        self.aperture_sensor = None
+        if args.aperture_flags:
+            import aperture_sensor
+
+            try:
+                aperture_sensor.register()
+            except RuntimeError as e:
+                fail(f"--aperture: {e}")
+            self.aperture_sensor = aperture_sensor
         self.cache_dir = os.environ.get("DRJIT_CACHE_DIR")
         self.results = {"scenes": {}}
 
@@ -223,7 +286,10 @@ class Bench:
     def device_flags(self):
         return ["--device", self.args.device] if self.args.device else []
 
-    def render_pointlens(self, scene, name, flags, out_exr, camera):
+    def render_pointlens(self, scene, name, flags, out_exr, camera, aperture=True):
+        """A pointlens frame; with --aperture, its flags after the method's
+        unless `aperture` is False (the pinhole check)."""
+        flags = flags + (self.args.aperture_flags if aperture else [])
         tj = out_exr.with_suffix(".timings.json")
         started = time.perf_counter()
         self.pointlens("render", str(self.repo / SCENES[scene]["file"]), "-o", str(out_exr),
@@ -301,8 +367,11 @@ class Bench:
         d = self.work / scene
         d.mkdir(parents=True, exist_ok=True)
         ply = self.repo / SCENES[scene]["file"]
-        # The DOF camera, as pointlens resolves it (auto-framing, --focus-pixel).
-        cam_text = self.pointlens("render", str(ply), "-o", str(d / "camera_probe.exr"), "--method", "pinhole",
+        # The DOF camera, as pointlens resolves it (auto-framing, --focus-pixel);
+        # with --aperture, its shape too (printed by a method that takes one:
+        # pinhole refuses a shape).
+        probe = ["--method", "accum", *a.aperture_flags] if a.aperture_flags else ["--method", "pinhole"]
+        cam_text = self.pointlens("render", str(ply), "-o", str(d / "camera_probe.exr"), *probe,
                                   *scene_flags(a, scene), *self.device_flags(), "--print-camera",
                                   what=f"pointlens --print-camera ({scene})")
         try:
@@ -311,6 +380,9 @@ class Bench:
             fail(f"pointlens --print-camera ({scene}) printed no JSON camera")
         (d / "camera.json").write_text(json.dumps(cam, indent=2))
         pin = dict(cam, aperture_radius=0.0)
+        # A pinhole has no aperture (and pointlens's pinhole refuses a shape).
+        for key in APERTURE_CAMERA_FIELDS:
+            pin.pop(key, None)
         (d / "camera_pinhole.json").write_text(json.dumps(pin, indent=2))
 
         splats = d / "splats.bin"
@@ -337,7 +409,7 @@ class Bench:
         # left is the conventions (the methods below run as users run them,
         # at the default level of detail).
         self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--lod-px", "0"], pl_pin,
-                              d / "camera_pinhole.json")
+                              d / "camera_pinhole.json", aperture=False)
         mscene, minfo = ss.build_scene(self.mi, pin, positions, diameters, colors, shape=a.splat_shape)
         img, _ = self.mitsuba_render(mscene, a.pinhole_spp, 7)
         mi_pin = d / "mitsuba_pinhole_check.exr"
@@ -362,16 +434,57 @@ class Bench:
         # pixel against Mitsuba's area integral): it shrinks with K.
         pl_pin8 = d / "pointlens_pinhole_check_ssaa8.exr"
         self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--ssaa", "8", "--lod-px", "0"], pl_pin8,
-                              d / "camera_pinhole.json")
+                              d / "camera_pinhole.json", aperture=False)
         check["psnr_pointlens_ssaa8"] = self.compare(pl_pin8, mi_pin)["psnr"]
         info["pinhole_check"] = check
         del mscene
 
         self.cold_jit()
-        mscene, minfo = ss.build_scene(self.mi, cam, positions, diameters, colors, shape=a.splat_shape)
+        mscene, minfo = self.build_dof_scene(cam, positions, diameters, colors)
         info["mitsuba_build_ms"] = minfo["build_s"] * 1e3
         info["squares"] = minfo
         return d, info, mscene, (positions, diameters, colors)
+
+    def build_dof_scene(self, cam, positions, diameters, colors):
+        """The Mitsuba scene of the timed renders and the reference:
+        splat_scene's, whose sensor is `thinlens`, or with --aperture
+        aperture_sensor's sensor of the printed camera (its film
+        splat_scene's). splat_scene.build_scene takes its sensor from
+        splat_scene.sensor_dict, which is swapped for the duration of the
+        call."""
+        if self.aperture_sensor is None:
+            return ss.build_scene(self.mi, cam, positions, diameters, colors, shape=self.args.splat_shape)
+        thinlens = ss.sensor_dict
+
+        def shaped(mi, c, sample_count=1):
+            film = thinlens(mi, c, sample_count)["film"]
+            return self.aperture_sensor.sensor_from_camera(c, film, sample_count)
+
+        ss.sensor_dict = shaped
+        try:
+            return ss.build_scene(self.mi, cam, positions, diameters, colors, shape=self.args.splat_shape)
+        finally:
+            ss.sensor_dict = thinlens
+
+    def refused(self, scene, meths):
+        """With --aperture: the methods whose render refuses the shape
+        ({name: pointlens's line}), found by `--print-camera` with the
+        method's flags at 32×24 (it checks the method against the camera
+        before rendering; the frame it renders then is small)."""
+        if not self.args.aperture_flags:
+            return {}
+        d = self.work / scene
+        out = {}
+        for name, flags in meths:
+            cmd = [self.args.pointlens, "render", str(self.repo / SCENES[scene]["file"]),
+                   "-o", str(d / "camera_probe.exr"), "--camera", str(d / "camera.json"),
+                   "--splat-shape", self.args.splat_shape, *flags, *self.args.aperture_flags,
+                   *self.device_flags(), "--width", "32", "--height", "24", "--print-camera"]
+            proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            if proc.returncode != 0:
+                out[name] = (proc.stderr.strip().splitlines() or ["(no message)"])[-1]
+                log(f"{scene}: skipping {name}, which refuses the aperture: {out[name]}")
+        return out
 
     def max_depth_check(self, cam, splats):
         """What Mitsuba's max_depth means, by rendering: the benchmark scene
@@ -433,6 +546,14 @@ class Bench:
         self.results["max_depth_check"] = self.max_depth_check(first[1]["camera"], first[3])
 
         meths = {s: methods(a, s) for s in a.scenes}
+        if a.aperture_flags:
+            skipped = {s: self.refused(s, meths[s]) for s in a.scenes}
+            for s in a.scenes:
+                meths[s] = [(name, flags) for name, flags in meths[s] if name not in skipped[s]]
+                if not meths[s]:
+                    fail(f"{s}: every method refuses --aperture '{a.aperture}' "
+                         f"({'; '.join(sorted(set(skipped[s].values())))})")
+            self.results["aperture"] = {"flags": a.aperture_flags, "skipped": skipped}
         pl = {s: {m: [] for m, _ in meths[s]} for s in a.scenes}
         mt = {s: {spp: [] for spp in a.spp} for s in a.scenes}
         mt_first = {s: {} for s in a.scenes}
@@ -616,7 +737,7 @@ def cpu_model():
 def environment(a, mi, dr, results):
     scenes = results["scenes"]
     dev = next(iter(scenes.values()))["pointlens_device"] if scenes else {}
-    return {
+    env = {
         "date": datetime.date.today().isoformat(),
         "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
@@ -637,6 +758,9 @@ def environment(a, mi, dr, results):
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
         "load_average_1min": results.get("load_average_1min"),
     }
+    if a.aperture_flags:
+        env["aperture"] = " ".join(shlex.quote(w) for w in a.aperture_flags)
+    return env
 
 
 def write_csv(path, results):
@@ -712,6 +836,14 @@ def markdown(results):
                  + ". 1-minute load average at the start of each round and at the end: "
                  + ", ".join(f"{v:.1f}" for v in env["load_average_1min"] or [])
                  + " (the benchmark itself keeps about 2 busy).")
+    if env.get("aperture"):
+        lines.append("")
+        lines.append(f"Aperture: pointlens `{env['aperture']}`; Mitsuba's timed renders and reference through "
+                     f"`aperture_thinlens` (scripts/mitsuba/aperture_sensor.py) built from the printed camera; "
+                     f"the pinhole check and the max_depth check as without a shape.")
+        for scene, skipped in results["aperture"]["skipped"].items():
+            for name, why in skipped.items():
+                lines.append(f"Skipped on {scene}: {name}, which refuses the shape (`{why}`).")
     lines.append("")
     for scene, info in results["scenes"].items():
         cam = info["camera"]

@@ -22,10 +22,15 @@ layout(push_constant, std430) uniform LayeredPush {
     // one slice each, no ramp between slices, and their light signed (a
     // layer darker than what it covers takes light away).
     uint gaussian_layers;
-    // 1: a shaped aperture (src/camera/aperture.rs, ShapeRows): fragments
+    // 1: a shaped aperture or a cat's eye (src/camera/aperture.rs,
+    // ShapeRows): fragments
     // spread over its chords (binding 5 of the spread) instead of the disk.
     uint shaped;
     float shape_y_min;    // the shape's vertical extent, lens units
     float shape_y_max;
     int shape_rows;       // rows of the chord table
+    float cat_eye;        // S (0: off): each fragment's shape clipped by the
+                          // cat's eye of its own pixel (glsl/aperture.glsl)
+    ivec2 frame_offset;   // frame pixel of G-buffer pixel (0, 0)
+    ivec2 frame_size;     // the whole frame, pixels
 } pc;

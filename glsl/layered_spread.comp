@@ -18,6 +18,7 @@
 // is hidden by it and left out (a surface cut by the peel into two layers
 // at an occluder in another slice keeps both parts, and shows no seam).
 #include "lens.glsl"
+#include "aperture.glsl"
 #include "layered_push.glsl"
 #include "layered_fixed.glsl"
 #include "layered_slices.glsl"
@@ -97,13 +98,27 @@ void spread_span(int y, float a, float b, vec4 v) {
 }
 
 // Row dy (from the fragment's centre, px) of the shaped aperture scaled to
-// radius r, turned by 180° in front of the focus plane (front): the part
-// of the row's height inside the shape's vertical extent, and the shape's
-// span there relative to the centre (its chord halfway through that part),
-// at least a pixel wide; height 0: the row misses the shape.
-vec3 shape_row(float r, int dy, bool front) {
-    float y_lo = r * (front ? -pc.shape_y_max : pc.shape_y_min);
-    float y_hi = r * (front ? -pc.shape_y_min : pc.shape_y_max);
+// radius r, turned by 180° in front of the focus plane (front), clipped by
+// the cat's eye where pc.cat_eye > 0: the circle about cat.xy of radius
+// cat.z (lens units; cat_circle):
+// the part of the row's height inside the shape's vertical extent, and the
+// shape's span there relative to the centre (its chord halfway through
+// that part), at least a pixel wide; height 0: the row misses the shape.
+// A shape the cat's eye clips away entirely is the lens point −S·d,
+// halfway between the circles' centres.
+vec3 shape_row(float r, int dy, bool front, vec3 cat) {
+    float top = pc.shape_y_min, bottom = pc.shape_y_max;
+    bool clip = pc.cat_eye > 0.0;
+    if (clip) {
+        top = max(top, cat.y - cat.z);
+        bottom = min(bottom, cat.y + cat.z);
+        if (bottom < top) {
+            top = 0.5 * cat.y;
+            bottom = top;
+        }
+    }
+    float y_lo = r * (front ? -bottom : top);
+    float y_hi = r * (front ? -top : bottom);
     if (y_hi - y_lo < 1.0) {
         // At least a pixel high, as the disk (the row of the centre then
         // holds it, for any radius under half a pixel).
@@ -120,6 +135,11 @@ vec3 shape_row(float r, int dy, bool front) {
     float yn = front ? -y : y;
     int k = clamp(int(floor((yn + 1.0) * 0.5 * float(pc.shape_rows))), 0, pc.shape_rows - 1);
     vec2 chord = shape_chords[k];
+    if (clip) {
+        float dc = yn - cat.y;
+        float h = sqrt(max(cat.z * cat.z - dc * dc, 0.0));
+        chord = vec2(max(chord.x, cat.x - h), min(chord.y, cat.x + h));
+    }
     if (chord.x > chord.y) {
         // The row's centre is past the shape's last chord: its middle.
         chord = vec2(0.5 * (chord.x + chord.y));
@@ -130,6 +150,18 @@ vec3 shape_row(float r, int dy, bool front) {
         span = vec2(m - 0.5, m + 0.5);
     }
     return vec3(hi - lo, span);
+}
+
+// The cat's eye of the pixels a fragment at G-buffer pixel p reaches, in
+// its lens positions u: a receiving pixel p + (±r)·u sees u where
+// |u + 2S·d(p + (±r)·u)| ≤ 1, and d is affine in the pixel, so those u
+// form one circle for all of them: centre −2S·d(p)/k, radius 1/|k|, with
+// k = 1 + S·(±2r)/|frame/2| (− in front of the focus plane). Returns
+// (centre, radius).
+vec3 cat_circle(ivec2 p, float r, bool front) {
+    vec2 centre = cat_eye_centre(p + pc.frame_offset, pc.frame_size, pc.cat_eye);
+    float k = 1.0 + pc.cat_eye * (front ? -2.0 * r : 2.0 * r) / length(0.5 * vec2(pc.frame_size));
+    return vec3(centre / k, 1.0 / abs(k));
 }
 
 // Spreads this invocation's fragment, if it has one in the slice; returns
@@ -189,14 +221,15 @@ bool spread_fragment(out ivec4 box) {
     if (pc.shaped != 0u) {
         // A shaped aperture: its chords instead of the disk's rows.
         bool front = c_signed < 0.0;
+        vec3 cat = cat_circle(p, r, front);
         float shape_area = 0.0;
         for (int dy = -rows; dy <= rows; ++dy) {
-            vec3 row = shape_row(r, dy, front);
+            vec3 row = shape_row(r, dy, front, cat);
             shape_area += row.x * (row.z - row.y);
         }
         vec4 shape_unit = v * (weight / shape_area);
         for (int y = y_lo; y <= y_hi; ++y) {
-            vec3 row = shape_row(r, y - p.y, front);
+            vec3 row = shape_row(r, y - p.y, front, cat);
             if (row.x > 0.0) {
                 spread_span(y, centre + row.y, centre + row.z, shape_unit * row.x);
             }

@@ -22,5 +22,9 @@ layout(push_constant, std430) uniform Push {
     ivec2 tile_size;   // output pixels the bins hold
     int bins;
     uint step;         // 64-bit form: the use's tag (unused by the 32-bit one)
+    ivec2 window_origin; // frame pixel of output pixel (0, 0) (a poster's tile)
+    ivec2 frame_size;  // the whole frame, pixels
+    float cat_eye;     // S (0: off): a bin whose lens position the pixel's
+                       // cat's eye clips is left out (glsl/aperture.glsl)
 } pc;
 #endif

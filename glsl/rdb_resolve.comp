@@ -8,8 +8,10 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
 layout(binding = 1, r32ui) uniform readonly uimage2DArray rdb_source;
 layout(binding = 2, rgba16f) uniform writeonly image2D result;
+layout(binding = 3, std430) readonly buffer LensTable { vec2 lens_u[]; };
 
 #include "rdb_push.glsl"
+#include "aperture.glsl"
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
@@ -19,9 +21,10 @@ void main() {
     ivec2 q = pc.tile_origin + t;
     vec4 sum = vec4(0.0);
     float n = 0.0;
+    vec2 cat = cat_eye_centre(pc.window_origin + q, pc.frame_size, pc.cat_eye);
     for (int b = 0; b < pc.bins * pc.bins; ++b) {
         uint source = imageLoad(rdb_source, ivec3(t, b)).x;
-        if (source != 0xFFFFFFFFu) {
+        if (source != 0xFFFFFFFFu && (pc.cat_eye == 0.0 || cat_eye_passes(lens_u[b], cat))) {
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
             sum += imageLoad(gbuffer_color, p);
             n += 1.0;

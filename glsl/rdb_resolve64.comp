@@ -10,8 +10,10 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba16f) uniform readonly image2D gbuffer_color;
 layout(binding = 1, std430) readonly buffer Bins { uint64_t bins64[]; };
 layout(binding = 2, rgba16f) uniform writeonly image2D result;
+layout(binding = 3, std430) readonly buffer LensTable { vec2 lens_u[]; };
 
 #include "rdb_push.glsl"
+#include "aperture.glsl"
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
@@ -23,9 +25,10 @@ void main() {
     uint first = uint((t.y * pc.tile_size.x + t.x) * n2);
     vec4 sum = vec4(0.0);
     float n = 0.0;
+    vec2 cat = cat_eye_centre(pc.window_origin + q, pc.frame_size, pc.cat_eye);
     for (int b = 0; b < n2; ++b) {
         uint64_t word = bins64[first + uint(b)];
-        if (bin_filled(word, pc.step)) {
+        if (bin_filled(word, pc.step) && (pc.cat_eye == 0.0 || cat_eye_passes(lens_u[b], cat))) {
             uint source = bin_source(word);
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
             sum += imageLoad(gbuffer_color, p);

@@ -136,12 +136,6 @@ impl ApertureSpec {
                     format!("must be between 0 (off) and 1, got {s}"),
                 ));
             }
-            if s > 0.0 {
-                return Err(camera_error(
-                    "cat_eye",
-                    "no method renders the cat's eye yet (docs/decisions/aperture-shape.md defines it; the Mitsuba reference follows it)",
-                ));
-            }
         }
         if blades && self.aperture_image.is_some() {
             return Err(camera_error(
@@ -202,6 +196,12 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
         used: |a| a.ratio != 1.0,
         kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
         gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
+    },
+    ApertureFeature {
+        field: "cat_eye",
+        used: |a| a.cat_eye > 0.0,
+        kinds: &[MethodKind::Layered, MethodKind::Rdb],
+        gaussian_kinds: &[MethodKind::Layered],
     },
 ];
 
@@ -936,7 +936,7 @@ mod tests {
             aperture_rotation_deg: Some(-15.0),
             blade_curvature: Some(0.3),
             anamorphic_ratio: Some(1.5),
-            cat_eye: Some(0.0),
+            cat_eye: Some(0.5),
             aperture_image: None,
         };
         assert!(good.validate().is_ok());

@@ -82,6 +82,9 @@ push_constants! {
         shape_y_min: f32,
         shape_y_max: f32,
         shape_rows: i32,
+        cat_eye: f32,
+        frame_offset: [i32; 2],
+        frame_size: [i32; 2],
     }
 }
 
@@ -264,12 +267,11 @@ struct LayeredImages {
 }
 
 /// A shaped aperture's chords and their buffer (one unused entry for the
-/// round aperture, which spreads over the disk).
+/// round aperture without a cat's eye, which spreads over the disk).
 fn shape_chords(ctx: &Arc<Context>, camera: &Camera) -> Result<(Option<ShapeRows>, Buffer)> {
     let aperture = &camera.aperture;
-    let shape = aperture
-        .is_shaped()
-        .then(|| aperture.shape_rows(SHAPE_ROWS));
+    let shape =
+        (aperture.is_shaped() || aperture.cat_eye > 0.0).then(|| aperture.shape_rows(SHAPE_ROWS));
     let chords: Vec<[f32; 2]> = shape.as_ref().map_or(vec![[0.0; 2]], |s| s.chords.clone());
     let buffer = Buffer::with_bytes(
         ctx,
@@ -452,6 +454,12 @@ impl LayeredFrame<'_> {
             shape_y_min: images.shape.as_ref().map_or(0.0, |s| s.y_min),
             shape_y_max: images.shape.as_ref().map_or(0.0, |s| s.y_max),
             shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
+            cat_eye: camera.aperture.cat_eye,
+            frame_offset: [
+                view.window.x as i32 - view.guard as i32,
+                view.window.y as i32 - view.guard as i32,
+            ],
+            frame_size: [camera.width as i32, camera.height as i32],
         }
     }
 

@@ -55,6 +55,9 @@ push_constants! {
         bins: i32,
         /// 64-bit form: the use's tag (unused by the 32-bit one).
         step: u32,
+        window_origin: [i32; 2],
+        frame_size: [i32; 2],
+        cat_eye: f32,
     }
 }
 
@@ -289,7 +292,12 @@ impl Rdb {
                 SCATTER,
                 &[img, img, img, Binding::StorageBuffer],
             )?,
-            resolve: ComputePipeline::new(ctx, "rdb_resolve", RESOLVE, &[img; 3])?,
+            resolve: ComputePipeline::new(
+                ctx,
+                "rdb_resolve",
+                RESOLVE,
+                &[img, img, img, Binding::StorageBuffer],
+            )?,
             packed: match ctx.info.buffer_int64_atomics {
                 true => Some(Packed {
                     scatter: ComputePipeline::new(
@@ -302,7 +310,7 @@ impl Rdb {
                         ctx,
                         "rdb_resolve64",
                         RESOLVE64,
-                        &[img, Binding::StorageBuffer, img],
+                        &[img, Binding::StorageBuffer, img, Binding::StorageBuffer],
                     )?,
                     bins: Mutex::new(None),
                 }),
@@ -485,6 +493,12 @@ impl RdbFrame<'_> {
             tile_size: scan.size,
             bins: self.images.bins as i32,
             step,
+            window_origin: [input.view.window.x as i32, input.view.window.y as i32],
+            frame_size: [
+                input.view.camera.width as i32,
+                input.view.camera.height as i32,
+            ],
+            cat_eye: input.view.camera.aperture.cat_eye,
         }
     }
 
@@ -562,6 +576,7 @@ impl RdbFrame<'_> {
                     Bind::StorageImage(input.color),
                     Bind::StorageBuffer(buffer),
                     Bind::StorageImage(&self.images.result),
+                    Bind::StorageBuffer(&self.images.lens),
                 ],
                 &push,
                 scan.resolve_groups(),
@@ -644,6 +659,7 @@ impl RdbFrame<'_> {
                     Bind::StorageImage(input.color),
                     Bind::StorageImage(source),
                     Bind::StorageImage(&self.images.result),
+                    Bind::StorageBuffer(&self.images.lens),
                 ],
                 &self.resolve_push(input, scan, 0),
                 scan.resolve_groups(),

@@ -1,0 +1,18 @@
+// The aperture's cat's eye (docs/decisions/aperture-shape.md), mirrored
+// from src/camera/aperture.rs (Aperture::cat_eye_centre,
+// Aperture::cat_eye_passes); tests/aperture.rs holds each method that
+// follows it to the analytic image.
+
+// The second circle's centre, in lens positions, for pixel p of a frame of
+// size `frame`: −2S·d, d = (p + ½ − frame/2) / |frame/2|.
+vec2 cat_eye_centre(ivec2 p, ivec2 frame, float cat_eye) {
+    vec2 half_frame = 0.5 * vec2(frame);
+    vec2 d = (vec2(p) + 0.5 - half_frame) / length(half_frame);
+    return -2.0 * cat_eye * d;
+}
+
+// Whether lens position u passes the circle of radius 1 about `centre`.
+bool cat_eye_passes(vec2 u, vec2 centre) {
+    vec2 v = u - centre;
+    return v.x * v.x + v.y * v.y <= 1.0;
+}

@@ -16,3 +16,10 @@ bool cat_eye_passes(vec2 u, vec2 centre) {
     vec2 v = u - centre;
     return v.x * v.x + v.y * v.y <= 1.0;
 }
+
+// The row of a shaped aperture's chord table (src/camera/aperture.rs,
+// Aperture::shape_rows: `rows` rows of equal height over the lens's
+// y ∈ [−1, 1]) holding lens y.
+int shape_row_index(float y, int rows) {
+    return clamp(int(floor((y + 1.0) * 0.5 * float(rows))), 0, rows - 1);
+}

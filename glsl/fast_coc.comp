@@ -1,15 +1,19 @@
 #version 460
 // Fast DOF, pass 1 (DESIGN §4): per G-buffer pixel, its CoC diameter c (px)
 // from the eye depth (background: z = +inf) and its gather weight: the
-// inverse of the number of pixel centres inside its disk (area weights) or 1
+// inverse of the number of pixel centres inside its disk, or its shaped
+// aperture's (area weights), or 1
 // (uniform weights, the paper's plain mean).
 #include "lens.glsl"
 #include "disk.glsl"
+#include "aperture.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0, rgba32f) uniform readonly image2D gbuffer_eye;
 layout(binding = 1, rg32f) uniform writeonly image2D coc_weight;
+// A shaped aperture's chords (pc.shaped; Aperture::shape_rows).
+layout(binding = 2, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
 
 layout(push_constant, std430) uniform Push {
     ivec2 extent;
@@ -17,7 +21,27 @@ layout(push_constant, std430) uniform Push {
     float aperture_radius;
     float focus_distance;
     uint area_weights;
+    uint shaped;       // 1: the gather's taps follow the chords (fast_gather.glsl)
+    int shape_rows;
+    float shape_y_min; // the shape's vertical extent, lens units
+    float shape_y_max;
 } pc;
+
+// The pixel centres (integer offsets from a centre) inside the shape
+// scaled to diameter c, by the gather's own test (fast_gather.glsl,
+// shape_reaches): per row dy, the columns within the row's chord.
+float shape_pixel_count(float c) {
+    float r = 0.5 * c;
+    if (r <= 0.0) {
+        return 1.0;
+    }
+    float n = 0.0;
+    for (int dy = int(ceil(r * pc.shape_y_min)); dy <= int(floor(r * pc.shape_y_max)); ++dy) {
+        vec2 chord = shape_chords[shape_row_index(float(dy) / r, pc.shape_rows)];
+        n += max(floor(r * chord.y) - ceil(r * chord.x) + 1.0, 0.0);
+    }
+    return max(n, 1.0);
+}
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
@@ -26,6 +50,7 @@ void main() {
     }
     float z = imageLoad(gbuffer_eye, p).z;
     float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
-    float w = pc.area_weights != 0u ? 1.0 / disk_pixel_count(c) : 1.0;
+    float area = pc.shaped != 0u ? shape_pixel_count(c) : disk_pixel_count(c);
+    float w = pc.area_weights != 0u ? 1.0 / area : 1.0;
     imageStore(coc_weight, p, vec4(c, w, 0.0, 0.0));
 }

@@ -29,7 +29,14 @@ layout(binding = 4, rgba16f) uniform writeonly image2D result;
 layout(binding = 5, std430) readonly buffer Sums { vec4 sums[]; };
 layout(binding = 6, std430) readonly buffer Weights { float weights[]; };
 layout(binding = 7, std430) readonly buffer Bounds { vec4 bounds[]; };
+#define SHAPE_BINDING 8
+#else
+#define SHAPE_BINDING 5
 #endif
+// A shaped aperture's chords (pc.shaped; Aperture::shape_rows), after the
+// tree's buffers where there are some.
+layout(binding = SHAPE_BINDING, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
+#include "aperture.glsl"
 
 layout(push_constant, std430) uniform Push {
     ivec2 extent;   // G-buffer size
@@ -38,7 +45,27 @@ layout(push_constant, std430) uniform Push {
     int tile;
     int levels;     // levels of the block tree (TREE; 0: none)
     ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
+    // A shaped aperture (the pixel loop only): a tap reaches Q through the
+    // shape's chords instead of the disk.
+    uint shaped;
+    int shape_rows;
+    float focus_distance;
 } pc;
+
+// Whether a pixel at offset v = P − Q from Q, of diameter c and depth z,
+// reaches Q through a lens position u of the shape: Q = P + sign(z)·c/2·u.
+bool shape_reaches(ivec2 v, float c, float z) {
+    if (c <= 0.0) {
+        return v == ivec2(0);
+    }
+    float s = z >= pc.focus_distance ? 1.0 : -1.0;
+    vec2 u = -2.0 * vec2(v) / (s * c);
+    if (dot(u, u) > 1.0) {
+        return false;
+    }
+    vec2 chord = shape_chords[shape_row_index(u.y, pc.shape_rows)];
+    return (u.x >= chord.x && u.x <= chord.y) || v == ivec2(0);
+}
 
 void main() {
     ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
@@ -63,8 +90,11 @@ void main() {
         }
         for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
             for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
-                float d2 = float(dx * dx + dy * dy);
-                if (d2 > 0.25 * cw.x * cw.x) {
+                if (pc.shaped != 0u) {
+                    if (!shape_reaches(ivec2(dx, dy), cw.x, 1.0 / 0.0)) {
+                        continue;
+                    }
+                } else if (float(dx * dx + dy * dy) > 0.25 * cw.x * cw.x) {
                     continue;
                 }
                 sum += cw.y * color;
@@ -175,12 +205,19 @@ void main() {
         for (int dx = lo.x - q.x; dx <= hi.x - q.x; ++dx) {
             ivec2 p = q + ivec2(dx, dy);
             vec2 cw = imageLoad(coc_weight, p).xy;
-            float d2 = float(dx * dx + dy * dy);
-            if (d2 > 0.25 * cw.x * cw.x) {
-                continue;
-            }
-            if (imageLoad(gbuffer_eye, p).z > zq) {
-                continue;
+            if (pc.shaped != 0u) {
+                float zp = imageLoad(gbuffer_eye, p).z;
+                if (!shape_reaches(ivec2(dx, dy), cw.x, zp) || zp > zq) {
+                    continue;
+                }
+            } else {
+                float d2 = float(dx * dx + dy * dy);
+                if (d2 > 0.25 * cw.x * cw.x) {
+                    continue;
+                }
+                if (imageLoad(gbuffer_eye, p).z > zq) {
+                    continue;
+                }
             }
             sum += cw.y * imageLoad(gbuffer_color, p);
             weight += cw.y;

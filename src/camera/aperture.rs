@@ -188,13 +188,23 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
     ApertureFeature {
         field: "aperture_blades",
         used: |a| a.blades != 0,
-        kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
+        kinds: &[
+            MethodKind::Accum,
+            MethodKind::Layered,
+            MethodKind::Rdb,
+            MethodKind::Fast,
+        ],
         gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
     ApertureFeature {
         field: "anamorphic_ratio",
         used: |a| a.ratio != 1.0,
-        kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
+        kinds: &[
+            MethodKind::Accum,
+            MethodKind::Layered,
+            MethodKind::Rdb,
+            MethodKind::Fast,
+        ],
         gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
     ApertureFeature {

@@ -14,6 +14,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use crate::camera::ShapeRows;
 use crate::error::{Error, Result};
 use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use crate::push_constants;
@@ -47,6 +48,10 @@ push_constants! {
         aperture_radius: f32,
         focus_distance: f32,
         area_weights: u32,
+        shaped: u32,
+        shape_rows: i32,
+        shape_y_min: f32,
+        shape_y_max: f32,
     }
 }
 
@@ -75,6 +80,9 @@ push_constants! {
         tile: i32,
         levels: i32,
         padded: [i32; 2],
+        shaped: u32,
+        shape_rows: i32,
+        focus_distance: f32,
     }
 }
 
@@ -102,16 +110,16 @@ impl Fast {
     pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {
-            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I; 2])?,
+            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
             tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
-            gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[I; 5])?,
+            gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[I, I, I, I, I, B])?,
             tree: ComputePipeline::new(ctx, "fast_tree", TREE, &[I, I, I, B, B, B])?,
             gather_tree: ComputePipeline::new(
                 ctx,
                 "fast_gather_tree",
                 GATHER_TREE,
-                &[I, I, I, I, I, B, B, B],
+                &[I, I, I, I, I, B, B, B, B],
             )?,
             fields: super::fields::Fields::new(ctx)?,
         })
@@ -185,6 +193,15 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
         ctx: &Arc<Context>,
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
+        if view.camera.aperture.is_shaped() && self.options.gather != FastGather::Pixels {
+            return Err(Error::InvalidArgument(format!(
+                "--method fast renders a shaped aperture with --fast-gather pixels only (the {} gather sums disks)",
+                match self.options.gather {
+                    FastGather::Fields => "fields",
+                    _ => "tree",
+                }
+            )));
+        }
         if self.options.gather == FastGather::Fields {
             return Ok(Box::new(super::fields::FieldsFrame::new(
                 ctx,
@@ -201,6 +218,9 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
 
 /// The images of one frame of the method.
 struct FastImages {
+    /// A shaped aperture's chords (None: the disk) and their buffer.
+    shape: Option<ShapeRows>,
+    shape_chords: Buffer,
     coc_weight: Image,
     tile_max: Image,
     tile_radius: Image,
@@ -273,7 +293,10 @@ impl FastImages {
         let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
         let storage = vk::ImageUsageFlags::STORAGE;
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
+        let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "fast")?;
         Ok(FastImages {
+            shape,
+            shape_chords,
             coc_weight: image("fast coc", vk::Format::R32G32_SFLOAT, w, h, storage)?,
             tile_max: image("fast tile max", vk::Format::R32G32_SFLOAT, tw, th, storage)?,
             tile_radius: image(
@@ -319,6 +342,7 @@ impl FastFrame<'_> {
                 &[
                     Bind::StorageImage(input.eye),
                     Bind::StorageImage(&images.coc_weight),
+                    Bind::StorageBuffer(&images.shape_chords),
                 ],
                 &CocPush {
                     extent: [w, h],
@@ -326,6 +350,10 @@ impl FastFrame<'_> {
                     aperture_radius: camera.aperture_radius,
                     focus_distance: camera.focus_distance,
                     area_weights: (options.weights == FastWeights::Area) as u32,
+                    shaped: u32::from(images.shape.is_some()),
+                    shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
+                    shape_y_min: images.shape.as_ref().map_or(0.0, |s| s.y_min),
+                    shape_y_max: images.shape.as_ref().map_or(0.0, |s| s.y_max),
                 },
                 [groups(w as u32, 8), groups(h as u32, 8), 1],
             );
@@ -490,6 +518,8 @@ impl FastFrame<'_> {
                 }
                 None => &p.gather,
             };
+            binds.push(Bind::StorageBuffer(&images.shape_chords));
+            let camera = &view.camera;
             rec.dispatch(
                 pipeline,
                 &binds,
@@ -503,6 +533,9 @@ impl FastFrame<'_> {
                         .tree
                         .as_ref()
                         .map_or([w, h], |t| t.padded.map(|v| v as i32)),
+                    shaped: u32::from(images.shape.is_some()),
+                    shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
+                    focus_distance: camera.focus_distance,
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );

@@ -266,26 +266,6 @@ struct LayeredImages {
     slice_dispatch: Buffer,
 }
 
-/// A shaped aperture's chords and their buffer (one unused entry for the
-/// round aperture without a cat's eye, which spreads over the disk).
-fn shape_chords(ctx: &Arc<Context>, camera: &Camera) -> Result<(Option<ShapeRows>, Buffer)> {
-    let aperture = &camera.aperture;
-    let shape =
-        (aperture.is_shaped() || aperture.cat_eye > 0.0).then(|| aperture.shape_rows(SHAPE_ROWS));
-    let chords: Vec<[f32; 2]> = shape.as_ref().map_or(vec![[0.0; 2]], |s| s.chords.clone());
-    let buffer = Buffer::with_bytes(
-        ctx,
-        "layered shape chords",
-        bytemuck::cast_slice(&chords),
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-    )?;
-    Ok((shape, buffer))
-}
-
-/// Rows of a shaped aperture's chord table: a row per pixel of a CoC up
-/// to 512 px across.
-const SHAPE_ROWS: u32 = 512;
-
 /// Bytes of the row differences per pixel.
 const DIFFERENCE_BYTES: u64 = 16;
 
@@ -331,7 +311,7 @@ impl LayeredImages {
             table,
             vk::BufferUsageFlags::STORAGE_BUFFER,
         )?;
-        let (shape, shape_chords) = shape_chords(ctx, &view.camera)?;
+        let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "layered")?;
         Ok(LayeredImages {
             spread_radius,
             shape,

@@ -17,6 +17,31 @@ use crate::error::{Error, Result};
 use crate::options::Method;
 use crate::vk::{Context, Frame, Image};
 
+/// Rows of a shaped aperture's chord table (`Aperture::shape_rows`): a
+/// row per pixel of a CoC up to 512 px across.
+pub const SHAPE_ROWS: u32 = 512;
+
+/// The chords of the camera's aperture where it is shaped or has a cat's
+/// eye (None: the round disk), and their buffer on the device (one unused
+/// entry for the disk), named after the method `label`.
+pub fn shape_chords(
+    ctx: &Arc<Context>,
+    camera: &Camera,
+    label: &str,
+) -> Result<(Option<crate::camera::ShapeRows>, crate::vk::Buffer)> {
+    let aperture = &camera.aperture;
+    let shape =
+        (aperture.is_shaped() || aperture.cat_eye > 0.0).then(|| aperture.shape_rows(SHAPE_ROWS));
+    let chords: Vec<[f32; 2]> = shape.as_ref().map_or(vec![[0.0; 2]], |s| s.chords.clone());
+    let buffer = crate::vk::Buffer::with_bytes(
+        ctx,
+        &format!("{label} shape chords"),
+        bytemuck::cast_slice(&chords),
+        ash::vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?;
+    Ok((shape, buffer))
+}
+
 pub mod accum;
 pub mod edl;
 pub mod fast;

@@ -39,6 +39,11 @@ layout(binding = 4, std430) buffer RowSpans { uint row_spans[]; };
 // lens's y ∈ [−1, 1], the shape's [x_lo, x_hi] (src/camera/aperture.rs,
 // Aperture::shape_rows).
 layout(binding = 5, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
+// An aperture image's rows of spans (pc.shaped == 2; Aperture::shape_spans):
+// row k's spans are span_list[span_offsets[k] .. span_offsets[k + 1]], each
+// (x_lo, x_hi, transmission) in lens units.
+layout(binding = 6, std430) readonly buffer SpanOffsets { uint span_offsets[]; };
+layout(binding = 7, std430) readonly buffer SpanList { float span_list[]; };
 
 // The box of G-buffer pixels this workgroup's fragments wrote differences
 // at: x from, x to, y from, y to.
@@ -152,6 +157,48 @@ vec3 shape_row(float r, int dy, bool front, vec3 cat) {
     return vec3(hi - lo, span);
 }
 
+// Row dy of an aperture image scaled to radius r (turned by 180° in front
+// of the focus plane, clipped by the cat's eye as shape_row): the part of
+// the row's height inside the image's vertical extent times each span's
+// length and transmission, summed and returned; where `spread`, each span
+// also spread over G-buffer row p.y + dy, `unit` per unit of that area.
+float image_row(float r, ivec2 p, int dy, bool front, vec3 cat, bool spread, vec4 unit) {
+    float top = pc.shape_y_min, bottom = pc.shape_y_max;
+    bool clip = pc.cat_eye > 0.0;
+    if (clip) {
+        top = max(top, cat.y - cat.z);
+        bottom = min(bottom, cat.y + cat.z);
+    }
+    float lo = max(float(dy) - 0.5, r * (front ? -bottom : top));
+    float hi = min(float(dy) + 0.5, r * (front ? -top : bottom));
+    if (hi <= lo) {
+        return 0.0;
+    }
+    float yn = (front ? -1.0 : 1.0) * 0.5 * (lo + hi) / r;
+    vec2 cut = vec2(-1.0, 1.0);
+    if (clip) {
+        float dc = yn - cat.y;
+        float h = sqrt(max(cat.z * cat.z - dc * dc, 0.0));
+        cut = vec2(cat.x - h, cat.x + h);
+    }
+    int k = shape_row_index(yn, pc.shape_rows);
+    float centre = float(p.x) + 0.5;
+    float area = 0.0;
+    for (uint i = span_offsets[k]; i < span_offsets[k + 1]; ++i) {
+        vec2 span = vec2(max(span_list[3u * i], cut.x), min(span_list[3u * i + 1u], cut.y));
+        if (span.y <= span.x) {
+            continue;
+        }
+        span = front ? -span.yx * r : span * r;
+        float part = (hi - lo) * span_list[3u * i + 2u];
+        area += part * (span.y - span.x);
+        if (spread) {
+            spread_span(p.y + dy, centre + span.x, centre + span.y, unit * part);
+        }
+    }
+    return area;
+}
+
 // The cat's eye of the pixels a fragment at G-buffer pixel p reaches, in
 // its lens positions u: a receiving pixel p + (±r)·u sees u where
 // |u + 2S·d(p + (±r)·u)| ≤ 1, and d is affine in the pixel, so those u
@@ -222,6 +269,27 @@ bool spread_fragment(out ivec4 box) {
         // A shaped aperture: its chords instead of the disk's rows.
         bool front = c_signed < 0.0;
         vec3 cat = cat_circle(p, r, front);
+        if (pc.shaped == 2u) {
+            // An aperture image. Under a pixel across: the fragment's pixel.
+            if (r < 0.5) {
+                if (p.y >= y_lo && p.y <= y_hi) {
+                    spread_span(p.y, centre - 0.5, centre + 0.5, v * weight);
+                }
+                return true;
+            }
+            float image_area = 0.0;
+            for (int dy = -rows; dy <= rows; ++dy) {
+                image_area += image_row(r, p, dy, front, cat, false, vec4(0.0));
+            }
+            if (image_area <= 0.0) {
+                return false;
+            }
+            vec4 image_unit = v * (weight / image_area);
+            for (int y = y_lo; y <= y_hi; ++y) {
+                image_row(r, p, y - p.y, front, cat, true, image_unit);
+            }
+            return true;
+        }
         float shape_area = 0.0;
         for (int dy = -rows; dy <= rows; ++dy) {
             vec3 row = shape_row(r, dy, front, cat);

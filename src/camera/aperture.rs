@@ -182,8 +182,8 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
     ApertureFeature {
         field: "aperture_image",
         used: |a| a.image.is_some(),
-        kinds: &[MethodKind::Accum, MethodKind::Rdb],
-        gaussian_kinds: &[MethodKind::Accum],
+        kinds: &[MethodKind::Accum, MethodKind::Rdb, MethodKind::Layered],
+        gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
     ApertureFeature {
         field: "aperture_blades",
@@ -616,6 +616,66 @@ pub struct ShapeRows {
     pub y_max: f32,
     /// Per row, [x_lo, x_hi].
     pub chords: Vec<[f32; 2]>,
+}
+
+/// A shape of any transmission (an aperture image) as spans of constant
+/// transmission along rows (the layered method's spreading): per row of
+/// equal height over y ∈ [−1, 1], `spans[offsets[k]..offsets[k + 1]]`,
+/// each [x_lo, x_hi, T] in lens units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeSpans {
+    /// The least y of a row with a span (its edge).
+    pub y_min: f32,
+    /// The greatest.
+    pub y_max: f32,
+    /// Row k's spans start at `offsets[k]`; `rows + 1` entries.
+    pub offsets: Vec<u32>,
+    /// [x_lo, x_hi, transmission].
+    pub spans: Vec<[f32; 3]>,
+}
+
+/// Points per row of [`Aperture::shape_spans`].
+const SPAN_POINTS: u32 = 1024;
+
+impl Aperture {
+    /// The shape as `rows` rows of spans: T at 1024 points across each
+    /// row's centre line, runs of equal T (above 0) joined into spans.
+    pub fn shape_spans(&self, rows: u32) -> ShapeSpans {
+        let (mut offsets, mut spans) = (vec![0u32], Vec::new());
+        let (mut y_min, mut y_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        let step = 2.0 / SPAN_POINTS as f32;
+        for k in 0..rows {
+            let y = -1.0 + (k as f32 + 0.5) * 2.0 / rows as f32;
+            let mut run: Option<[f32; 3]> = None;
+            for i in 0..SPAN_POINTS {
+                let x0 = -1.0 + i as f32 * step;
+                let t = self.transmission(Vec2::new(x0 + 0.5 * step, y));
+                match &mut run {
+                    Some(r) if r[2] == t => r[1] = x0 + step,
+                    _ => {
+                        if let Some(r) = run.take() {
+                            spans.push(r);
+                        }
+                        if t > 0.0 {
+                            run = Some([x0, x0 + step, t]);
+                        }
+                    }
+                }
+            }
+            spans.extend(run);
+            if spans.len() as u32 > *offsets.last().unwrap_or(&0) {
+                y_min = y_min.min(y - 1.0 / rows as f32);
+                y_max = y_max.max(y + 1.0 / rows as f32);
+            }
+            offsets.push(spans.len() as u32);
+        }
+        ShapeSpans {
+            y_min,
+            y_max,
+            offsets,
+            spans,
+        }
+    }
 }
 
 /// Boundary points of [`Aperture::shape_rows`]'s polygon.

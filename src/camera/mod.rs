@@ -38,8 +38,8 @@ mod lens;
 mod tables;
 
 pub use aperture::{
-    Aperture, ApertureFeature, ApertureImage, ApertureSpec, ShapeRows, APERTURE_FEATURES,
-    MAX_APERTURE_IMAGE_SIDE, MAX_BLADES,
+    Aperture, ApertureFeature, ApertureImage, ApertureSpec, ShapeRows, ShapeSpans,
+    APERTURE_FEATURES, MAX_APERTURE_IMAGE_SIDE, MAX_BLADES,
 };
 pub use file::{
     CameraSpec, Coordinates, DEFAULT_FOVY_DEG, DEFAULT_HEIGHT, DEFAULT_WIDTH, MAX_PIXELS,

@@ -115,7 +115,7 @@ impl Layered {
                     ctx,
                     "layered_spread",
                     SPREAD,
-                    &[I, I, B, B, B, B],
+                    &[I, I, B, B, B, B, B, B],
                 )?),
                 false => None,
             },
@@ -242,6 +242,10 @@ struct LayeredImages {
     fragment_coc: Image,
     /// The spread radius per CoC (`spread_disk::radius_table_words`).
     spread_radius: Buffer,
+    /// An aperture image's spans and their buffers (offsets, spans).
+    spans: Option<crate::camera::ShapeSpans>,
+    span_offsets: Buffer,
+    span_list: Buffer,
     /// A shaped aperture's chords (None: the round disk).
     shape: Option<ShapeRows>,
     /// The chords on the device (one unused entry for the disk).
@@ -312,10 +316,14 @@ impl LayeredImages {
             vk::BufferUsageFlags::STORAGE_BUFFER,
         )?;
         let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "layered")?;
+        let (spans, span_offsets, span_list) = super::shape_spans(ctx, &view.camera, "layered")?;
         Ok(LayeredImages {
             spread_radius,
             shape,
             shape_chords,
+            spans,
+            span_offsets,
+            span_list,
             occluder_tiles: Image::new_2d(
                 ctx,
                 "layered occluder tiles",
@@ -411,6 +419,12 @@ impl LayeredFrame<'_> {
             images.occluder_tiles.height() as i32,
         ];
         let b = input.background;
+        // The aperture: 0 the disk, 1 a shape's chords, 2 an image's spans.
+        let (shaped, shape_y_min, shape_y_max, shape_rows) = match (&images.shape, &images.spans) {
+            (_, Some(s)) => (2, s.y_min, s.y_max, s.offsets.len() as i32 - 1),
+            (Some(s), None) => (1, s.y_min, s.y_max, s.chords.len() as i32),
+            (None, None) => (0, 0.0, 0.0, 1),
+        };
         LayeredPush {
             background: [b.x, b.y, b.z, 0.0],
             extent: [w as i32, h as i32],
@@ -430,10 +444,10 @@ impl LayeredFrame<'_> {
             slice_lo: self.slices.lo,
             slice_width: self.slices.width,
             gaussian_layers: u32::from(self.gaussian_layers),
-            shaped: u32::from(images.shape.is_some()),
-            shape_y_min: images.shape.as_ref().map_or(0.0, |s| s.y_min),
-            shape_y_max: images.shape.as_ref().map_or(0.0, |s| s.y_max),
-            shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
+            shaped,
+            shape_y_min,
+            shape_y_max,
+            shape_rows,
             cat_eye: camera.aperture.cat_eye,
             frame_offset: [
                 view.window.x as i32 - view.guard as i32,
@@ -568,6 +582,8 @@ impl LayeredFrame<'_> {
                             Bind::StorageBuffer(&images.slice_lists),
                             Bind::StorageBuffer(&images.row_spans),
                             Bind::StorageBuffer(&images.shape_chords),
+                            Bind::StorageBuffer(&images.span_offsets),
+                            Bind::StorageBuffer(&images.span_list),
                         ],
                         &push,
                         &images.slice_dispatch,

@@ -21,8 +21,8 @@ use crate::vk::{Context, Frame, Image};
 /// row per pixel of a CoC up to 512 px across.
 pub const SHAPE_ROWS: u32 = 512;
 
-/// The chords of the camera's aperture where it is shaped or has a cat's
-/// eye (None: the round disk), and their buffer on the device (one unused
+/// The chords of the camera's aperture where it is shaped (not an image)
+/// or has a cat's eye (None: the round disk or an image), and their buffer on the device (one unused
 /// entry for the disk), named after the method `label`.
 pub fn shape_chords(
     ctx: &Arc<Context>,
@@ -30,8 +30,9 @@ pub fn shape_chords(
     label: &str,
 ) -> Result<(Option<crate::camera::ShapeRows>, crate::vk::Buffer)> {
     let aperture = &camera.aperture;
-    let shape =
-        (aperture.is_shaped() || aperture.cat_eye > 0.0).then(|| aperture.shape_rows(SHAPE_ROWS));
+    // An image's rows are spans, not chords (`shape_spans`).
+    let shape = (aperture.image.is_none() && (aperture.is_shaped() || aperture.cat_eye > 0.0))
+        .then(|| aperture.shape_rows(SHAPE_ROWS));
     let chords: Vec<[f32; 2]> = shape.as_ref().map_or(vec![[0.0; 2]], |s| s.chords.clone());
     let buffer = crate::vk::Buffer::with_bytes(
         ctx,
@@ -40,6 +41,46 @@ pub fn shape_chords(
         ash::vk::BufferUsageFlags::STORAGE_BUFFER,
     )?;
     Ok((shape, buffer))
+}
+
+/// An aperture image's rows of spans (`Aperture::shape_spans`, None
+/// without an image) and their buffers on the device: the rows' offsets
+/// and the spans (one unused entry each without).
+pub fn shape_spans(
+    ctx: &Arc<Context>,
+    camera: &Camera,
+    label: &str,
+) -> Result<(
+    Option<crate::camera::ShapeSpans>,
+    crate::vk::Buffer,
+    crate::vk::Buffer,
+)> {
+    let aperture = &camera.aperture;
+    let spans = aperture.image.map(|_| aperture.shape_spans(SHAPE_ROWS));
+    let (offsets, list) = match &spans {
+        Some(s) => (s.offsets.clone(), s.spans.clone()),
+        None => (vec![0], vec![[0.0; 3]]),
+    };
+    let list = if list.is_empty() {
+        vec![[0.0; 3]]
+    } else {
+        list
+    };
+    let usage = ash::vk::BufferUsageFlags::STORAGE_BUFFER;
+    let offsets = crate::vk::Buffer::with_bytes(
+        ctx,
+        &format!("{label} span offsets"),
+        bytemuck::cast_slice(&offsets),
+        usage,
+    )?;
+    let flat: Vec<f32> = list.iter().flatten().copied().collect();
+    let list = crate::vk::Buffer::with_bytes(
+        ctx,
+        &format!("{label} spans"),
+        bytemuck::cast_slice(&flat),
+        usage,
+    )?;
+    Ok((spans, offsets, list))
 }
 
 pub mod accum;

@@ -602,6 +602,10 @@ mod tests {
             aperture_radius: f32,
             focus_distance: f32,
             area_weights: u32,
+            shaped: u32,
+            shape_rows: i32,
+            shape_y_min: f32,
+            shape_y_max: f32,
         }
     }
 
@@ -613,6 +617,10 @@ mod tests {
             f_px: f32,
             focus_distance: f32,
             area_weights: u32,
+            shaped: u32,
+            shape_rows: i32,
+            shape_y_min: f32,
+            shape_y_max: f32,
         }
     }
 
@@ -623,6 +631,10 @@ mod tests {
             f_px: f32,
             aperture_radius: f32,
             focus_distance: f32,
+            area_weights: u32,
+            shaped: u32,
+            shape_rows: i32,
+            shape_y_min: f32,
         }
     }
 
@@ -635,6 +647,10 @@ mod tests {
             focus_distance: f32,
             pad: f32,
             area_weights: u64,
+            shaped: u32,
+            shape_rows: i32,
+            shape_y_min: f32,
+            shape_y_max: f32,
         }
     }
 
@@ -651,7 +667,7 @@ mod tests {
         ] {
             let err = result.expect_err(what).to_string();
             assert!(
-                err.contains("fast_coc") && err.contains("area_weights@20+4"),
+                err.contains("fast_coc") && err.contains("shape_y_max@36+4"),
                 "{what}: {err}"
             );
         }

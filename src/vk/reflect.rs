@@ -500,6 +500,10 @@ mod tests {
                 ("aperture_radius", 12, 4),
                 ("focus_distance", 16, 4),
                 ("area_weights", 20, 4),
+                ("shaped", 24, 4),
+                ("shape_rows", 28, 4),
+                ("shape_y_min", 32, 4),
+                ("shape_y_max", 36, 4),
             ],
         );
     }

@@ -722,7 +722,6 @@ impl RenderJob {
                     .map(|u| glam::Vec2::new(u.x, -u.y))
                     .collect())
             }
-
             m => Err(Error::InvalidArgument(format!(
                 "--method {}: a scene of 3D Gaussians renders with pinhole, layered or accum",
                 m.short_name()

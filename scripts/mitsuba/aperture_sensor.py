@@ -142,15 +142,15 @@ target, up), far_clip 1e6, aperture_radius, focus_distance, an
 fields `aperture_blades`, `aperture_rotation_deg`, `blade_curvature`,
 `anamorphic_ratio`, `aperture_image`, `cat_eye` (each absent or null: the
 document's default); aperture_radius 0 gives Mitsuba's `perspective`.
-bench.py would call `aperture_sensor.register()` once after
+bench.py calls `aperture_sensor.register()` once after
 `mi.set_variant(...)` (the sensor is a Python plugin: it exists only in the
-process that registered it) and, in splat_scene.build_scene, use
+process that registered it) and passes
 
-    "sensor": aperture_sensor.sensor_from_camera(cam, film_dict)
+    sensor=aperture_sensor.sensor_from_camera(cam, film_dict)
 
-instead of `sensor_dict(mi, cam)` (film_dict: the hdrfilm dict of
-sensor_dict, box filter, rgb, float32; None builds that dict from the
-camera's width and height). A relative `aperture_image` is taken relative
+to splat_scene.build_scene in place of `sensor_dict(mi, cam)` (film_dict:
+the hdrfilm dict of sensor_dict, box filter, rgb, float32; None builds that
+dict from the camera's width and height). A relative `aperture_image` is taken relative
 to `base_dir` (default: the current directory, where pointlens resolved
 it). With all aperture fields absent the sensor draws the same lens
 distribution as `thinlens` (aperture_check.py compares the two renders).

@@ -449,22 +449,13 @@ class Bench:
         """The Mitsuba scene of the timed renders and the reference:
         splat_scene's, whose sensor is `thinlens`, or with --aperture
         aperture_sensor's sensor of the printed camera (its film
-        splat_scene's). splat_scene.build_scene takes its sensor from
-        splat_scene.sensor_dict, which is swapped for the duration of the
-        call."""
-        if self.aperture_sensor is None:
-            return ss.build_scene(self.mi, cam, positions, diameters, colors, shape=self.args.splat_shape)
-        thinlens = ss.sensor_dict
-
-        def shaped(mi, c, sample_count=1):
-            film = thinlens(mi, c, sample_count)["film"]
-            return self.aperture_sensor.sensor_from_camera(c, film, sample_count)
-
-        ss.sensor_dict = shaped
-        try:
-            return ss.build_scene(self.mi, cam, positions, diameters, colors, shape=self.args.splat_shape)
-        finally:
-            ss.sensor_dict = thinlens
+        splat_scene's)."""
+        sensor = None
+        if self.aperture_sensor is not None:
+            film = ss.sensor_dict(self.mi, cam)["film"]
+            sensor = self.aperture_sensor.sensor_from_camera(cam, film)
+        return ss.build_scene(self.mi, cam, positions, diameters, colors, shape=self.args.splat_shape,
+                              sensor=sensor)
 
     def refused(self, scene, meths):
         """With --aperture: the methods whose render refuses the shape

@@ -213,9 +213,12 @@ def sensor_dict(mi, cam, sample_count=1):
     return sensor
 
 
-def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, ties=True, shape="square"):
+def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, ties=True, shape="square",
+                sensor=None):
     """The Mitsuba scene and facts about its build (square_mesh's, and
-    build_s: the seconds of all of it but the tie ordering)."""
+    build_s: the seconds of all of it but the tie ordering). `sensor`: a
+    Mitsuba sensor dict in place of sensor_dict's `thinlens` (e.g.
+    aperture_sensor.sensor_from_camera's)."""
     started = time.perf_counter()
     vertices, faces, facts = square_mesh(cam, positions, diameters, min_px, ties, shape)
     props = mi.Properties()
@@ -236,7 +239,7 @@ def build_scene(mi, cam, positions, diameters, colors, max_depth=1, min_px=1.0, 
         {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": max_depth},
-            "sensor": sensor_dict(mi, cam),
+            "sensor": sensor if sensor is not None else sensor_dict(mi, cam),
             "splats": mesh,
         }
     )

@@ -102,6 +102,14 @@ void spread_span(int y, float a, float b, vec4 v) {
     add(x1 + 1, y, -last);
 }
 
+// The chord of the cat's eye's circle (cat.xy, radius cat.z; lens units)
+// across lens row yn (its centre alone where the row misses it).
+vec2 cat_chord(vec3 cat, float yn) {
+    float dc = yn - cat.y;
+    float h = sqrt(max(cat.z * cat.z - dc * dc, 0.0));
+    return vec2(cat.x - h, cat.x + h);
+}
+
 // Row dy (from the fragment's centre, px) of the shaped aperture scaled to
 // radius r, turned by 180° in front of the focus plane (front), clipped by
 // the cat's eye where pc.cat_eye > 0: the circle about cat.xy of radius
@@ -141,9 +149,8 @@ vec3 shape_row(float r, int dy, bool front, vec3 cat) {
     int k = clamp(int(floor((yn + 1.0) * 0.5 * float(pc.shape_rows))), 0, pc.shape_rows - 1);
     vec2 chord = shape_chords[k];
     if (clip) {
-        float dc = yn - cat.y;
-        float h = sqrt(max(cat.z * cat.z - dc * dc, 0.0));
-        chord = vec2(max(chord.x, cat.x - h), min(chord.y, cat.x + h));
+        vec2 cut = cat_chord(cat, yn);
+        chord = vec2(max(chord.x, cut.x), min(chord.y, cut.y));
     }
     if (chord.x > chord.y) {
         // The row's centre is past the shape's last chord: its middle.
@@ -177,9 +184,7 @@ float image_row(float r, ivec2 p, int dy, bool front, vec3 cat, bool spread, vec
     float yn = (front ? -1.0 : 1.0) * 0.5 * (lo + hi) / r;
     vec2 cut = vec2(-1.0, 1.0);
     if (clip) {
-        float dc = yn - cat.y;
-        float h = sqrt(max(cat.z * cat.z - dc * dc, 0.0));
-        cut = vec2(cat.x - h, cat.x + h);
+        cut = cat_chord(cat, yn);
     }
     int k = shape_row_index(yn, pc.shape_rows);
     float centre = float(p.x) + 0.5;

@@ -40,14 +40,17 @@ fn camera(aperture: Aperture) -> Camera {
 /// A highlight at eye depth `z` on the optical axis, rendered by `method`:
 /// the image's red channel.
 fn highlight(renderer: &Renderer, z: f32, method: Method, aperture: Aperture) -> Vec<f64> {
+    render_red(renderer, camera(aperture), Vec3::new(0.0, 0.0, -z), method)
+}
+
+/// One white point at `at` (a splat of [`SPLAT_PX`]) through `camera` by
+/// `method`, over black at SSAA 2: the image's red channel.
+fn render_red(renderer: &Renderer, camera: Camera, at: Vec3, method: Method) -> Vec<f64> {
     let scene = renderer
-        .upload(
-            &cloud(&[(Vec3::new(0.0, 0.0, -z), Vec3::ONE)]),
-            SplatSize::Pixels(SPLAT_PX),
-        )
+        .upload(&cloud(&[(at, Vec3::ONE)]), SplatSize::Pixels(SPLAT_PX))
         .unwrap();
     let options = RenderOptions {
-        camera: camera(aperture),
+        camera,
         method,
         ssaa: 2,
         samples_per_pass: None,
@@ -126,28 +129,12 @@ fn ring() -> Aperture {
             }
         })
         .collect();
-    let image = ApertureImage {
-        path: "ring.png".into(),
-        width: n,
-        height: n,
-        transmission,
-    };
+    let image = ApertureImage::new("ring.png".into(), n, n, transmission);
     Aperture {
         image: Some(image.intern()),
         rotation_deg: 10.0,
         ..Aperture::ROUND
     }
-}
-
-/// The image in 8×8 blocks (sums), a 16×16 image.
-fn blocks(img: &[f64]) -> Vec<f64> {
-    let n = SIDE / 8;
-    let mut out = vec![0.0; (n * n) as usize];
-    for (i, v) in img.iter().enumerate() {
-        let (x, y) = (i as u32 % SIDE / 8, i as u32 / SIDE / 8);
-        out[(y * n + x) as usize] += v;
-    }
-    out
 }
 
 /// Second moments (xx, yy) of an image about its centroid.
@@ -229,7 +216,13 @@ fn accum_images_a_far_highlight_to_the_aperture() {
                 (1, Method::rdb(9, RdbMode::Centre)),
             ] {
                 // RDB compared in 8×8 blocks, where its 81 copies merge.
-                let view = |img: &[f64]| if k == 1 { blocks(img) } else { img.to_vec() };
+                let view = |img: &[f64]| {
+                    if k == 1 {
+                        blocks_of(img, SIDE)
+                    } else {
+                        img.to_vec()
+                    }
+                };
                 let other = view(&highlight(&renderer, z, method, aperture));
                 let from_accum = distance(&other, &view(&image));
                 let round = *rounds[k].get_or_insert(from_accum);
@@ -404,29 +397,17 @@ fn bad_apertures_are_refused_in_one_line() {
 fn gaussians_follow_the_aperture_with_accum_and_layered() {
     let dir = common::scratch("aperture-gaussians");
     let input = common::root().join("data/autzen_gaussians.ply");
-    let render = |method: &[&str], blades: &str| {
-        let out = dir.path().join(format!("{}-{blades}.exr", method[0]));
-        let mut args = vec![
-            "render",
-            input.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "120",
-            "--height",
-            "90",
-            "--aperture-radius",
-            "30",
-            "--focus-distance",
-            "200",
-            "--aperture-blades",
-            blades,
-            "--method",
-        ];
-        args.extend_from_slice(method);
-        common::assert_runs(&args);
-        pointlens::image_io::read_image(&out).unwrap()
-    };
+    let frame = [
+        "--width",
+        "120",
+        "--height",
+        "90",
+        "--aperture-radius",
+        "30",
+        "--focus-distance",
+        "200",
+    ];
+    let render = |method: &[&str], blades: &str| render_cli(&dir, &input, &frame, method, blades);
     let psnr = |a, b| pointlens::metrics::psnr(a, b).unwrap();
     let accum = ["accum", "--samples", "64"];
     let (a0, a5) = (render(&accum, "0"), render(&accum, "5"));
@@ -462,19 +443,7 @@ fn highlight_at(renderer: &Renderer, camera: Camera, q: Vec2, method: Method) ->
     let (z, f) = (4.0, camera.f_px());
     let half = Vec2::new(camera.width as f32, camera.height as f32) / 2.0;
     let at = Vec3::new((q.x - half.x) * z / f, -(q.y - half.y) * z / f, -z);
-    let scene = renderer
-        .upload(&cloud(&[(at, Vec3::ONE)]), SplatSize::Pixels(SPLAT_PX))
-        .unwrap();
-    let options = RenderOptions {
-        camera,
-        method,
-        ssaa: 2,
-        samples_per_pass: None,
-        background: Vec3::ZERO,
-        lod: Lod::default(),
-    };
-    let image = renderer.render(&scene, &options).unwrap().image;
-    image.pixels.iter().map(|p| f64::from(p[0])).collect()
+    render_red(renderer, camera, at, method)
 }
 
 /// The analytic image of that highlight: each receiving pixel p sees the
@@ -587,27 +556,15 @@ fn blocks_of(img: &[f64], side: u32) -> Vec<f64> {
 fn fast_pixels_follows_the_shape_on_the_bunny() {
     let dir = common::scratch("aperture-fast");
     let input = common::root().join("data/bunny_colored.ply");
-    let render = |method: &[&str], blades: &str| {
-        let out = dir.path().join(format!("{}-{blades}.exr", method[0]));
-        let mut args = vec![
-            "render",
-            input.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "160",
-            "--height",
-            "120",
-            "--aperture-radius",
-            "0.03",
-            "--aperture-blades",
-            blades,
-            "--method",
-        ];
-        args.extend_from_slice(method);
-        common::assert_runs(&args);
-        pointlens::image_io::read_image(&out).unwrap()
-    };
+    let frame = [
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--aperture-radius",
+        "0.03",
+    ];
+    let render = |method: &[&str], blades: &str| render_cli(&dir, &input, &frame, method, blades);
     let psnr = |a, b| pointlens::metrics::psnr(a, b).unwrap();
     let (fast, accum) = (
         ["fast", "--fast-gather", "pixels"],
@@ -622,4 +579,28 @@ fn fast_pixels_follows_the_shape_on_the_bunny() {
         shaped > across,
         "{shaped:.2} against accum's round frame's {across:.2} dB"
     );
+}
+
+/// `pointlens render INPUT` with the `frame` flags, `--aperture-blades
+/// blades` and `--method` `method` into an EXR in `dir` (validation on; it
+/// must succeed): the image read back.
+fn render_cli(
+    dir: &std::path::Path,
+    input: &std::path::Path,
+    frame: &[&str],
+    method: &[&str],
+    blades: &str,
+) -> LinearImage {
+    let out = dir.join(format!("{}-{blades}.exr", method[0]));
+    let mut args = vec![
+        "render",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(frame);
+    args.extend_from_slice(&["--aperture-blades", blades, "--method"]);
+    args.extend_from_slice(method);
+    common::assert_runs(&args);
+    pointlens::image_io::read_image(&out).unwrap()
 }

@@ -481,23 +481,10 @@ fn file_positions(path: &Path) -> Vec<[f64; 3]> {
 /// its own distinct positions, streamed (binary) or read whole (ASCII).
 #[test]
 fn double_ply_coordinates_far_from_zero_convert_exactly() {
-    use common::{cube_points, write_binary_ply};
+    use common::{cube_points, write_double_plys};
     let dir = scratch("convert-double-far");
     let mut points = cube_points(2_000, 1e7);
-    let props = [("double", "x"), ("double", "y"), ("double", "z")];
-    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
-    let binary = dir.path().join("far.ply");
-    write_binary_ply(&binary, &props, &rows);
-    let ascii = dir.path().join("far-ascii.ply");
-    let mut text = format!(
-        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
-         property double z\nend_header\n",
-        points.len()
-    );
-    for p in &points {
-        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    std::fs::write(&ascii, text).unwrap();
+    let (binary, ascii) = write_double_plys(dir.path(), &points);
     points.sort_by(|a, b| a.partial_cmp(b).unwrap());
     for (input, name) in [(&binary, "streamed"), (&ascii, "whole")] {
         let output = dir.path().join(format!("{name}.copc.laz"));

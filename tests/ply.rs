@@ -755,25 +755,12 @@ fn a_comment_says_the_cloud_is_z_up() {
 /// the file's coordinates.
 #[test]
 fn double_coordinates_far_from_zero_keep_their_precision() {
-    use common::{cube_points, write_binary_ply};
+    use common::{cube_points, write_binary_ply, write_double_plys};
     use glam::DVec3;
     use pointlens::input::load_cloud;
     let dir = scratch("ply-double-far");
     let points = cube_points(2_000, 1e7);
-    let props = [("double", "x"), ("double", "y"), ("double", "z")];
-    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
-    let binary = dir.join("far.ply");
-    write_binary_ply(&binary, &props, &rows);
-    let ascii = dir.join("far-ascii.ply");
-    let mut text = format!(
-        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
-         property double z\nend_header\n",
-        points.len()
-    );
-    for p in &points {
-        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    std::fs::write(&ascii, text).unwrap();
+    let (binary, ascii) = write_double_plys(&dir, &points);
     let check = |cloud: &PointCloud, what: &str| {
         assert_eq!(cloud.len(), points.len(), "{what}");
         for (p, want) in cloud.positions.iter().zip(&points) {
@@ -821,6 +808,7 @@ fn double_coordinates_far_from_zero_keep_their_precision() {
     // A float PLY keeps the file's coordinates (its images unchanged).
     let float = dir.join("far-float.ply");
     let float_props = [("float", "x"), ("float", "y"), ("float", "z")];
+    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
     write_binary_ply(&float, &float_props, &rows);
     let cloud = load_cloud(&float, None, &mut |_, _| {}).unwrap();
     assert_eq!(cloud.origin, DVec3::ZERO);

@@ -13,7 +13,7 @@ use glam::{DVec2, Vec2};
 use serde::{Deserialize, Serialize};
 
 use super::file::camera_error;
-use super::tables::{concentric_disk, lens_samples, rdb_lens_table};
+use super::tables::{concentric_disk, lens_samples, rdb_lens_table, square_cell};
 use crate::error::{Error, Result};
 use crate::options::MethodKind;
 
@@ -216,7 +216,9 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
 ];
 
 /// An aperture image: linear transmission in [0, 1], row-major, row 0 at
-/// the top, over the square [−1, 1]² of the lens's circle.
+/// the top, over the square [−1, 1]² of the lens's circle. Made by
+/// [`ApertureImage::new`], which finds each pixel's share of the circle
+/// once (the lens samples of every frame weigh the pixels by it).
 #[derive(Clone, PartialEq)]
 pub struct ApertureImage {
     /// The file it was read from (for the camera file written back).
@@ -227,6 +229,8 @@ pub struct ApertureImage {
     pub height: u32,
     /// Transmission per pixel.
     pub transmission: Vec<f32>,
+    /// Per pixel, the share of it inside the lens's circle (of 8×8 points).
+    in_circle: Vec<f64>,
 }
 
 impl std::fmt::Debug for ApertureImage {
@@ -302,12 +306,7 @@ impl ApertureImage {
                 )))
             }
         };
-        let image = ApertureImage {
-            path: path.to_path_buf(),
-            width,
-            height,
-            transmission,
-        };
+        let image = ApertureImage::new(path.to_path_buf(), width, height, transmission);
         if image.mean_in_circle() <= 0.0 {
             return Err(bad("lets no light through the lens's circle".into()));
         }
@@ -328,10 +327,7 @@ impl ApertureImage {
 
     /// The pixel holding base point w ∈ [−1, 1]² (clamped to the image).
     pub fn pixel_of(&self, w: Vec2) -> (u32, u32) {
-        let cell = |v: f32, n: u32| {
-            (((v + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1) as u32
-        };
-        (cell(w.x, self.width), cell(w.y, self.height))
+        (square_cell(w.x, self.width), square_cell(w.y, self.height))
     }
 
     /// The transmission at base point w (no circle test).
@@ -344,7 +340,6 @@ impl ApertureImage {
     pub fn mean_in_circle(&self) -> f64 {
         let (sum, area) = self
             .weights_in_circle()
-            .iter()
             .fold((0.0, 0.0), |(s, a), (t, f)| (s + t * f, a + f));
         if area > 0.0 {
             sum / area
@@ -353,13 +348,54 @@ impl ApertureImage {
         }
     }
 
-    /// Per pixel, (transmission, fraction of the pixel inside the circle),
-    /// the fraction from 8×8 points.
-    fn weights_in_circle(&self) -> Vec<(f64, f64)> {
-        let (w, h) = (f64::from(self.width), f64::from(self.height));
-        (0..self.height)
-            .flat_map(|j| (0..self.width).map(move |i| (i, j)))
+    /// Per pixel, (transmission, share of the pixel inside the circle).
+    fn weights_in_circle(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.transmission
+            .iter()
+            .zip(&self.in_circle)
+            .map(|(&t, &f)| (f64::from(t), f))
+    }
+}
+
+impl ApertureImage {
+    /// An image of `transmission` (row-major, `width` × `height`, each in
+    /// [0, 1]) read from `path`, with each pixel's share of the lens's
+    /// circle: the share of 8×8 points of it inside, found without the
+    /// points where the pixel lies wholly inside or outside.
+    pub fn new(path: PathBuf, width: u32, height: u32, transmission: Vec<f32>) -> ApertureImage {
+        assert_eq!(
+            transmission.len() as u64,
+            u64::from(width) * u64::from(height),
+            "one transmission per pixel"
+        );
+        let (w, h) = (f64::from(width), f64::from(height));
+        let in_circle = (0..height)
+            .flat_map(|j| (0..width).map(move |i| (i, j)))
             .map(|(i, j)| {
+                let (x0, x1) = (
+                    -1.0 + 2.0 * f64::from(i) / w,
+                    -1.0 + 2.0 * f64::from(i + 1) / w,
+                );
+                let (y0, y1) = (
+                    -1.0 + 2.0 * f64::from(j) / h,
+                    -1.0 + 2.0 * f64::from(j + 1) / h,
+                );
+                let far = |a: f64, b: f64| a.abs().max(b.abs());
+                let near = |a: f64, b: f64| {
+                    if a <= 0.0 && b >= 0.0 {
+                        0.0
+                    } else {
+                        a.abs().min(b.abs())
+                    }
+                };
+                // A margin keeps the rim's pixels with the points, whose
+                // coordinates round.
+                if far(x0, x1).powi(2) + far(y0, y1).powi(2) < 1.0 - 1e-9 {
+                    return 1.0;
+                }
+                if near(x0, x1).powi(2) + near(y0, y1).powi(2) > 1.0 + 1e-9 {
+                    return 0.0;
+                }
                 let mut inside = 0;
                 for sy in 0..8 {
                     for sx in 0..8 {
@@ -368,10 +404,16 @@ impl ApertureImage {
                         inside += u32::from(x * x + y * y <= 1.0);
                     }
                 }
-                let t = f64::from(self.transmission[(j * self.width + i) as usize]);
-                (t, f64::from(inside) / 64.0)
+                f64::from(inside) / 64.0
             })
-            .collect()
+            .collect();
+        ApertureImage {
+            path,
+            width,
+            height,
+            transmission,
+            in_circle,
+        }
     }
 }
 
@@ -550,7 +592,7 @@ impl Aperture {
     /// shape by [`Aperture::from_square`] (the round aperture's are exactly
     /// [`lens_samples`]'s). Deterministic.
     pub fn lens_samples(&self, count: u32) -> Vec<Vec2> {
-        if self.blades == 0 && self.image.is_none() && self.ratio == 1.0 {
+        if self.is_unit_disk() {
             return lens_samples(count);
         }
         let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
@@ -563,13 +605,19 @@ impl Aperture {
         self.from_square(&square)
     }
 
+    /// Whether T is the unit disk's (no blades, image or squeeze): its
+    /// samples and bins are the round lens's tables, unchanged.
+    fn is_unit_disk(&self) -> bool {
+        self.blades == 0 && self.image.is_none() && self.ratio == 1.0
+    }
+
     /// The ray distribution buffer's N×N lens bins for this shape: bin
     /// b = j·N + i is cell (i, j) of the square, its lens position the
     /// cell's centre taken to the shape by [`Aperture::from_square`], so
     /// that every bin holds an equal share of T (the round aperture's are
     /// exactly [`rdb_lens_table`]'s).
     pub fn rdb_lens_table(&self, n: u32) -> Vec<Vec2> {
-        if self.blades == 0 && self.image.is_none() && self.ratio == 1.0 {
+        if self.is_unit_disk() {
             return rdb_lens_table(n);
         }
         let square: Vec<[f64; 2]> = (0..n * n)
@@ -795,11 +843,7 @@ impl<'a> BladeWarp<'a> {
 /// the circle; a point that falls outside the circle at the rim is moved
 /// onto it.
 fn image_samples(image: &ApertureImage, square: &[[f64; 2]]) -> Vec<Vec2> {
-    let weights: Vec<f64> = image
-        .weights_in_circle()
-        .iter()
-        .map(|(t, f)| t * f)
-        .collect();
+    let weights: Vec<f64> = image.weights_in_circle().map(|(t, f)| t * f).collect();
     let (w, h) = (image.width as usize, image.height as usize);
     let row_sums: Vec<f64> = (0..h)
         .map(|j| weights[j * w..(j + 1) * w].iter().sum())
@@ -947,6 +991,29 @@ mod tests {
             five.chords[511][0] > five.chords[511][1],
             "the last row misses"
         );
+    }
+
+    #[test]
+    fn the_circle_shares_are_the_8x8_counts() {
+        for (w, h) in [(1, 1), (7, 5), (64, 64), (33, 90)] {
+            let image = ApertureImage::new(PathBuf::new(), w, h, vec![1.0; (w * h) as usize]);
+            for j in 0..h {
+                for i in 0..w {
+                    let mut inside = 0;
+                    for sy in 0..8 {
+                        for sx in 0..8 {
+                            let x = -1.0
+                                + 2.0 * (f64::from(i) + (f64::from(sx) + 0.5) / 8.0) / f64::from(w);
+                            let y = -1.0
+                                + 2.0 * (f64::from(j) + (f64::from(sy) + 0.5) / 8.0) / f64::from(h);
+                            inside += u32::from(x * x + y * y <= 1.0);
+                        }
+                    }
+                    let share = image.in_circle[(j * w + i) as usize];
+                    assert_eq!(share, f64::from(inside) / 64.0, "{w}x{h} pixel {i},{j}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -49,4 +49,5 @@ pub use framing::{resolve, resolve_for, FRAMING_MARGIN, Z_UP_VIEW_DOWN_DEG};
 pub use lens::{Camera, EyeFromWorld, MAX_GUARD_PX};
 pub use tables::{
     concentric_disk, concentric_square, lens_samples, pixel_jitters, rdb_bin, rdb_lens_table,
+    square_cell,
 };

@@ -60,8 +60,13 @@ pub fn rdb_lens_table(n: u32) -> Vec<Vec2> {
 /// normalised lens position `u`.
 pub fn rdb_bin(u: Vec2, n: u32) -> u32 {
     let a = concentric_square(u);
-    let cell = |v: f32| (((v + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1) as u32;
-    cell(a.y) * n + cell(a.x)
+    square_cell(a.y, n) * n + square_cell(a.x, n)
+}
+
+/// Which of `n` equal half-open cells of [−1, 1] holds `v` (clamped to the
+/// first and last): the RDB's lens cells, an aperture image's pixels.
+pub fn square_cell(v: f32, n: u32) -> u32 {
+    (((v + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1) as u32
 }
 
 /// `count` offsets of a pixel's one sample from its centre, in pixels, in

@@ -390,3 +390,24 @@ pub fn cube_points(count: usize, corner: f64) -> Vec<[f64; 3]> {
         .map(|_| [corner + next(), corner + next(), corner + next()])
         .collect()
 }
+
+/// `points` written twice with double x, y, z, as binary little-endian PLY
+/// (`far.ply`) and as ASCII PLY (`far-ascii.ply`) in `dir`; returns
+/// (binary, ASCII).
+pub fn write_double_plys(dir: &Path, points: &[[f64; 3]]) -> (PathBuf, PathBuf) {
+    let props = [("double", "x"), ("double", "y"), ("double", "z")];
+    let rows: Vec<Vec<f64>> = points.iter().map(|p| p.to_vec()).collect();
+    let binary = dir.join("far.ply");
+    write_binary_ply(&binary, &props, &rows);
+    let ascii = dir.join("far-ascii.ply");
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nend_header\n",
+        points.len()
+    );
+    for p in points {
+        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    std::fs::write(&ascii, text).expect("write ply");
+    (binary, ascii)
+}

@@ -6,8 +6,10 @@
 // skipped below 1/255 or where power > 0; the Gaussian that would take the
 // transmittance below 1e-4 ends the pixel; the background (encoded) takes
 // what is left. The composite, sRGB-encoded as trained, is decoded and
-// added to the pixel's sum in linear light. Nothing is added when the tile
-// list overflowed (the host renders the frame again).
+// added to the pixel's sum in linear light, weighted by the lens point's
+// weight in the pixel (1, but for accum's cat's eye: the resolve's rule,
+// gbuffer_lens_weight.glsl), and the weight to the sum's alpha. Nothing is
+// added when the tile list overflowed (the host renders the frame again).
 #include "gaussian.glsl"
 
 layout(local_size_x = 16, local_size_y = 16) in;
@@ -27,7 +29,13 @@ layout(push_constant) uniform Push {
     uint height;
     uint capacity;
     uint entries_index;
+    vec2 lens_u;         // the lens point in pixel axes (y down)
+    ivec2 window_origin; // the frame pixel of pixel (0, 0): none, a whole frame
+    ivec2 frame_size;    // the whole frame, pixels
+    float cat_eye;       // S (0: off)
 } pc;
+
+#include "gbuffer_lens_weight.glsl"
 
 shared vec2 s_centre[GROUP];
 shared vec4 s_conic_opacity[GROUP];
@@ -106,6 +114,7 @@ void main() {
     if (inside) {
         vec3 c = color + transmittance * pc.background.rgb;
         uint i = pixel.y * pc.width + pixel.x;
-        sum[i] += vec4(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b), 0.0);
+        float w = lens_weight(ivec2(pixel));
+        sum[i] += w * vec4(srgb_to_linear(c.r), srgb_to_linear(c.g), srgb_to_linear(c.b), 1.0);
     }
 }

@@ -17,6 +17,10 @@ layout(push_constant, std430) uniform Push {
     uint sample_count;   // samples of the whole G-buffer
     uint scale;          // target pixels per output pixel along each axis
     int first_row;       // the band's first G-buffer row (the target's row 0)
+    vec2 lens_u;         // this pass's lens position
+    ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
+    ivec2 frame_size;    // the whole frame, pixels
+    float cat_eye;       // S (0: off)
 } pc;
 
 vec4 target_sample(ivec2 q) {

@@ -9,10 +9,12 @@
 // sample, writes the mean color and the coverage fraction.
 //
 // The including shader declares the push block `pc` (extent,
-// sample_index, sample_count, scale, first_row), the images color_sum,
+// sample_index, sample_count, scale, first_row, and the fields of
+// gbuffer_lens_weight.glsl), the images color_sum,
 // gbuffer_eye and gbuffer_color, and `vec4 target_sample(ivec2 q)`: the
 // (r, g, b, z) of target pixel q.
 #include "gbuffer_fold.glsl"
+#include "gbuffer_lens_weight.glsl"
 
 void resolve_blocks() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
@@ -21,6 +23,7 @@ void resolve_blocks() {
     }
     ivec2 block = (p - ivec2(0, pc.first_row)) * int(pc.scale);
     uint n = pc.scale * pc.scale;
+    float w = lens_weight(p);
     Fold f;
     if (pc.sample_index != 0u) {
         f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
@@ -31,15 +34,14 @@ void resolve_blocks() {
         vec4 t = target_sample(q);
         float index = float(pc.sample_index + s);
         if (pc.sample_index == 0u && s == 0u) {
-            f = fold_first(t, index);
+            f = fold_first(t, index, w);
         } else {
-            fold_next(f, t, index);
+            fold_next(f, t, index, w);
         }
     }
     if (pc.sample_index + n == pc.sample_count) {
-        float count = float(pc.sample_count);
-        imageStore(gbuffer_color, p, f.sum / count);
-        imageStore(gbuffer_eye, p, fold_eye(f, count));
+        imageStore(gbuffer_color, p, fold_color(f));
+        imageStore(gbuffer_eye, p, fold_eye(f));
     } else {
         imageStore(color_sum, p, f.sum);
         imageStore(gbuffer_eye, p, f.best);

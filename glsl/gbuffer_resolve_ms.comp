@@ -22,13 +22,21 @@ layout(push_constant, std430) uniform Push {
     uint read_offsets;   // bit 2s: sample s one pixel right; bit 2s + 1: one down
     uint index_base;     // index of this lens position's first sample
     uint indices[2];     // byte s: index of sample s in the one-sample form
+    uint pad;
+    vec2 lens_u;         // this pass's lens position
+    ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
+    ivec2 frame_size;    // the whole frame, pixels
+    float cat_eye;       // S (0: off)
 } pc;
+
+#include "gbuffer_lens_weight.glsl"
 
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
+    float w = lens_weight(p);
     Fold f;
     if (pc.sample_base != 0u) {
         f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
@@ -38,15 +46,14 @@ void main() {
         vec4 t = imageLoad(sample_target, q, int(s));
         float index = float(pc.index_base + ((pc.indices[s / 4u] >> (8u * (s % 4u))) & 0xFFu));
         if (pc.sample_base == 0u && s == 0u) {
-            f = fold_first(t, index);
+            f = fold_first(t, index, w);
         } else {
-            fold_next(f, t, index);
+            fold_next(f, t, index, w);
         }
     }
     if (pc.sample_base + pc.samples == pc.sample_count) {
-        float n = float(pc.sample_count);
-        imageStore(gbuffer_color, p, f.sum / n);
-        imageStore(gbuffer_eye, p, fold_eye(f, n));
+        imageStore(gbuffer_color, p, fold_color(f));
+        imageStore(gbuffer_eye, p, fold_eye(f));
     } else {
         imageStore(color_sum, p, f.sum);
         imageStore(gbuffer_eye, p, f.best);

@@ -26,6 +26,10 @@ layout(push_constant, std430) uniform VisPush {
     uint target_width;   // visibility words per row
     uint pad;
     vec4 background;     // linear RGB of an uncovered sample
+    vec2 lens_u;         // this pass's lens position
+    ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
+    ivec2 frame_size;    // the whole frame, pixels
+    float cat_eye;       // S (0: off)
 } pc;
 
 vec4 target_sample(ivec2 q) {

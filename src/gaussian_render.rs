@@ -103,6 +103,10 @@ push_constants! {
         pub height: u32,
         pub capacity: u32,
         pub entries_index: u32,
+        pub lens_u: [f32; 2],
+        pub window_origin: [i32; 2],
+        pub frame_size: [i32; 2],
+        pub cat_eye: f32,
     }
 }
 
@@ -592,6 +596,11 @@ impl GaussianRenderer {
                         height,
                         capacity,
                         entries_index: COUNT_ENTRIES,
+                        // The lens point in pixel axes: y turns over.
+                        lens_u: [u.x, -u.y],
+                        window_origin: [0, 0],
+                        frame_size: [width as i32, height as i32],
+                        cat_eye: camera.aperture.cat_eye,
                     };
                     rec.dispatch(&self.blend, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
                 });
@@ -607,13 +616,17 @@ impl GaussianRenderer {
             timings.merge(&frame.submit_and_wait()?);
         }
         let sums: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(host_bytes(&sum_readback)?);
-        let scale = 1.0 / samples.len() as f32;
+        // Alpha: the sum of the lens points' weights (their count, exactly,
+        // where each weighs 1).
         let image = LinearImage {
             width,
             height,
             pixels: sums
                 .iter()
-                .map(|s| [s[0] * scale, s[1] * scale, s[2] * scale, 1.0])
+                .map(|s| {
+                    let scale = 1.0 / s[3];
+                    [s[0] * scale, s[1] * scale, s[2] * scale, 1.0]
+                })
                 .collect(),
         };
         let entries = chain.most_entries()?;

@@ -16,14 +16,16 @@ use glam::{Vec2, Vec3};
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
 use crate::options::{Raster, SplatShape};
-use crate::passes::gbuffer_resolve::{GBufferResolve, ResolveImages, ResolvePass, Samples};
+use crate::passes::gbuffer_resolve::{
+    GBufferResolve, LensWeight, ResolveImages, ResolvePass, Samples,
+};
 use crate::passes::peel_cull::{PeelCull, PeelCullBuffers};
 use crate::passes::sample_plan::{PlannedPass, SamplePlan};
 use crate::passes::splat_compute::{self, ComputeRaster, Visibility};
 use crate::passes::splat_raster::{
     SampleTargets, SplatPush, SplatRaster, TargetsBefore, COLOR_FORMAT, EYE_FORMAT,
 };
-use crate::passes::{DofInput, FrameView, GBufferLayer};
+use crate::passes::{DofInput, FrameView, GBufferLayer, GBufferLens};
 use crate::vk::{Access, Buffer, Context, DrawCount, Frame, Image};
 
 /// Everything the raster needs to place splats for one view: the frame's
@@ -519,18 +521,18 @@ impl GBuffer {
         passes: &'r GBufferPasses,
         splats: &'r Buffer,
         count: u32,
-        lens: &[Vec2],
+        lens: &GBufferLens,
         label: &str,
     ) {
         assert!(
-            self.layers.len() == 1 || lens.len() == 1,
+            self.layers.len() == 1 || lens.positions.len() == 1,
             "depth-peeled layers are of one lens position"
         );
         let before = self.record_first_layer(frame, passes, splats, count, lens, label);
         if self.layers.len() == 1 {
             return;
         }
-        let lens_u = lens.first().copied().unwrap_or(Vec2::ZERO);
+        let lens_u = lens.positions[0];
         if let Some(PeelTargets::Compute { target, scale }) = &self.peel_targets {
             self.record_compute_peel(frame, passes, splats, count, lens_u, target, *scale);
             return;
@@ -547,7 +549,7 @@ impl GBuffer {
         passes: &'r GBufferPasses,
         splats: &'r Buffer,
         count: u32,
-        lens: &[Vec2],
+        lens: &GBufferLens,
         label: &str,
     ) -> TargetsBefore {
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
@@ -555,7 +557,7 @@ impl GBuffer {
         let scale = self.plan.scale;
         let per_pass = self.plan.samples_per_pixel_per_pass();
         let per_lens = self.plan.passes.len() as u32 * per_pass;
-        let sample_count = lens.len() as u32 * per_lens;
+        let sample_count = lens.positions.len() as u32 * per_lens;
         let extent = match &self.targets {
             FirstTargets::Sprites(t) => [t.sample.width(), t.sample.height()],
             FirstTargets::Compute(v) => [v.width(), v.height()],
@@ -567,12 +569,12 @@ impl GBuffer {
             previous: Access::NONE,
         };
         let height = self.layers[0].color.height();
-        let pixel_jitters = match (per_lens, lens.len()) {
+        let pixel_jitters = match (per_lens, lens.positions.len()) {
             (1, n) if n > 1 => crate::camera::pixel_jitters(n as u32),
             (_, n) => vec![Vec2::ZERO; n],
         };
         for rows in self.plan.band_rows(height) {
-            for (i, (l, lens_u, planned)) in self.plan.with_lens(lens).enumerate() {
+            for (i, (l, lens_u, planned)) in self.plan.with_lens(&lens.positions).enumerate() {
                 // In target pixels: a one-sample plan's scale is 1.
                 let jitter = planned.jitter + pixel_jitters[l as usize];
                 let mut push = self.view.push(jitter, lens_u, extent, scale, rows.0);
@@ -624,6 +626,7 @@ impl GBuffer {
                     indices: planned.packed_indices(),
                     scale,
                     rows,
+                    lens_weight: self.lens_weight(lens_u, lens.cat_eye),
                 };
                 passes
                     .resolve
@@ -704,6 +707,7 @@ impl GBuffer {
                 indices: PlannedPass::pack_indices(indices),
                 scale: 1,
                 rows: (0, height),
+                lens_weight: LensWeight::ONE,
             };
             passes.resolve.record(
                 frame,
@@ -765,6 +769,7 @@ impl GBuffer {
                 indices: [0, 0],
                 scale,
                 rows: (0, height),
+                lens_weight: LensWeight::ONE,
             };
             passes.resolve.record(
                 frame,
@@ -773,6 +778,19 @@ impl GBuffer {
                 &pass,
             );
             before = Access::COMPUTE_READ;
+        }
+    }
+
+    /// How the G-buffer's pixels weigh lens position `lens_u` by the cat's
+    /// eye `cat_eye` (0: alike).
+    fn lens_weight(&self, lens_u: Vec2, cat_eye: f32) -> LensWeight {
+        let frame = &self.view.frame;
+        let guard = frame.guard as i32;
+        LensWeight {
+            lens_u,
+            window_origin: [frame.window.x as i32 - guard, frame.window.y as i32 - guard],
+            frame_size: [frame.camera.width, frame.camera.height],
+            cat_eye,
         }
     }
 

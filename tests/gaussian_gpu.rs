@@ -347,6 +347,61 @@ fn the_thin_lens_image_is_the_cpu_references() {
     });
 }
 
+/// Through the cat's eye (S = 1) each pixel averages the lens points its
+/// circle passes (`glsl/gbuffer_lens_weight.glsl`, the points in pixel
+/// axes: y down), and one whose circle passes none the points nearest it:
+/// the device's 40-point `accum` is the CPU reference's images of each
+/// point weighed so per pixel (the pinhole's tolerance), and the cat's eye
+/// changes the image.
+#[test]
+fn the_cats_eye_weighs_each_lens_point_per_pixel() {
+    use pointlens::camera::Aperture;
+    common::with_gpu(|ctx| {
+        let renderer = GaussianRenderer::new(ctx).unwrap();
+        let scene = random_scene(1500, 5);
+        let mut camera = camera(80, 64);
+        camera.aperture_radius = 0.08;
+        camera.aperture.cat_eye = 1.0;
+        let lens = lens_samples(40);
+        let gpu = renderer.upload(&scene).unwrap();
+        let frame = renderer
+            .render(&gpu, &camera, &lens, 1, Vec3::ZERO)
+            .unwrap();
+        let images: Vec<Vec<Vec3>> = lens
+            .iter()
+            .map(|&u| render_reference_lens(&scene, &camera, Vec3::ZERO, &[u], 1))
+            .collect();
+        let (w, h) = (camera.width, camera.height);
+        let (mut expected, mut clipped, mut unlit) = (Vec::new(), 0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                let centre = camera.aperture.cat_eye_centre(x, y, w, h);
+                let (mut sum, mut weights) = (Vec3::ZERO, 0.0f64);
+                for (u, image) in lens.iter().zip(&images) {
+                    let u = Vec2::new(u.x, -u.y);
+                    let weight = match Aperture::cat_eye_passes(u, centre) {
+                        true => 1.0,
+                        false => (-40.0 * f64::from((u - centre).length())).exp2(),
+                    };
+                    sum += image[(y * w + x) as usize] * weight as f32;
+                    weights += weight;
+                }
+                clipped += usize::from(weights < lens.len() as f64 - 0.5);
+                unlit += usize::from(weights < 0.5);
+                expected.push(sum / weights as f32);
+            }
+        }
+        let (max, mean) = differences(&frame.image, &expected);
+        eprintln!("cat's eye: max {max:e}, mean {mean:e}; {clipped} pixels clipped, {unlit} through no point");
+        assert!(max <= 1e-4 && mean <= 1e-6, "max {max}, mean {mean}");
+        assert!(clipped > (w * h / 2) as usize, "{clipped} pixels clipped");
+        assert!(unlit > 0, "no pixel's circle passes no point");
+        let round = render_reference_lens(&scene, &camera, Vec3::ZERO, &lens, 1);
+        let (change, _) = differences(&frame.image, &round);
+        assert!(change > 0.05, "the cat's eye changes the image by {change}");
+    });
+}
+
 /// A tile list longer than the renderer's first guess: the frame is
 /// rendered again with room for it, and equals (bitwise) a frame rendered
 /// with room from the start.

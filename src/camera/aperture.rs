@@ -210,8 +210,8 @@ pub const APERTURE_FEATURES: &[ApertureFeature] = &[
     ApertureFeature {
         field: "cat_eye",
         used: |a| a.cat_eye > 0.0,
-        kinds: &[MethodKind::Layered, MethodKind::Rdb],
-        gaussian_kinds: &[MethodKind::Layered],
+        kinds: &[MethodKind::Accum, MethodKind::Layered, MethodKind::Rdb],
+        gaussian_kinds: &[MethodKind::Accum, MethodKind::Layered],
     },
 ];
 

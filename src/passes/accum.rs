@@ -5,9 +5,7 @@
 
 use std::sync::Arc;
 
-use glam::Vec2;
-
-use super::{DofFrame, DofInput, DofMethod, FrameView, VeilRule};
+use super::{DofFrame, DofInput, DofMethod, FrameView, GBufferLens, VeilRule};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::options::{check_samples, AccumOptions};
@@ -23,9 +21,13 @@ impl DofMethod for Accum {
 
     /// Every lens sample (a Fibonacci lattice through the concentric map,
     /// taken to the aperture's shape: [`crate::camera::Aperture::lens_samples`]),
-    /// each with every K×K sub-pixel sample: S·K² raster samples.
-    fn gbuffer_lens(&self, camera: &Camera) -> Vec<Vec2> {
-        camera.aperture.lens_samples(self.0.samples)
+    /// each with every K×K sub-pixel sample: S·K² raster samples, each
+    /// receiving pixel weighing them by its cat's eye.
+    fn gbuffer_lens(&self, camera: &Camera) -> GBufferLens {
+        GBufferLens {
+            positions: camera.aperture.lens_samples(self.0.samples),
+            cat_eye: camera.aperture.cat_eye,
+        }
     }
 
     /// None: each lens sample's own (sheared) projection places every

@@ -9,6 +9,8 @@
 
 use std::sync::Arc;
 
+use glam::Vec2;
+
 use super::splat_compute::Visibility;
 use crate::error::Result;
 use crate::push_constants;
@@ -23,6 +25,10 @@ push_constants! {
         sample_count: u32,
         scale: u32,
         first_row: i32,
+        lens_u: [f32; 2],
+        window_origin: [i32; 2],
+        frame_size: [i32; 2],
+        cat_eye: f32,
     }
 }
 
@@ -36,6 +42,10 @@ push_constants! {
         target_width: u32,
         pad: u32,
         background: [f32; 4],
+        lens_u: [f32; 2],
+        window_origin: [i32; 2],
+        frame_size: [i32; 2],
+        cat_eye: f32,
     }
 }
 
@@ -48,6 +58,11 @@ push_constants! {
         read_offsets: u32,
         index_base: u32,
         indices: [u32; 2],
+        pad: u32,
+        lens_u: [f32; 2],
+        window_origin: [i32; 2],
+        frame_size: [i32; 2],
+        cat_eye: f32,
     }
 }
 
@@ -86,6 +101,44 @@ pub struct ResolvePass {
     /// row, or a band's ([`super::sample_plan::SamplePlan::band_rows`];
     /// one-sample targets only), whose target holds only its rows.
     pub rows: (u32, u32),
+    /// How each receiving pixel weighs the pass's lens position.
+    pub lens_weight: LensWeight,
+}
+
+/// How each receiving pixel weighs one pass's lens position in its fold
+/// (`glsl/gbuffer_lens_weight.glsl`): by accum's cat's eye, or alike.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LensWeight {
+    /// The pass's normalised lens position.
+    pub lens_u: Vec2,
+    /// The frame pixel of G-buffer pixel (0, 0) (a tile's window less the
+    /// guard band).
+    pub window_origin: [i32; 2],
+    /// The whole frame's size, pixels.
+    pub frame_size: [u32; 2],
+    /// The cat's eye S; 0: every lens position weighs 1.
+    pub cat_eye: f32,
+}
+
+impl LensWeight {
+    /// Every lens position alike (the plain mean).
+    pub const ONE: LensWeight = LensWeight {
+        lens_u: Vec2::ZERO,
+        window_origin: [0, 0],
+        frame_size: [1, 1],
+        cat_eye: 0.0,
+    };
+
+    /// The push constants' four fields: lens_u, window_origin,
+    /// frame_size, cat_eye.
+    fn fields(&self) -> ([f32; 2], [i32; 2], [i32; 2], f32) {
+        (
+            self.lens_u.to_array(),
+            self.window_origin,
+            self.frame_size.map(|v| v as i32),
+            self.cat_eye,
+        )
+    }
 }
 
 /// Where a raster pass left its samples.
@@ -224,6 +277,7 @@ impl GBufferResolve {
     ) {
         let samples = images.sample.per_pixel();
         let (first_row, end_row) = pass.rows;
+        let (lens_u, window_origin, frame_size, cat_eye) = pass.lens_weight.fields();
         let extent = [w as i32, end_row as i32];
         let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
         let image = match images.sample {
@@ -250,6 +304,10 @@ impl GBufferResolve {
                     target_width: target.width(),
                     pad: 0,
                     background: [r, g, b, 0.0],
+                    lens_u,
+                    window_origin,
+                    frame_size,
+                    cat_eye,
                 };
                 let pipeline = self
                     .visibility
@@ -278,6 +336,10 @@ impl GBufferResolve {
                 sample_count: pass.sample_count,
                 scale: pass.scale,
                 first_row: first_row as i32,
+                lens_u,
+                window_origin,
+                frame_size,
+                cat_eye,
             };
             rec.dispatch(&self.pipeline, &binds, &push, size);
         } else {
@@ -293,6 +355,11 @@ impl GBufferResolve {
                 read_offsets: pass.read_offsets,
                 index_base: pass.index_base,
                 indices: pass.indices,
+                pad: 0,
+                lens_u,
+                window_origin,
+                frame_size,
+                cat_eye,
             };
             rec.dispatch(pipeline, &binds, &push, size);
         }

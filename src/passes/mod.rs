@@ -227,6 +227,26 @@ pub struct DofInput<'r> {
     pub view: FrameView,
 }
 
+/// The lens positions a G-buffer is rasterised through (each with all K×K
+/// sub-pixel samples) and the cat's eye S by which each receiving pixel
+/// weighs them (`glsl/gbuffer_lens_weight.glsl`; 0: every position
+/// alike, the plain mean).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GBufferLens {
+    pub positions: Vec<Vec2>,
+    pub cat_eye: f32,
+}
+
+impl GBufferLens {
+    /// The lens centre alone: a pinhole G-buffer.
+    pub fn centre() -> GBufferLens {
+        GBufferLens {
+            positions: vec![Vec2::ZERO],
+            cat_eye: 0.0,
+        }
+    }
+}
+
 /// A depth-of-field method: what it needs of the G-buffer and the guard
 /// band, and the images and passes of one frame.
 pub trait DofMethod {
@@ -236,10 +256,10 @@ pub trait DofMethod {
     }
 
     /// The normalised lens positions the G-buffer is rasterised through,
-    /// each with all K×K sub-pixel samples, for the camera's aperture:
-    /// the lens centre by default.
-    fn gbuffer_lens(&self, _camera: &Camera) -> Vec<Vec2> {
-        vec![Vec2::ZERO]
+    /// each with all K×K sub-pixel samples, for the camera's aperture, and
+    /// how each receiving pixel weighs them: the lens centre by default.
+    fn gbuffer_lens(&self, _camera: &Camera) -> GBufferLens {
+        GBufferLens::centre()
     }
 
     /// How many depth-peeled G-buffer layers the method reads (DESIGN §6):

@@ -1,7 +1,7 @@
 // One pixel's G-buffer resolve, folded one raster sample at a time
 // (DESIGN §3). A sample is (r, g, b, z): the nearest splat's linear color
-// and eye depth, or the background color and z = +inf where no splat
-// covers it. Each sample comes with a weight w (its lens position's in
+// (in codes of the color scale: see `scaled`) and eye depth, or the
+// background color and z = +inf where no splat covers it. Each sample comes with a weight w (its lens position's in
 // this pixel: 1, but for accum's cat's eye, gbuffer_lens_weight.glsl).
 // The fold keeps the weighted color sum (alpha: w per covered sample), the
 // sum of the weights, and the nearest sample's depth with in w that
@@ -16,6 +16,13 @@ struct Fold {
 
 float covered(vec4 s) {
     return isinf(s.w) ? 0.0 : 1.0;
+}
+
+// The sample in linear light: a covered sample's color times
+// `color_scale`, the linear color of a splat's code 65535 (1 for a cloud
+// within white: exact; above for a brighter one, SplatTree::color_scale).
+vec4 scaled(vec4 s, float color_scale) {
+    return isinf(s.w) ? s : vec4(s.rgb * color_scale, s.w);
 }
 
 // Starts the fold with the first sample, of index `index` and weight `w`.

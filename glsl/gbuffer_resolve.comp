@@ -21,6 +21,7 @@ layout(push_constant, std430) uniform Push {
     ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
     ivec2 frame_size;    // the whole frame, pixels
     float cat_eye;       // S (0: off)
+    float color_scale;   // the linear color of a splat's code 65535 (1: white)
 } pc;
 
 vec4 target_sample(ivec2 q) {

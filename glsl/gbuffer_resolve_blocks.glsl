@@ -9,8 +9,8 @@
 // sample, writes the mean color and the coverage fraction.
 //
 // The including shader declares the push block `pc` (extent,
-// sample_index, sample_count, scale, first_row, and the fields of
-// gbuffer_lens_weight.glsl), the images color_sum,
+// sample_index, sample_count, scale, first_row, color_scale and the
+// fields of gbuffer_lens_weight.glsl), the images color_sum,
 // gbuffer_eye and gbuffer_color, and `vec4 target_sample(ivec2 q)`: the
 // (r, g, b, z) of target pixel q.
 #include "gbuffer_fold.glsl"
@@ -31,7 +31,7 @@ void resolve_blocks() {
     for (uint s = 0u; s < n; s++) {
         uint cell = n - 1u - s;
         ivec2 q = block + ivec2(cell % pc.scale, cell / pc.scale);
-        vec4 t = target_sample(q);
+        vec4 t = scaled(target_sample(q), pc.color_scale);
         float index = float(pc.sample_index + s);
         if (pc.sample_index == 0u && s == 0u) {
             f = fold_first(t, index, w);

@@ -27,6 +27,7 @@ layout(push_constant, std430) uniform Push {
     ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
     ivec2 frame_size;    // the whole frame, pixels
     float cat_eye;       // S (0: off)
+    float color_scale;   // the linear color of a splat's code 65535 (1: white)
 } pc;
 
 #include "gbuffer_lens_weight.glsl"
@@ -43,7 +44,7 @@ void main() {
     }
     for (uint s = 0u; s < pc.samples; s++) {
         ivec2 q = p + (ivec2(pc.read_offsets >> (2u * s), pc.read_offsets >> (2u * s + 1u)) & 1);
-        vec4 t = imageLoad(sample_target, q, int(s));
+        vec4 t = scaled(imageLoad(sample_target, q, int(s)), pc.color_scale);
         float index = float(pc.index_base + ((pc.indices[s / 4u] >> (8u * (s % 4u))) & 0xFFu));
         if (pc.sample_base == 0u && s == 0u) {
             f = fold_first(t, index, w);

@@ -186,6 +186,7 @@ impl Records {
                 msg,
             })?;
         }
+        warn_brighter_than_white(path, brighter_than_white(cloud.has_rgb, &cloud.colors));
         Ok(records)
     }
 
@@ -1118,6 +1119,7 @@ pub fn convert_ply(
     let mut intensities = (f64::INFINITY, f64::NEG_INFINITY);
     let total = chunks.left() as u64;
     let has_colors = chunks.has_colors();
+    let mut brighter = 0;
     while chunks.left() > 0 {
         let Some(chunk) = chunks.next_chunk(PLY_CHUNK_POINTS).map_err(io)? else {
             return Ok(None);
@@ -1128,7 +1130,9 @@ pub fn convert_ply(
         }
         let (a, b) = finite_range(chunk.intensities.iter().map(|&v| f64::from(v)));
         intensities = (intensities.0.min(a), intensities.1.max(b));
+        brighter += brighter_than_white(has_colors, &chunk.colors);
     }
+    warn_brighter_than_white(input, brighter);
     let intensity_scale = chunks.intensity_scale(intensities);
     if !chunks.rest_is_well_formed().map_err(io)? {
         return Ok(None);
@@ -1175,6 +1179,27 @@ pub fn convert_ply(
         },
     };
     convert_source(source, output, threads, part_points).map(Some)
+}
+
+/// How many of `colors` (linear; none where `has_colors` is false) are
+/// brighter than white: LAS's 16-bit RGB holds at most white.
+fn brighter_than_white(has_colors: bool, colors: &[glam::Vec3]) -> u64 {
+    match has_colors {
+        true => colors.iter().filter(|c| c.max_element() > 1.0).count() as u64,
+        false => 0,
+    }
+}
+
+/// Warns, where `count` points of `input` are brighter than white, that
+/// their colours are clipped to it.
+fn warn_brighter_than_white(input: &Path, count: u64) {
+    if count > 0 {
+        log::warn!(
+            "{}: {count} points are brighter than white (float colours above 1), which \
+             LAS's 16-bit RGB cannot hold: their colours are clipped to white",
+            input.display()
+        );
+    }
 }
 
 /// Vertices a PLY chunk holds (about 24 MB of positions and colors).

@@ -43,6 +43,9 @@ pub struct RasterView {
     /// The largest splat the view draws, output pixels (at most
     /// `max_point_size`).
     pub max_splat_px: f32,
+    /// The linear colour of a splat's code 65535
+    /// ([`crate::tree::SplatTree::color_scale`]; 1: white).
+    pub color_scale: f32,
 }
 
 impl RasterView {
@@ -627,6 +630,7 @@ impl GBuffer {
                     scale,
                     rows,
                     lens_weight: self.lens_weight(lens_u, lens.cat_eye),
+                    color_scale: self.view.color_scale,
                 };
                 passes
                     .resolve
@@ -708,6 +712,7 @@ impl GBuffer {
                 scale: 1,
                 rows: (0, height),
                 lens_weight: LensWeight::ONE,
+                color_scale: self.view.color_scale,
             };
             passes.resolve.record(
                 frame,
@@ -770,6 +775,7 @@ impl GBuffer {
                 scale,
                 rows: (0, height),
                 lens_weight: LensWeight::ONE,
+                color_scale: self.view.color_scale,
             };
             passes.resolve.record(
                 frame,

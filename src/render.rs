@@ -198,6 +198,7 @@ impl Scene {
             std::mem::take(&mut traversal.splats),
             key.veil,
             splat_px,
+            self.tree.color_scale(),
         );
         traversal.splats = drawn;
         let view = self.scene_view(camera, &traversal.splats, key.point_size_max);
@@ -679,6 +680,7 @@ impl Renderer {
             },
             max_point_size: max_point,
             max_splat_px: seen.max_splat_px,
+            color_scale: scene.tree.color_scale(),
         };
         Ok((splats, lod_report, view))
     }

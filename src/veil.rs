@@ -150,13 +150,15 @@ impl Veil {
 
 /// Splits a frame's `splats` into those its G-buffer draws and its veil,
 /// under `rule`. `splat_px`: `--splat-px` (every splat that wide in
-/// pixels), else each splat's sphere projected. Keeps the order of the
-/// splats drawn.
+/// pixels), else each splat's sphere projected. `color_scale`: the linear
+/// colour of code 65535 ([`crate::tree::SplatTree::color_scale`]). Keeps
+/// the order of the splats drawn.
 pub fn split(
     camera: &Camera,
     splats: Vec<Splat>,
     rule: VeilRule,
     splat_px: Option<f32>,
+    color_scale: f32,
 ) -> (Vec<Splat>, Veil) {
     if rule == VeilRule::None || camera.aperture_radius <= 0.0 {
         return (splats, Veil::default());
@@ -218,13 +220,13 @@ pub fn split(
             centre_px: centre.into(),
             lens_per_px: camera.lens_sign(z) * 2.0 / c,
             half_side: side / c,
-            color: Vec3::new(
+            color: (Vec3::new(
                 s.color[0] as f32 / 65535.0,
                 s.color[1] as f32 / 65535.0,
                 s.color[2] as f32 / 65535.0,
-            )
-            .extend(1.0)
-            .into(),
+            ) * color_scale)
+                .extend(1.0)
+                .into(),
         });
     }
     (
@@ -373,19 +375,19 @@ mod tests {
         let splats = vec![at(0.001), at(0.5), at(2.0)];
         // c(0.001) = 2·0.01·f·0.999/0.001 ≈ 2,600 px > 64: veiled;
         // c(0.5) ≈ 2.6 px, c(2) ≈ 1.3 px: drawn.
-        let (kept, veil) = split(&camera, splats.clone(), VeilRule::Blurred, None);
+        let (kept, veil) = split(&camera, splats.clone(), VeilRule::Blurred, None, 1.0);
         assert_eq!(kept, splats[1..].to_vec());
         assert_eq!(veil.splats, 1);
         assert_eq!(veil.splats_in_view.len(), 1);
-        let (kept, veil) = split(&camera, splats.clone(), VeilRule::None, None);
+        let (kept, veil) = split(&camera, splats.clone(), VeilRule::None, None, 1.0);
         assert_eq!((kept.len(), veil.splats), (3, 0));
         // The near plane of [0.001, 2] is 0.0005: accum draws all three.
-        let (kept, veil) = split(&camera, splats.clone(), VeilRule::BeyondNear, None);
+        let (kept, veil) = split(&camera, splats.clone(), VeilRule::BeyondNear, None, 1.0);
         assert_eq!((kept.len(), veil.splats), (3, 0));
         // That of [1e-7, 1] is 1e-6 (far · 1e-6): the nearest is veiled,
         // and one just above the plane too (the margin), not one above it.
         let near = vec![at(1e-7), at(1.0005e-6), at(1.1e-6), at(1.0)];
-        let (kept, veil) = split(&camera, near.clone(), VeilRule::BeyondNear, None);
+        let (kept, veil) = split(&camera, near.clone(), VeilRule::BeyondNear, None, 1.0);
         assert_eq!(kept, vec![near[2], near[3]]);
         assert_eq!(veil.splats, 2);
         assert_eq!(veil.splats_in_view.len(), 2);
@@ -394,7 +396,7 @@ mod tests {
             aperture_radius: 0.0,
             ..camera
         };
-        let (kept, _) = split(&pinhole, splats, VeilRule::Blurred, None);
+        let (kept, _) = split(&pinhole, splats, VeilRule::Blurred, None, 1.0);
         assert_eq!(kept.len(), 3);
     }
 }

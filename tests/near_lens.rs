@@ -199,7 +199,7 @@ fn the_gpu_veil_is_the_cpu_veil() {
         let splats = tree
             .traverse(&camera, Lod::default(), Default::default(), 1)
             .splats;
-        let (_, veil) = pointlens::veil::split(&camera, splats, VeilRule::Blurred, None);
+        let (_, veil) = pointlens::veil::split(&camera, splats, VeilRule::Blurred, None, 1.0);
         assert_eq!(veil.splats, 15);
         let grid = pointlens::veil::VeilGrid::new();
         let background = Vec3::new(0.1, 0.2, 0.4);

@@ -854,3 +854,43 @@ fn a_ply_intensity_is_read_as_16_bits() {
         }
     }
 }
+
+/// Float colours are sRGB-encoded as 8- and 16-bit codes are, and a float
+/// above 1 is brighter than white: the sRGB curve extended (2 is 5.3 times
+/// white), not clamped; below 0 and not a number are 0. Both readers.
+#[test]
+fn float_colours_above_one_are_brighter_than_white() {
+    use common::write_binary_ply;
+    let dir = scratch("ply-bright");
+    let values = [0.5, 1.0, 2.0, 30.0, -1.0, f64::NAN];
+    let props = [
+        ("float", "x"),
+        ("float", "y"),
+        ("float", "z"),
+        ("float", "red"),
+        ("float", "green"),
+        ("float", "blue"),
+    ];
+    let rows: Vec<Vec<f64>> = values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| vec![i as f64, 0.0, 0.0, v, v, 0.5])
+        .collect();
+    let path = dir.join("bright.ply");
+    write_binary_ply(&path, &props, &rows);
+    let want = [
+        srgb_to_linear(0.5),
+        1.0,
+        ((2.0f32 + 0.055) / 1.055).powf(2.4),
+        ((30.0f32 + 0.055) / 1.055).powf(2.4),
+        0.0,
+        0.0,
+    ];
+    assert!((want[2] - 4.95).abs() < 0.01, "{}", want[2]);
+    for cloud in [load_ply(&path).unwrap(), load_ply_general(&path).unwrap()] {
+        let got: Vec<f32> = cloud.colors.iter().map(|c| c.x).collect();
+        assert_eq!(got, want);
+        assert_eq!(got, cloud.colors.iter().map(|c| c.y).collect::<Vec<_>>());
+        assert!(cloud.colors.iter().all(|c| c.z == srgb_to_linear(0.5)));
+    }
+}

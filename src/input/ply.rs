@@ -716,9 +716,19 @@ impl Scalar {
         }
     }
 
-    /// The linear-light color of the channel (sRGB-encoded, clamped).
+    /// The linear-light color of the channel, sRGB-encoded: an integer
+    /// type's code over its maximum, clamped to [0, 1]; a float as it is,
+    /// clamped below at 0 (not a number: 0) and not above: a float color
+    /// above 1 is brighter than white (the sRGB curve extended, as
+    /// extended-range sRGB does: 2 is 5.3 times white), kept as a
+    /// highlight through the blur (EXR keeps it; PNG clips after the blur).
     fn linear_color(self) -> f32 {
-        linear_from_code(self.value(), self.color_max())
+        match self {
+            Scalar::Float(_) | Scalar::Double(_) => {
+                crate::image_io::srgb_to_linear((self.value() as f32).max(0.0))
+            }
+            _ => linear_from_code(self.value(), self.color_max()),
+        }
     }
 }
 

@@ -29,6 +29,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        color_scale: f32,
     }
 }
 
@@ -46,6 +47,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        color_scale: f32,
     }
 }
 
@@ -63,6 +65,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        color_scale: f32,
     }
 }
 
@@ -103,6 +106,9 @@ pub struct ResolvePass {
     pub rows: (u32, u32),
     /// How each receiving pixel weighs the pass's lens position.
     pub lens_weight: LensWeight,
+    /// The linear colour of a splat's code 65535 (1: white): a covered
+    /// sample's color is multiplied by it.
+    pub color_scale: f32,
 }
 
 /// How each receiving pixel weighs one pass's lens position in its fold
@@ -308,6 +314,7 @@ impl GBufferResolve {
                     window_origin,
                     frame_size,
                     cat_eye,
+                    color_scale: pass.color_scale,
                 };
                 let pipeline = self
                     .visibility
@@ -340,6 +347,7 @@ impl GBufferResolve {
                 window_origin,
                 frame_size,
                 cat_eye,
+                color_scale: pass.color_scale,
             };
             rec.dispatch(&self.pipeline, &binds, &push, size);
         } else {
@@ -360,6 +368,7 @@ impl GBufferResolve {
                 window_origin,
                 frame_size,
                 cat_eye,
+                color_scale: pass.color_scale,
             };
             rec.dispatch(pipeline, &binds, &push, size);
         }

@@ -59,7 +59,9 @@ pub struct Points<'a> {
 pub struct Splat {
     /// Centre (xyz) and world diameter (w) of the splat's sphere.
     pub position_size: [f32; 4],
-    /// Linear RGB as 16-bit UNORM codes, and the octahedral normal
+    /// Linear RGB as 16-bit UNORM codes of the tree's colour scale
+    /// ([`SplatTree::color_scale`]: code 65535 is 1, white, unless the
+    /// cloud is brighter), and the octahedral normal
     /// ([`oct_encode`]; 0 when the points have no normals).
     pub color: [u16; 4],
 }
@@ -136,6 +138,32 @@ pub struct SplatTree {
     pub build: BuildTimes,
     /// Leaves whose spacing [`limit_isolated`] bounded (isolated points).
     pub isolated_limited: u64,
+    /// The linear colour of code 65535 where the cloud is brighter than
+    /// white (0 or 1: white); see [`SplatTree::color_scale`].
+    color_scale: f32,
+}
+
+/// The brightest linear colour a splat keeps: 4,096 times white (a brighter
+/// channel is clamped to it, with a warning). A highlight's mean over its
+/// blur stays within the G-buffer's half floats (65,504).
+pub const BRIGHTEST_LINEAR: f32 = 4096.0;
+
+/// The colour scale of `colors` (linear): 1, or their brightest channel
+/// where that is above 1 (at most [`BRIGHTEST_LINEAR`], with a warning
+/// where a channel is brighter). Not-a-number channels count as 0.
+fn color_scale_of(colors: &[Vec3]) -> f32 {
+    let brightest = colors.iter().fold(1.0f32, |m, c| m.max(c.max_element()));
+    if brightest > BRIGHTEST_LINEAR {
+        let over = colors
+            .iter()
+            .filter(|c| c.max_element() > BRIGHTEST_LINEAR)
+            .count();
+        log::warn!(
+            "{over} points are brighter than {BRIGHTEST_LINEAR} times white (linear); \
+             their colours are clamped to it"
+        );
+    }
+    brightest.min(BRIGHTEST_LINEAR)
 }
 
 /// Wall times of the build's steps, milliseconds.
@@ -156,15 +184,18 @@ impl SplatTree {
         if points.positions.is_empty() {
             return SplatTree::default();
         }
-        let (leaves, leaf_cone_rad) = Self::leaves_of(points, size, threads);
-        Self::from_leaves(
-            leaves,
-            leaf_cone_rad,
-            size,
-            points.normals.is_some(),
-            threads,
-            started,
-        )
+        let (leaves, leaf_cone_rad, color_scale) = Self::leaves_of(points, size, threads);
+        SplatTree {
+            color_scale,
+            ..Self::from_leaves(
+                leaves,
+                leaf_cone_rad,
+                size,
+                points.normals.is_some(),
+                threads,
+                started,
+            )
+        }
     }
 
     /// [`SplatTree::build`] of the points of `owner` (`points_of` gives
@@ -184,14 +215,18 @@ impl SplatTree {
             return SplatTree::default();
         }
         let has_normals = points.normals.is_some();
-        let (leaves, leaf_cone_rad) = Self::leaves_of(points, size, threads);
+        let (leaves, leaf_cone_rad, color_scale) = Self::leaves_of(points, size, threads);
         drop(owner);
-        Self::from_leaves(leaves, leaf_cone_rad, size, has_normals, threads, started)
+        SplatTree {
+            color_scale,
+            ..Self::from_leaves(leaves, leaf_cone_rad, size, has_normals, threads, started)
+        }
     }
 
     /// The leaves: `points` in Morton order as splats (sizes per point
-    /// where `size` gives them), and their normals' cone.
-    fn leaves_of(points: Points, size: LeafSize, threads: usize) -> (Vec<Splat>, f32) {
+    /// where `size` gives them), their normals' cone and the colour scale
+    /// of their codes.
+    fn leaves_of(points: Points, size: LeafSize, threads: usize) -> (Vec<Splat>, f32, f32) {
         let n = points.positions.len();
         let order = morton_order(points.positions, threads);
         let per_point = match size {
@@ -199,13 +234,16 @@ impl SplatTree {
             _ => None,
         };
         let normals = points.normals;
+        let scale = color_scale_of(points.colors);
         let mut leaves: Vec<Splat> = vec![Splat::zeroed(); n];
         let leaf_cone = par_chunks(&mut leaves, CHUNK, threads, |c, out| {
             let mut worst = 0.0f32;
             for (j, v) in out.iter_mut().enumerate() {
                 let i = order[c * CHUNK + j] as usize;
                 let p = points.positions[i];
-                let col = points.colors[i];
+                // Scale 1 divides exactly: a cloud within white keeps its
+                // codes.
+                let col = points.colors[i] / scale;
                 let packed = match normals {
                     Some(ns) => {
                         let packed = oct_encode(ns[i]);
@@ -223,7 +261,7 @@ impl SplatTree {
         });
         drop(order);
         let leaf_cone_rad = leaf_cone.iter().fold(0.0f32, |m, &w| m.max(w));
-        (leaves, leaf_cone_rad)
+        (leaves, leaf_cone_rad, scale)
     }
 
     /// The tree over `leaves` (from [`SplatTree::leaves_of`]; the build
@@ -319,6 +357,7 @@ impl SplatTree {
                 total_ms: ms_since(started),
             },
             isolated_limited,
+            color_scale: 1.0,
         }
     }
 
@@ -341,6 +380,14 @@ impl SplatTree {
     /// Number of points.
     pub fn len(&self) -> usize {
         self.leaves.len()
+    }
+
+    /// The linear colour of a splat's code 65535: 1 (white), or the
+    /// cloud's brightest channel where it is brighter (a highlight of
+    /// linear-light PLY colours; at most [`BRIGHTEST_LINEAR`]). The
+    /// G-buffer's resolves multiply every covered sample by it.
+    pub fn color_scale(&self) -> f32 {
+        self.color_scale.max(1.0)
     }
 
     /// Whether the tree has no points.

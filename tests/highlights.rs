@@ -161,54 +161,31 @@ fn the_command_line_keeps_highlights_and_says_what_it_clamps() {
                 ]
             })
             .collect();
-        common::write_binary_ply(
-            &path,
-            &[
-                ("float", "x"),
-                ("float", "y"),
-                ("float", "z"),
-                ("float", "red"),
-                ("float", "green"),
-                ("float", "blue"),
-            ],
-            &rows,
-        );
+        common::write_binary_ply(&path, &common::XYZ_RGB_FLOATS, &rows);
         path
     };
     let (bright, blinding) = (write("bright.ply", 2.0), write("blinding.ply", 40.0));
-    let exr = dir.join("bright.exr");
-    let frame = ["--width", "48", "--height", "36", "--method", "pinhole"];
-    let mut args = vec![
-        "render",
-        bright.to_str().unwrap(),
-        "-o",
-        exr.to_str().unwrap(),
-    ];
-    args.extend_from_slice(&frame);
-    let o = common::assert_runs(&args);
-    assert!(!String::from_utf8_lossy(&o.stderr).contains("brighter"));
-    let image = pointlens::image_io::read_image(&exr).unwrap();
-    let peak = image.pixels.iter().map(|p| p[0]).fold(0.0, f32::max);
+    // A pinhole frame of `input` into an EXR: the image's peak red and
+    // the run's stderr.
+    let render = |input: &std::path::Path| {
+        let exr = input.with_extension("exr");
+        let (input, out) = (input.to_str().unwrap(), exr.to_str().unwrap());
+        let frame = ["--width", "48", "--height", "36", "--method", "pinhole"];
+        let mut args = vec!["render", input, "-o", out];
+        args.extend_from_slice(&frame);
+        let err = String::from_utf8_lossy(&common::assert_runs(&args).stderr).into_owned();
+        let image = pointlens::image_io::read_image(&exr).unwrap();
+        let peak = image.pixels.iter().map(|p| p[0]).fold(0.0, f32::max);
+        (peak, err)
+    };
+    let (peak, err) = render(&bright);
+    assert!(!err.contains("brighter"), "{err}");
     assert!(peak > 4.9 && peak < 5.0, "peak {peak}");
-    let exr = dir.join("blinding.exr");
-    let mut args = vec![
-        "render",
-        blinding.to_str().unwrap(),
-        "-o",
-        exr.to_str().unwrap(),
-    ];
-    args.extend_from_slice(&frame);
-    let err = String::from_utf8_lossy(&common::assert_runs(&args).stderr).into_owned();
+    let (peak, err) = render(&blinding);
     assert!(
         err.contains("16 points are brighter than 4096 times white (linear); their colours are clamped to it"),
         "{err}"
     );
-    let peak = pointlens::image_io::read_image(&exr)
-        .unwrap()
-        .pixels
-        .iter()
-        .map(|p| p[0])
-        .fold(0.0, f32::max);
     assert_eq!(peak, 4096.0);
     let copc = dir.join("bright.copc.laz");
     let o = common::assert_runs(&[

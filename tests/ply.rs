@@ -863,14 +863,7 @@ fn float_colours_above_one_are_brighter_than_white() {
     use common::write_binary_ply;
     let dir = scratch("ply-bright");
     let values = [0.5, 1.0, 2.0, 30.0, -1.0, f64::NAN];
-    let props = [
-        ("float", "x"),
-        ("float", "y"),
-        ("float", "z"),
-        ("float", "red"),
-        ("float", "green"),
-        ("float", "blue"),
-    ];
+    let props = common::XYZ_RGB_FLOATS;
     let rows: Vec<Vec<f64>> = values
         .iter()
         .enumerate()

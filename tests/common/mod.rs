@@ -376,6 +376,16 @@ pub fn write_binary_ply(path: &Path, properties: &[(&str, &str)], rows: &[Vec<f6
     std::fs::write(path, bytes).expect("write ply");
 }
 
+/// The properties of a PLY of float positions and float colours.
+pub const XYZ_RGB_FLOATS: [(&str, &str); 6] = [
+    ("float", "x"),
+    ("float", "y"),
+    ("float", "z"),
+    ("float", "red"),
+    ("float", "green"),
+    ("float", "blue"),
+];
+
 /// `count` points of a unit cube with its least corner at `corner`
 /// (a fixed pseudo-random sequence).
 pub fn cube_points(count: usize, corner: f64) -> Vec<[f64; 3]> {

@@ -105,17 +105,17 @@ enum Command {
     #[command(allow_negative_numbers = true)]
     Synth {
         /// Number of points.
-        #[arg(
-            long,
-            required_unless_present = "gaussians",
-            conflicts_with = "gaussians"
-        )]
+        #[arg(long, required_unless_present_any = ["gaussians", "lights"])]
         points: Option<u64>,
         /// Number of 3D Gaussians instead (SH degree 3, the reference
         /// code's PLY layout; -o must be .ply), centred on the scene's
         /// points: anisotropic, overlapping, semi-transparent.
-        #[arg(long)]
+        #[arg(long, conflicts_with_all = ["points", "lights"])]
         gaussians: Option<u64>,
+        /// Number of points of the bokeh scene instead (-o must be .ply): a
+        /// card in focus among 48 lights brighter than white (float colours).
+        #[arg(long, conflicts_with = "points")]
+        lights: Option<u64>,
         /// Output file, .ply, .las or .laz (replaced atomically).
         #[arg(short, long, value_name = "FILE")]
         output: PathBuf,
@@ -515,8 +515,9 @@ fn run(command: Command, quiet: bool) -> Result<()> {
         Command::Synth {
             points,
             gaussians,
+            lights,
             output,
-        } => synth(points, gaussians, &output, quiet),
+        } => synth(SynthKind::of(points, gaussians, lights), &output, quiet),
         Command::Convert {
             input,
             output,
@@ -571,12 +572,8 @@ fn convert(options: ConvertOptions, quiet: bool) -> Result<()> {
     ))?)
 }
 
-/// `pointlens synth --points N` or `--gaussians N`.
-fn synth(points: Option<u64>, gaussians: Option<u64>, output: &Path, quiet: bool) -> Result<()> {
-    let (kind, count) = match gaussians {
-        Some(n) => (SynthKind::Gaussians, n),
-        None => (SynthKind::Points, points.unwrap_or(0)),
-    };
+/// `pointlens synth --points N`, `--gaussians N` or `--lights N`.
+fn synth((kind, count): (SynthKind, u64), output: &Path, quiet: bool) -> Result<()> {
     let t = std::time::Instant::now();
     let template = format!("{{bar:30}} {{pos}}/{{len}} {kind}, {{elapsed}}");
     let bar = progress(count, &template, quiet);

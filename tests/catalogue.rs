@@ -307,6 +307,7 @@ fn catalogue() -> Vec<Case> {
             "the disk has",
         ),
         case("synth --points 10000000000000 -o {dir}/big.laz", "need at least 80000.0 GB"),
+        case("synth --lights 100 -o {dir}/lights.laz", "--lights is written as .ply"),
         // Eye-dome lighting.
         case("render {bunny} -o {out} R --edl 1 --method accum", "accum averages"),
         // Refused before the file is read: a missing file is not named.

@@ -856,7 +856,7 @@ fn a_ply_intensity_is_read_as_16_bits() {
 }
 
 /// Float colours are sRGB-encoded as 8- and 16-bit codes are, and a float
-/// above 1 is brighter than white: the sRGB curve extended (2 is 5.3 times
+/// above 1 is brighter than white: the sRGB curve extended (2 is 4.95 times
 /// white), not clamped; below 0 and not a number are 0. Both readers.
 #[test]
 fn float_colours_above_one_are_brighter_than_white() {

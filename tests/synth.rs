@@ -165,3 +165,46 @@ fn synth_with_bad_input_fails_with_one_line_and_no_file() {
     assert!(err.to_string().contains("at least 1 point"), "{err}");
     assert!(!file.exists());
 }
+
+/// `synth --lights N` writes the bokeh scene: float colours, a quarter of
+/// the points brighter than white when read back (the lights), the card
+/// within white; refused in one line without a count, with a LAS name, or
+/// beside --points.
+#[test]
+fn synth_lights_writes_the_bokeh_scene() {
+    let dir = scratch("synth-lights");
+    let file = dir.join("lights.ply");
+    let file_s = file.display().to_string();
+    common::assert_runs(&["synth", "--lights", "4000", "-o", &file_s]);
+    let cloud = load_ply(&file).unwrap();
+    assert_eq!(cloud.len(), 4000);
+    let bright = cloud
+        .colors
+        .iter()
+        .filter(|c| c.max_element() > 1.0)
+        .count();
+    assert_eq!(bright, 1000);
+    let brightest = cloud
+        .colors
+        .iter()
+        .map(|c| c.max_element())
+        .fold(0.0, f32::max);
+    assert!((brightest - 50.0).abs() < 0.01, "{brightest}");
+    let las = dir.join("lights.las");
+    for (args, phrase, out) in [
+        (vec!["--lights", "0"], "--lights must be at least 1", &file),
+        (vec!["--lights", "10"], "--lights is written as .ply", &las),
+        (
+            vec!["--lights", "10", "--points", "10"],
+            "cannot be used with",
+            &file,
+        ),
+    ] {
+        std::fs::remove_file(&file).ok();
+        let out_s = out.display().to_string();
+        let mut all = vec!["synth"];
+        all.extend(args);
+        all.extend(["-o", out_s.as_str()]);
+        assert_fails(&all, phrase, out);
+    }
+}

@@ -720,7 +720,7 @@ impl Scalar {
     /// type's code over its maximum, clamped to [0, 1]; a float as it is,
     /// clamped below at 0 (not a number: 0) and not above: a float color
     /// above 1 is brighter than white (the sRGB curve extended, as
-    /// extended-range sRGB does: 2 is 5.3 times white), kept as a
+    /// extended-range sRGB does: 2 is 4.95 times white), kept as a
     /// highlight through the blur (EXR keeps it; PNG clips after the blur).
     fn linear_color(self) -> f32 {
         match self {

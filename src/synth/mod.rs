@@ -19,6 +19,8 @@ use crate::cloud::PointCloud;
 use crate::error::{Error, Result};
 use crate::image_io::{linear_to_srgb8, write_atomically};
 
+pub mod lights;
+
 /// SplitMix64's increment, which is also the stream's starting state.
 const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
 
@@ -362,18 +364,36 @@ pub fn write_gaussians(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -
             "a synthetic scene needs at least 1 Gaussian".into(),
         ));
     }
+    write_float_records(
+        path,
+        &gaussian_header(count),
+        count,
+        |i| gaussian(i, count),
+        progress,
+    )
+}
+
+/// Writes the PLY `header` and `count` records of floats, record `i` being
+/// `record(i)` (little-endian), to `path` atomically, [`CHUNK_POINTS`] at
+/// a time, telling `progress` the records written.
+fn write_float_records<const N: usize>(
+    path: &Path,
+    header: &str,
+    count: u64,
+    record: impl Fn(u64) -> [f32; N],
+    progress: &mut dyn FnMut(u64),
+) -> Result<()> {
     write_atomically(path, |mut file| {
         let io = |source| Error::Io {
             path: path.to_path_buf(),
             source,
         };
-        file.write_all(gaussian_header(count).as_bytes())
-            .map_err(io)?;
+        file.write_all(header.as_bytes()).map_err(io)?;
         let mut start = 0;
         while start < count {
             let end = count.min(start + CHUNK_POINTS as u64);
             let buf: Vec<u8> = (start..end)
-                .flat_map(|i| gaussian(i, count))
+                .flat_map(&record)
                 .flat_map(f32::to_le_bytes)
                 .collect();
             file.write_all(&buf).map_err(io)?;
@@ -385,18 +405,36 @@ pub fn write_gaussians(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -
 }
 
 /// What `pointlens synth` writes: `count` points (PLY, or LAS / LAZ by the
-/// extension), or `count` 3D Gaussians (PLY).
+/// extension), `count` 3D Gaussians (PLY), or the bokeh scene of `count`
+/// points ([`lights`], PLY).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SynthKind {
     Points,
     Gaussians,
+    Lights,
+}
+
+impl SynthKind {
+    /// The kind and count of `synth`'s flags `--points`, `--gaussians`
+    /// and `--lights` (at most one given; none: points, count 0).
+    pub fn of(
+        points: Option<u64>,
+        gaussians: Option<u64>,
+        lights: Option<u64>,
+    ) -> (SynthKind, u64) {
+        match (gaussians, lights) {
+            (Some(n), _) => (SynthKind::Gaussians, n),
+            (_, Some(n)) => (SynthKind::Lights, n),
+            _ => (SynthKind::Points, points.unwrap_or(0)),
+        }
+    }
 }
 
 impl std::fmt::Display for SynthKind {
     /// What is counted: "points" or "Gaussians".
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         f.write_str(match self {
-            SynthKind::Points => "points",
+            SynthKind::Points | SynthKind::Lights => "points",
             SynthKind::Gaussians => "Gaussians",
         })
     }
@@ -416,6 +454,7 @@ pub fn write_file(
     let what = match kind {
         SynthKind::Points => "--points",
         SynthKind::Gaussians => "--gaussians",
+        SynthKind::Lights => "--lights",
     };
     if count == 0 {
         return invalid(format!("{what} must be at least 1"));
@@ -423,11 +462,8 @@ pub fn write_file(
     let ply = output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    if kind == SynthKind::Gaussians && !ply {
-        return invalid(format!(
-            "{}: Gaussians are written as .ply",
-            output.display()
-        ));
+    if kind != SynthKind::Points && !ply {
+        return invalid(format!("{}: {what} is written as .ply", output.display()));
     }
     crate::image_io::check_parent_dir(output, "-o")?;
     if kind == SynthKind::Points {
@@ -450,6 +486,7 @@ pub fn write_file(
             write_las(output, count, progress)?
         }
         SynthKind::Points => write_ply(output, count, progress)?,
+        SynthKind::Lights => lights::write(output, count, progress)?,
     }
     Ok(std::fs::metadata(output).map_or(0, |m| m.len()))
 }

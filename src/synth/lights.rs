@@ -10,7 +10,7 @@
 //! The file is a binary little-endian PLY of float positions and float
 //! colours, sRGB-encoded as 8-bit ones are, above 1 for the lights (the
 //! sRGB curve extended: 5.33 is 50 times white). Point `i` is a function
-//! of `i` and N alone, from the scene's SplitMix64 stream ([`super::draw`]).
+//! of `i` and N alone, from the synthetic scene's SplitMix64 stream (`synth::draw`).
 
 use std::path::Path;
 

@@ -1,0 +1,165 @@
+"""Where the G-buffer's error against the exact pixel integral lies
+(docs/bench/gbuffer-error.md): each bundled scene's pinhole image at
+K = 1…8 (every splat, `--lod-px 0`) against Mitsuba 3's pinhole render of
+the same squares at REF_SPP (box filter: the pixel-area integral), its
+squared error (sRGB, as bench-vs-mitsuba's PSNR) split by pixel class:
+
+- interior: the K = 8 and K = 1 colours agree (every sample one colour:
+  what more samples cannot change), and no depth step;
+- surface edge: the colours differ, the depths around the pixel do not
+  step (splat borders on one surface: the squares' own edges);
+- depth step: the 3×3 pixels' K = 1 eye depths differ by more than
+  STEP_REL of the nearest, or one is background (silhouettes);
+- background: K = 1 and K = 8 see nothing (no error expected).
+
+Prints a Markdown table per scene and writes, for the first scene, the
+class map and the K = 3 error image as PNGs. Run with the venv's Python:
+
+    ~/.cache/pointlens/venv-mitsuba/bin/python scripts/research/gbuffer_error.py \\
+        --pointlens PATH --export-splats PATH --work DIR [--images DIR]
+"""
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "mitsuba"))
+import splat_scene as ss  # noqa: E402
+from bench import SCENES, psnr_np, srgb  # noqa: E402
+
+REF_SPP = 1024
+KS = [1, 2, 3, 4, 6, 8]
+STEP_REL = 0.03
+CLASSES = ["interior", "surface edge", "depth step", "background"]
+
+
+def run(cmd):
+    r = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"{cmd[0]} failed: {r.stderr.strip()}")
+    return r.stdout
+
+
+def read(mi, path, channels=None):
+    b = mi.Bitmap(str(path))
+    if channels is None:
+        return np.array(b, dtype=np.float32)[:, :, :3]
+    split = dict(b.split())
+    return np.array(split[channels], dtype=np.float32)[:, :, 0]
+
+
+def classes(c1, c8, z1):
+    """The class index of each pixel (CLASSES)."""
+    h, w = z1.shape
+    pad = np.pad(z1, 1, mode="edge")
+    near = np.full_like(z1, np.inf)
+    far = np.full_like(z1, -np.inf)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            n = pad[dy:dy + h, dx:dx + w]
+            near = np.minimum(near, n)
+            far = np.maximum(far, n)
+    with np.errstate(invalid="ignore"):
+        step = ~np.isfinite(far) | (far - near > STEP_REL * near)
+    differ = np.abs(c8 - c1).max(axis=2) > 1.0 / 1024.0
+    out = np.where(differ, 1, 0)
+    out = np.where(step & (differ | ~np.isfinite(z1)), 2, out)
+    out = np.where(~np.isfinite(near), 3, out)
+    return out
+
+
+def study(args, mi, dr, scene):
+    d = Path(args.work) / scene
+    d.mkdir(parents=True, exist_ok=True)
+    ply = Path(args.repo) / SCENES[scene]["file"]
+    flags = [f for f in SCENES[scene]["flags"]]
+    if "--aperture-radius" in flags:
+        i = flags.index("--aperture-radius")
+        del flags[i:i + 2]
+    size = ["--width", "640", "--height", "480"]
+    cam = json.loads(run([args.pointlens, "render", ply, "-o", d / "probe.exr", "--method", "pinhole",
+                          *size, *flags, "--print-camera"]))
+    (d / "camera.json").write_text(json.dumps(cam))
+    splats = d / "splats.bin"
+    run([args.export_splats, ply, splats])
+    positions, diameters, colors = ss.read_splats(splats)
+    ref_path = d / f"mitsuba_pinhole_{REF_SPP}.exr"
+    if not ref_path.exists():
+        mscene, _ = ss.build_scene(mi, cam, positions, diameters, colors)
+        total = None
+        for k in range(REF_SPP // 64):
+            img, _ = ss.render(mi, dr, mscene, 64, 1000 + k)
+            total = img if total is None else total + img
+        ss.write_exr(mi, ref_path, total / (REF_SPP // 64))
+        del mscene
+    ref = read(mi, ref_path)
+    images = {}
+    for k in KS:
+        out = d / f"pinhole_k{k}.exr"
+        run([args.pointlens, "render", ply, "-o", out, "--camera", d / "camera.json", "--method", "pinhole",
+             "--lod-px", "0", "--ssaa", str(k), "--passes", "z"])
+        images[k] = out
+    c1, c8 = read(mi, images[1]), read(mi, images[8])
+    z1 = read(mi, images[1], "Z")
+    cls = classes(c1, c8, z1)
+    rows = []
+    for k in KS:
+        img = read(mi, images[k])
+        err = ((srgb(img) - srgb(ref)) ** 2).mean(axis=2)
+        total = err.sum()
+        shares = [err[cls == c].sum() / total for c in range(len(CLASSES))]
+        rows.append((k, psnr_np(img, ref), shares, err))
+    pixels = [float((cls == c).mean()) for c in range(len(CLASSES))]
+    return cam, cls, rows, pixels
+
+
+def png(mi, path, rgb):
+    mi.Bitmap(np.ascontiguousarray(rgb.astype(np.float32))).convert(
+        mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True).write(str(path))
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--pointlens", required=True)
+    p.add_argument("--export-splats", required=True)
+    p.add_argument("--work", required=True)
+    p.add_argument("--repo", default=str(HERE.parent.parent))
+    p.add_argument("--scenes", default="bunny,mug,autzen")
+    p.add_argument("--images", default=None)
+    args = p.parse_args()
+    import mitsuba as mi
+    import drjit as dr
+    mi.set_variant("llvm_ad_rgb")
+    for n, scene in enumerate(args.scenes.split(",")):
+        cam, cls, rows, pixels = study(args, mi, dr, scene)
+        print(f"\n### {scene} (640×480, every splat, Mitsuba {REF_SPP} spp pinhole)\n")
+        print("pixels: " + ", ".join(f"{c} {100 * s:.1f} %" for c, s in zip(CLASSES, pixels)) + "\n")
+        print("| K | PSNR | " + " | ".join(f"{c} share of the error" for c in CLASSES[:3])
+              + " | PSNR with edges exact | PSNR with depth steps exact |")
+        print("|---:|---:|" + "---:|" * 5)
+        for k, psnr, shares, err in rows:
+            mse = err.mean()
+            no_edge = 10 * np.log10(1 / (mse * (1 - shares[1]))) if shares[1] < 1 else float("inf")
+            no_step = 10 * np.log10(1 / (mse * (1 - shares[2]))) if shares[2] < 1 else float("inf")
+            print(f"| {k} | {psnr:.2f} | " + " | ".join(f"{100 * s:.1f} %" for s in shares[:3])
+                  + f" | {no_edge:.2f} | {no_step:.2f} |")
+        if args.images and n == 0:
+            out = Path(args.images)
+            out.mkdir(parents=True, exist_ok=True)
+            palette = np.array([[0.05, 0.05, 0.05], [0.1, 0.6, 1.0], [1.0, 0.45, 0.1], [0, 0, 0]], np.float32)
+            png(mi, out / f"{scene}_classes.png", palette[cls] ** 2.2)
+            err3 = next(e for k, _, _, e in rows if k == 3)
+            scale = np.sqrt(err3) / max(float(np.sqrt(err3).max()), 1e-9)
+            png(mi, out / f"{scene}_error_k3.png", np.repeat(scale[:, :, None], 3, axis=2) ** 2.2)
+            err8 = next(e for k, _, _, e in rows if k == 8)
+            png(mi, out / f"{scene}_error_k8.png",
+                np.repeat((np.sqrt(err8) / max(float(np.sqrt(err3).max()), 1e-9))[:, :, None], 3, axis=2) ** 2.2)
+
+
+if __name__ == "__main__":
+    main()

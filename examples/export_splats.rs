@@ -68,7 +68,8 @@ fn run() -> anyhow::Result<()> {
     bytes.extend_from_slice(&(cloud.len() as u64).to_le_bytes());
     for leaf in tree.leaves() {
         let [x, y, z, d] = leaf.position_size;
-        let c = leaf.color.map(|u| u as f32 / 65535.0);
+        // Codes of the tree's colour scale (1 for a cloud within white).
+        let c = leaf.color.map(|u| u as f32 / 65535.0 * tree.color_scale());
         for v in [x, y, z, d, c[0], c[1], c[2]] {
             bytes.extend_from_slice(&v.to_le_bytes());
         }

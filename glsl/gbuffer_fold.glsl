@@ -1,13 +1,14 @@
 // One pixel's G-buffer resolve, folded one raster sample at a time
 // (DESIGN §3). A sample is (r, g, b, z): the nearest splat's linear color
 // (in codes of the color scale: see `scaled`) and eye depth, or the
-// background color and z = +inf where no splat covers it. Each sample comes with a weight w (its lens position's in
-// this pixel: 1, but for accum's cat's eye, gbuffer_lens_weight.glsl).
-// The fold keeps the weighted color sum (alpha: w per covered sample), the
-// sum of the weights, and the nearest sample's depth with in w that
-// sample's index: ties in depth go to the lowest index, whatever the order
-// of folding. Shared by gbuffer_resolve.comp (one sample per raster pass)
-// and gbuffer_resolve_ms.comp (multisampled passes).
+// background color and z = +inf where no splat covers it. Each sample
+// comes with a weight w (its lens position's in this pixel: 1, but for
+// accum's cat's eye, gbuffer_lens_weight.glsl). The fold keeps the
+// weighted color sum (alpha: w per covered sample), the sum of the
+// weights, and the nearest sample's depth with (in its .w) that sample's index:
+// ties in depth go to the lowest index, whatever the order of folding.
+// Shared by gbuffer_resolve.comp (one sample per raster pass) and
+// gbuffer_resolve_ms.comp (multisampled passes).
 
 struct Fold {
     vec4 sum;

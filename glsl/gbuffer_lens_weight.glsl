@@ -1,10 +1,13 @@
 // The weight of this pass's lens position in receiving pixel p's fold
-// (gbuffer_fold.glsl): accum's cat's eye (docs/decisions/aperture-shape.md).
+// (gbuffer_fold.glsl): accum's cat's eye (docs/decisions/aperture-shape.md),
+// mirrored from src/camera/aperture.rs (Aperture::cat_eye_weight).
 // 1 where the pixel's cat's-eye circle passes the lens position, else
-// 2^(-40·r), r > 1 its distance from the circle's centre in lens radii
-// (at least 2^-120, a normal float): the samples outside add less than a float's precision to a pixel that
-// has one inside, and a pixel that has none (a corner's sliver between
-// the lattice's points) sees through the samples nearest its circle.
+// 2^(-40·r), r > 1 its distance from the circle's centre in lens radii,
+// at least 2^-120 (a normal float; r passes 3 in a wide frame's guard
+// band): the samples outside add less than a float's precision to a
+// pixel that has one inside, and a pixel that has none (a corner's sliver
+// between the lattice's points) sees through the samples nearest its
+// circle.
 // Without the cat's eye every weight is 1, and the fold is the plain mean.
 //
 // The including shader's push block `pc` has lens_u (this pass's lens
@@ -20,5 +23,5 @@ float lens_weight(ivec2 p) {
     if (cat_eye_passes(pc.lens_u, centre)) {
         return 1.0;
     }
-    return exp2(-40.0 * length(pc.lens_u - centre));
+    return exp2(max(-40.0 * length(pc.lens_u - centre), -120.0));
 }

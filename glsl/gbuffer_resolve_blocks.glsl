@@ -6,7 +6,7 @@
 // holds output pixel p's K² samples in the target's K×K block at K·p,
 // sample s in cell K² − 1 − s (src/passes/sample_plan.rs); a plan drawn
 // in bands holds only the band's rows, from first_row. After the last
-// sample, writes the mean color and the coverage fraction.
+// sample, writes the (weighted) mean color and the coverage fraction.
 //
 // The including shader declares the push block `pc` (extent,
 // sample_index, sample_count, scale, first_row, color_scale and the

@@ -4,7 +4,7 @@
 // nearest eye position (gbuffer_fold.glsl). Sample s of output pixel p is
 // read at p + its read offset (src/passes/sample_plan.rs: the pass's jitter
 // can move a sample's position into the next pixel). After the last pass,
-// writes the mean color and the coverage fraction.
+// writes the (weighted) mean color and the coverage fraction.
 #include "gbuffer_fold.glsl"
 
 layout(local_size_x = 16, local_size_y = 16) in;

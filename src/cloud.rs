@@ -100,6 +100,14 @@ impl PointCloud {
         )
     }
 
+    /// The brightest linear colour channel of any point (1 is white; above
+    /// it a highlight: PLY float colours above 1). 0 for no points.
+    pub fn brightest(&self) -> f32 {
+        self.colors
+            .iter()
+            .fold(0.0f32, |m, c| m.max(c.max_element()))
+    }
+
     /// What `pointlens info` prints: one `name: value` line per item, with
     /// `median_spacing` given by the caller (the splat hierarchy's,
     /// `tree::median_spacing`: the exact one takes minutes at 10 M points).
@@ -127,7 +135,12 @@ impl PointCloud {
             v(hi),
             v(hi - lo),
             self.attributes.join(" "),
-            yes(self.has_colors),
+            match self.brightest() {
+                b if b > 1.0 && self.has_colors => {
+                    format!("yes, brighter than white (brightest channel {b} times white, linear)")
+                }
+                _ => yes(self.has_colors).to_string(),
+            },
             yes(self.normals.is_some()),
             median_spacing
         )

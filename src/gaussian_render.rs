@@ -347,7 +347,8 @@ impl GaussianRenderer {
     /// pinhole image), each at the K × K sub-pixel positions of `ssaa`
     /// (the cell centres of [`ssaa_jitter`]; 1: the pixel centre, as the
     /// reference rasterizer samples) over `background` (linear light): the
-    /// mean of their images in linear light.
+    /// mean of their images in linear light, each lens point weighed per
+    /// pixel by the camera's cat's eye ([`crate::camera::Aperture::cat_eye_weight`]).
     pub fn render(
         &self,
         scene: &GpuGaussians,

@@ -76,9 +76,19 @@ impl LinearImage {
 /// 61966-2-1, exact piecewise form). The input is clamped to [0, 1] first;
 /// NaN maps to 0.
 pub fn linear_to_srgb(c: f32) -> f32 {
+    match c.is_nan() {
+        true => 0.0,
+        false => linear_to_srgb_extended(c.min(1.0)),
+    }
+}
+
+/// [`linear_to_srgb`] continued above 1 (brighter than white, the
+/// inverse of [`srgb_to_linear`] there too: 50 → 5.33), as a PLY's float
+/// colours hold highlights.
+pub fn linear_to_srgb_extended(c: f32) -> f32 {
     if c.is_nan() || c <= 0.0 {
         0.0
-    } else if c >= 1.0 {
+    } else if c == 1.0 {
         1.0
     } else if c <= 0.003_130_8 {
         12.92 * c

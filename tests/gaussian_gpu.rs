@@ -379,10 +379,7 @@ fn the_cats_eye_weighs_each_lens_point_per_pixel() {
                 let (mut sum, mut weights) = (Vec3::ZERO, 0.0f64);
                 for (u, image) in lens.iter().zip(&images) {
                     let u = Vec2::new(u.x, -u.y);
-                    let weight = match Aperture::cat_eye_passes(u, centre) {
-                        true => 1.0,
-                        false => (-40.0 * f64::from((u - centre).length())).exp2(),
-                    };
+                    let weight = f64::from(Aperture::cat_eye_weight(u, centre));
                     sum += image[(y * w + x) as usize] * weight as f32;
                     weights += weight;
                 }

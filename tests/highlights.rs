@@ -140,10 +140,11 @@ fn a_png_clips_the_highlight_after_the_blur() {
     });
 }
 
-/// Through the command line: a PLY whose float colours are 2 (5 times
-/// white) renders its light into the EXR; colours brighter than 4,096
-/// times white (a float of 40) are clamped to it with a warning; `convert`
-/// warns that LAS's RGB clips them to white.
+/// Through the command line: a PLY whose float colours are 2 (4.95 times
+/// white) says so in `info` and renders its light into the EXR; colours
+/// brighter than 128 times white (a float of 40) are clamped to it with a
+/// warning, and layered, in focus, renders the cap whole (its fixed-point
+/// sums hold 512); `convert` warns that LAS's RGB clips them to white.
 #[test]
 fn the_command_line_keeps_highlights_and_says_what_it_clamps() {
     let dir = common::scratch("highlights-cli");
@@ -165,12 +166,12 @@ fn the_command_line_keeps_highlights_and_says_what_it_clamps() {
         path
     };
     let (bright, blinding) = (write("bright.ply", 2.0), write("blinding.ply", 40.0));
-    // A pinhole frame of `input` into an EXR: the image's peak red and
-    // the run's stderr.
-    let render = |input: &std::path::Path| {
-        let exr = input.with_extension("exr");
+    // A frame of `input` by `method` into an EXR: the image's peak red
+    // and the run's stderr.
+    let render = |input: &std::path::Path, method: &str| {
+        let exr = input.with_extension(format!("{method}.exr"));
         let (input, out) = (input.to_str().unwrap(), exr.to_str().unwrap());
-        let frame = ["--width", "48", "--height", "36", "--method", "pinhole"];
+        let frame = ["--width", "48", "--height", "36", "--method", method];
         let mut args = vec!["render", input, "-o", out];
         args.extend_from_slice(&frame);
         let err = String::from_utf8_lossy(&common::assert_runs(&args).stderr).into_owned();
@@ -178,15 +179,25 @@ fn the_command_line_keeps_highlights_and_says_what_it_clamps() {
         let peak = image.pixels.iter().map(|p| p[0]).fold(0.0, f32::max);
         (peak, err)
     };
-    let (peak, err) = render(&bright);
+    let info = common::assert_runs(&["info", bright.to_str().unwrap()]);
+    let info = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.contains("colors: yes, brighter than white (brightest channel 4.95"),
+        "{info}"
+    );
+    let (peak, err) = render(&bright, "pinhole");
     assert!(!err.contains("brighter"), "{err}");
     assert!(peak > 4.9 && peak < 5.0, "peak {peak}");
-    let (peak, err) = render(&blinding);
+    let (peak, err) = render(&blinding, "pinhole");
     assert!(
-        err.contains("16 points are brighter than 4096 times white (linear); their colours are clamped to it"),
+        err.contains(
+            "16 points are brighter than 128 times white (linear); their colours are clamped to it"
+        ),
         "{err}"
     );
-    assert_eq!(peak, 4096.0);
+    assert_eq!(peak, 128.0);
+    let (peak, _) = render(&blinding, "layered");
+    assert!((peak - 128.0).abs() < 0.1, "layered's peak {peak}");
     let copc = dir.join("bright.copc.laz");
     let o = common::assert_runs(&[
         "convert",

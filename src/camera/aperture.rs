@@ -570,6 +570,20 @@ impl Aperture {
         (u - centre).length_squared() <= 1.0
     }
 
+    /// The weight of lens position u in the mean of the pixel whose second
+    /// circle is centred at `centre` (accum's resolve,
+    /// `glsl/gbuffer_lens_weight.glsl`): 1 where it passes, else
+    /// 2^(−40·r) at r lens radii from the centre, at least 2^−120 (a normal
+    /// float): the samples outside add less than a float's precision to a
+    /// pixel that has one inside, and a pixel with none sees through those
+    /// nearest its circle.
+    pub fn cat_eye_weight(u: Vec2, centre: Vec2) -> f32 {
+        match Self::cat_eye_passes(u, centre) {
+            true => 1.0,
+            false => (-40.0 * (u - centre).length()).max(-120.0).exp2(),
+        }
+    }
+
     /// The area of the aperture in lens units, ∫T du (π for the round
     /// aperture), by `n`×`n` points over the square.
     pub fn area(&self, n: u32) -> f64 {

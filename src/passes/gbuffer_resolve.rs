@@ -1,6 +1,7 @@
 //! The G-buffer resolve pass: folds one raster pass's samples into the
 //! running color sum and nearest eye depth, and after the last pass
-//! writes the G-buffer (mean color, coverage fraction). One sample per pass,
+//! writes the G-buffer (the mean color, each lens position weighed by
+//! [`LensWeight`]; the coverage fraction). One sample per pass,
 //! or every sample in the upscaled plan's K×K blocks:
 //! `glsl/gbuffer_resolve.comp`; the compute rasteriser's visibility
 //! words: `glsl/gbuffer_resolve_vis.comp` (both through

@@ -202,8 +202,9 @@ impl FrameView {
 
 /// One resolved G-buffer layer (guard band included).
 pub struct GBufferLayer {
-    /// Linear color (rgba16f): the mean over the pixel's samples, the
-    /// background's color where a sample saw nothing; alpha = coverage.
+    /// Linear color (rgba16f): the mean over the pixel's samples (each
+    /// lens sample weighed by the cat's eye in accum's), the background's
+    /// color where a sample saw nothing; alpha = coverage.
     pub color: Image,
     /// (0, 0, z, coverage) (rgba32f): the eye depth of the nearest sample
     /// (+∞ for background) and the covered fraction; x and y are not kept

@@ -17,7 +17,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::error::Result;
-use crate::image_io::linear_to_srgb;
+use crate::image_io::linear_to_srgb_extended;
 
 /// The lights: 36 behind the card, then 12 in front of it.
 const LIGHTS: u64 = 48;
@@ -86,15 +86,9 @@ pub fn point(i: u64, count: u64) -> (Vec3, Vec3) {
     )
 }
 
-/// The extended sRGB encoding of linear `c`: the sRGB curve, continued
-/// above 1 (what the PLY reader decodes; 120 → 7.1).
-fn encoded(c: f32) -> f32 {
-    if c <= 1.0 {
-        linear_to_srgb(c)
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
+/// Bytes of one vertex record of the file: x, y, z, red, green, blue, all
+/// float.
+pub const RECORD_BYTES: u64 = 24;
 
 /// The PLY header of a scene of `count` points.
 fn header(count: u64) -> String {
@@ -115,7 +109,7 @@ fn header(count: u64) -> String {
 pub fn write(path: &Path, count: u64, progress: &mut dyn FnMut(u64)) -> Result<()> {
     let record = |i| {
         let (p, c) = point(i, count);
-        let c = c.to_array().map(encoded);
+        let c = c.to_array().map(linear_to_srgb_extended);
         [p.x, p.y, p.z, c[0], c[1], c[2]]
     };
     super::write_float_records(path, &header(count), count, record, progress)
@@ -129,10 +123,11 @@ mod tests {
     #[test]
     fn the_encoding_is_the_readers_inverse_above_white_too() {
         for c in [0.0, 0.002, 0.2, 0.5, 1.0, 2.0, 40.0, 120.0] {
-            let back = srgb_to_linear(encoded(c));
+            let back = srgb_to_linear(linear_to_srgb_extended(c));
             assert!((back - c).abs() <= 1e-5 * c.max(1.0), "{c} → {back}");
         }
-        assert!((encoded(50.0) - 5.33).abs() < 0.01, "{}", encoded(50.0));
+        let fifty = linear_to_srgb_extended(50.0);
+        assert!((fifty - 5.33).abs() < 0.01, "{fifty}");
     }
 
     #[test]

@@ -466,8 +466,11 @@ pub fn write_file(
         return invalid(format!("{}: {what} is written as .ply", output.display()));
     }
     crate::image_io::check_parent_dir(output, "-o")?;
-    if kind == SynthKind::Points {
-        let need = least_file_bytes(output, count);
+    if kind != SynthKind::Gaussians {
+        let need = match kind {
+            SynthKind::Lights => count.saturating_mul(lights::RECORD_BYTES),
+            _ => least_file_bytes(output, count),
+        };
         if let Some(free) = free_bytes(output).filter(|&free| need > free) {
             return invalid(format!(
                 "{}: {count} points need at least {:.1} GB, the disk has {:.1} GB free",

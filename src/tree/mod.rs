@@ -143,10 +143,14 @@ pub struct SplatTree {
     color_scale: f32,
 }
 
-/// The brightest linear colour a splat keeps: 4,096 times white (a brighter
-/// channel is clamped to it, with a warning). A highlight's mean over its
-/// blur stays within the G-buffer's half floats (65,504).
-pub const BRIGHTEST_LINEAR: f32 = 4096.0;
+/// The brightest linear colour a splat keeps: 128 times white (a brighter
+/// channel is clamped to it, with a warning). The layered method's
+/// fixed-point sums hold a pixel's channel below 512
+/// (`passes::layered::FRACTION_BITS`): 128 leaves room for the fragments
+/// that overlap there. Codes are of the cloud's brightest channel, so a
+/// brighter cloud's darkest tones are coarser: a step of 128/65535 at the
+/// cap.
+pub const BRIGHTEST_LINEAR: f32 = 128.0;
 
 /// The colour scale of `colors` (linear): 1, or their brightest channel
 /// where that is above 1 (at most [`BRIGHTEST_LINEAR`], with a warning
@@ -424,6 +428,7 @@ impl SplatTree {
             b.extend_from_slice(bytemuck::cast_slice(l));
         }
         b.extend_from_slice(&self.leaf_cone_rad.to_le_bytes());
+        b.extend_from_slice(&self.color_scale().to_le_bytes());
         b
     }
 

@@ -45,11 +45,14 @@ layout(push_constant, std430) uniform Push {
     int tile;
     int levels;     // levels of the block tree (TREE; 0: none)
     ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
-    // A shaped aperture (the pixel loop only): a tap reaches Q through the
-    // shape's chords instead of the disk.
+    // A shaped aperture: a tap reaches Q through the shape's chords
+    // instead of the disk; the tree takes a block whole where its pixels
+    // lie within the disk of radius shape_inner (ShapeRows::inner_radius)
+    // that every chord holds.
     uint shaped;
     int shape_rows;
     float focus_distance;
+    float shape_inner;
 } pc;
 
 // Whether a pixel at offset v = P − Q from Q, of diameter c and depth z,
@@ -112,6 +115,7 @@ void main() {
     // The largest blocks no wider than the radius: at most 6 per axis
     // cover the window.
     int top = r >= TREE_MIN_RADIUS ? min(findMSB(r), pc.levels) : 0;
+    float inner2 = pc.shaped != 0u ? pc.shape_inner * pc.shape_inner : 1.0;
     if (top > 0) {
         ivec2 b_lo = lo >> top, b_hi = hi >> top;
         for (int by = b_lo.y; by <= b_hi.y; ++by) {
@@ -146,10 +150,11 @@ void main() {
                             // of its own disk's reach (0.25 c² grows with c,
                             // so the largest c bounds every pixel's test).
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
-                                && bound.y <= zq && !(far2 > 0.25 * bound.z * bound.z)) {
+                                && bound.y <= zq && !(far2 > 0.25 * bound.z * bound.z * inner2)) {
                             // Every pixel passes: inside the window, none
                             // behind Q, the farthest within the smallest
-                            // disk's reach.
+                            // disk's reach (a shape's: its inner disk's,
+                            // inside every chord, turned or not).
                             sum += sums[at];
                             weight += weights[at];
                         } else if (l > TREE_LEAF_LEVEL) {
@@ -171,8 +176,11 @@ void main() {
                                     }
                                     ivec2 d = p - q;
                                     vec2 cw = imageLoad(coc_weight, p).xy;
-                                    float d2 = float(d.x * d.x + d.y * d.y);
-                                    if (!(d2 > 0.25 * cw.x * cw.x) && !(imageLoad(gbuffer_eye, p).z > zq)) {
+                                    float zp = imageLoad(gbuffer_eye, p).z;
+                                    bool reaches = pc.shaped != 0u
+                                        ? shape_reaches(d, cw.x, zp)
+                                        : !(float(d.x * d.x + d.y * d.y) > 0.25 * cw.x * cw.x);
+                                    if (reaches && !(zp > zq)) {
                                         sum += cw.y * imageLoad(gbuffer_color, p);
                                         weight += cw.y;
                                     }

@@ -680,6 +680,37 @@ pub struct ShapeRows {
     pub chords: Vec<[f32; 2]>,
 }
 
+impl ShapeRows {
+    /// The radius of the largest disk about the lens centre that every
+    /// lens position inside passes by these chords (the rows' own test,
+    /// `shape_row_index` of `glsl/aperture.glsl`: the row of u.y, u.x
+    /// within its chord), less a float's rounding: the tree gather takes a
+    /// block whole where all its pixels lie within it.
+    pub fn inner_radius(&self) -> f32 {
+        let rows = self.chords.len();
+        let height = 2.0 / rows as f32;
+        let mut inner = f32::INFINITY;
+        for (k, &[lo, hi]) in self.chords.iter().enumerate() {
+            // The row's y extent, and its point nearest the centre's row.
+            let (y0, y1) = (-1.0 + k as f32 * height, -1.0 + (k + 1) as f32 * height);
+            let dy = if y0 <= 0.0 && y1 >= 0.0 {
+                0.0
+            } else {
+                y0.abs().min(y1.abs())
+            };
+            // Outside the chord: x below lo or above hi (an empty chord,
+            // lo > hi, excludes the whole row).
+            let dx = if lo > hi || lo > 0.0 || hi < 0.0 {
+                0.0
+            } else {
+                (-lo).min(hi)
+            };
+            inner = inner.min((dx * dx + dy * dy).sqrt());
+        }
+        (inner * (1.0 - 1e-5)).max(0.0)
+    }
+}
+
 /// A shape of any transmission (an aperture image) as spans of constant
 /// transmission along rows (the layered method's spreading): per row of
 /// equal height over y ∈ [−1, 1], `spans[offsets[k]..offsets[k + 1]]`,
@@ -979,6 +1010,45 @@ mod tests {
             // odd blades: their centroid is at the centre too).
             let mean = s.iter().copied().sum::<Vec2>() / s.len() as f32;
             assert!(mean.length() < 0.02, "{a:?}: mean {mean}");
+        }
+    }
+
+    /// The inner radius is the shapes' (the regular polygons' cos(π/N); a
+    /// hexagon squeezed to half its height, its slanted sides from
+    /// (cos 30°, ¼) to (0, ½): cos 30° / 2 over |(¼, cos 30°)|), and every
+    /// lens position within it passes the rows' own test
+    /// (glsl/aperture.glsl's `shape_row_index`).
+    #[test]
+    fn the_inner_radius_is_inside_every_chord() {
+        let squeezed = Aperture {
+            ratio: 0.5,
+            ..blades(6, 0.0)
+        };
+        for (aperture, expected) in [
+            (blades(6, 0.0), 30f32.to_radians().cos()),
+            (blades(5, 17.0), 36f32.to_radians().cos()),
+            (squeezed, {
+                let c = 30f32.to_radians().cos();
+                0.5 * c / Vec2::new(0.25, c).length()
+            }),
+        ] {
+            let rows = aperture.shape_rows(512);
+            let inner = rows.inner_radius();
+            assert!(
+                inner <= expected && inner > expected - 0.01,
+                "{inner} against {expected}"
+            );
+            let n = rows.chords.len();
+            for i in 0..20_000 {
+                let (a, r) = (
+                    i as f32 * 2.399_963,
+                    inner * ((i % 997) as f32 / 996.0).sqrt(),
+                );
+                let u = r * Vec2::new(a.cos(), a.sin());
+                let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1);
+                let [lo, hi] = rows.chords[k as usize];
+                assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+            }
         }
     }
 

@@ -83,6 +83,7 @@ push_constants! {
         shaped: u32,
         shape_rows: i32,
         focus_distance: f32,
+        shape_inner: f32,
     }
 }
 
@@ -193,14 +194,10 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
         ctx: &Arc<Context>,
         view: &FrameView,
     ) -> Result<Box<dyn DofFrame + 'm>> {
-        if view.camera.aperture.is_shaped() && self.options.gather != FastGather::Pixels {
-            return Err(Error::InvalidArgument(format!(
-                "--method fast renders a shaped aperture with --fast-gather pixels only (the {} gather sums disks)",
-                match self.options.gather {
-                    FastGather::Fields => "fields",
-                    _ => "tree",
-                }
-            )));
+        if view.camera.aperture.is_shaped() && self.options.gather == FastGather::Fields {
+            return Err(Error::InvalidArgument(
+                "--method fast renders a shaped aperture with --fast-gather tree or pixels (the fields gather sums disks)".into(),
+            ));
         }
         if self.options.gather == FastGather::Fields {
             return Ok(Box::new(super::fields::FieldsFrame::new(
@@ -536,6 +533,7 @@ impl FastFrame<'_> {
                     shaped: u32::from(images.shape.is_some()),
                     shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
                     focus_distance: camera.focus_distance,
+                    shape_inner: images.shape.as_ref().map_or(1.0, |s| s.inner_radius()),
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );

@@ -17,6 +17,19 @@ bool cat_eye_passes(vec2 u, vec2 centre) {
     return v.x * v.x + v.y * v.y <= 1.0;
 }
 
+// The half-width of one of `count` equal cells of the lens's circle
+// (area π/count): Aperture::lens_cell_half_width.
+float lens_cell_half_width(float count) {
+    return 0.886227 / sqrt(count);
+}
+
+// The part of a lens cell of half-width `half_cell` about u inside the
+// circle of radius 1 about `centre` (Aperture::cat_eye_cell_weight): a
+// ramp across the circle, 1 a half cell inside it, 0 a half cell outside.
+float cat_eye_cell_weight(vec2 u, vec2 centre, float half_cell) {
+    return clamp((1.0 - length(u - centre)) / (2.0 * half_cell) + 0.5, 0.0, 1.0);
+}
+
 // The row of a shaped aperture's chord table (src/camera/aperture.rs,
 // Aperture::shape_rows: `rows` rows of equal height over the lens's
 // y ∈ [−1, 1]) holding lens y.

@@ -33,6 +33,7 @@ layout(push_constant) uniform Push {
     ivec2 window_origin; // the frame pixel of pixel (0, 0): none, a whole frame
     ivec2 frame_size;    // the whole frame, pixels
     float cat_eye;       // S (0: off)
+    float half_cell;     // a lens sample's cell (Aperture::lens_cell_half_width)
 } pc;
 
 #include "gbuffer_lens_weight.glsl"

@@ -1,8 +1,9 @@
 // The weight of this pass's lens position in receiving pixel p's fold
 // (gbuffer_fold.glsl): accum's cat's eye (docs/decisions/aperture-shape.md),
 // mirrored from src/camera/aperture.rs (Aperture::cat_eye_weight).
-// 1 where the pixel's cat's-eye circle passes the lens position, else
-// 2^(-40·r), r > 1 its distance from the circle's centre in lens radii,
+// the part of the sample's lens cell (half-width pc.half_cell) inside the
+// pixel's cat's-eye circle where there is one, else (the cell wholly
+// outside) 2^(-40·r), r > 1 its distance from the circle's centre in lens radii,
 // at least 2^-120 (a normal float; r passes 3 in a wide frame's guard
 // band): the samples outside add less than a float's precision to a
 // pixel that has one inside, and a pixel that has none (a corner's sliver
@@ -12,7 +13,8 @@
 //
 // The including shader's push block `pc` has lens_u (this pass's lens
 // position), window_origin (the frame pixel of G-buffer pixel (0, 0)),
-// frame_size (the whole frame's) and cat_eye (S; 0: off).
+// frame_size (the whole frame's), cat_eye (S; 0: off) and half_cell (a
+// lens sample's cell, Aperture::lens_cell_half_width).
 #include "aperture.glsl"
 
 float lens_weight(ivec2 p) {
@@ -20,8 +22,9 @@ float lens_weight(ivec2 p) {
         return 1.0;
     }
     vec2 centre = cat_eye_centre(pc.window_origin + p, pc.frame_size, pc.cat_eye);
-    if (cat_eye_passes(pc.lens_u, centre)) {
-        return 1.0;
+    float w = cat_eye_cell_weight(pc.lens_u, centre, pc.half_cell);
+    if (w > 0.0) {
+        return w;
     }
     return exp2(max(-40.0 * length(pc.lens_u - centre), -120.0));
 }

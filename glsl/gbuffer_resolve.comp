@@ -21,6 +21,7 @@ layout(push_constant, std430) uniform Push {
     ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
     ivec2 frame_size;    // the whole frame, pixels
     float cat_eye;       // S (0: off)
+    float half_cell;     // a lens sample's cell (Aperture::lens_cell_half_width)
     float color_scale;   // the linear color of a splat's code 65535 (1: white)
 } pc;
 

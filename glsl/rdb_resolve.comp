@@ -22,12 +22,15 @@ void main() {
     vec4 sum = vec4(0.0);
     float n = 0.0;
     vec2 cat = cat_eye_centre(pc.window_origin + q, pc.frame_size, pc.cat_eye);
+    // A bin stands for one of N² cells of the lens.
+    float half_cell = lens_cell_half_width(float(pc.bins * pc.bins));
     for (int b = 0; b < pc.bins * pc.bins; ++b) {
         uint source = imageLoad(rdb_source, ivec3(t, b)).x;
-        if (source != 0xFFFFFFFFu && (pc.cat_eye == 0.0 || cat_eye_passes(lens_u[b], cat))) {
+        float w = pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
+        if (source != 0xFFFFFFFFu && w > 0.0) {
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
-            sum += imageLoad(gbuffer_color, p);
-            n += 1.0;
+            sum += w * imageLoad(gbuffer_color, p);
+            n += w;
         }
     }
     // Alpha: the mean coverage of the sources, as the color.

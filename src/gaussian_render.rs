@@ -107,6 +107,7 @@ push_constants! {
         pub window_origin: [i32; 2],
         pub frame_size: [i32; 2],
         pub cat_eye: f32,
+        pub half_cell: f32,
     }
 }
 
@@ -359,12 +360,14 @@ impl GaussianRenderer {
     ) -> Result<GaussianFrame> {
         assert!(ssaa >= 1, "at least one sample a pixel");
         assert!(!lens.is_empty(), "at least one lens point");
+        // The lens cell each lens point stands for (its cat's-eye weight).
+        let half_cell = crate::camera::Aperture::lens_cell_half_width(lens.len() as u32);
         let samples: Vec<(Vec2, Vec2)> = lens
             .iter()
             .flat_map(|&u| (0..ssaa * ssaa).map(move |s| (u, ssaa_jitter(s, ssaa))))
             .collect();
         self.with_room(scene, |capacity| {
-            self.render_with(scene, camera, &samples, background, capacity)
+            self.render_with(scene, camera, &samples, half_cell, background, capacity)
         })
     }
 
@@ -544,13 +547,15 @@ impl GaussianRenderer {
     }
 
     /// One try with a tile list of `capacity` entries, a chain per (lens
-    /// point, jitter) of `samples`: the frame and the most entries any
-    /// chain needed.
+    /// point, jitter) of `samples` (each lens point a lens cell of
+    /// half-width `half_cell`): the frame and the most entries any chain
+    /// needed.
     fn render_with(
         &self,
         scene: &GpuGaussians,
         camera: &Camera,
         samples: &[(Vec2, Vec2)],
+        half_cell: f32,
         background: Vec3,
         capacity: u32,
     ) -> Result<(GaussianFrame, u32)> {
@@ -602,6 +607,7 @@ impl GaussianRenderer {
                         window_origin: [0, 0],
                         frame_size: [width as i32, height as i32],
                         cat_eye: camera.aperture.cat_eye,
+                        half_cell,
                     };
                     rec.dispatch(&self.blend, &binds, &push, [chain.grid.0, chain.grid.1, 1]);
                 });

@@ -629,7 +629,7 @@ impl GBuffer {
                     indices: planned.packed_indices(),
                     scale,
                     rows,
-                    lens_weight: self.lens_weight(lens_u, lens.cat_eye),
+                    lens_weight: self.lens_weight(lens_u, lens),
                     color_scale: self.view.color_scale,
                 };
                 passes
@@ -787,16 +787,17 @@ impl GBuffer {
         }
     }
 
-    /// How the G-buffer's pixels weigh lens position `lens_u` by the cat's
-    /// eye `cat_eye` (0: alike).
-    fn lens_weight(&self, lens_u: Vec2, cat_eye: f32) -> LensWeight {
+    /// How the G-buffer's pixels weigh lens position `lens_u`, one of
+    /// `lens`'s, by its cat's eye (0: alike).
+    fn lens_weight(&self, lens_u: Vec2, lens: &GBufferLens) -> LensWeight {
         let frame = &self.view.frame;
         let guard = frame.guard as i32;
         LensWeight {
             lens_u,
             window_origin: [frame.window.x as i32 - guard, frame.window.y as i32 - guard],
             frame_size: [frame.camera.width, frame.camera.height],
-            cat_eye,
+            cat_eye: lens.cat_eye,
+            half_cell: crate::camera::Aperture::lens_cell_half_width(lens.positions.len() as u32),
         }
     }
 

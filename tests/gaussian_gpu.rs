@@ -347,9 +347,10 @@ fn the_thin_lens_image_is_the_cpu_references() {
     });
 }
 
-/// Through the cat's eye (S = 1) each pixel averages the lens points its
-/// circle passes (`glsl/gbuffer_lens_weight.glsl`, the points in pixel
-/// axes: y down), and one whose circle passes none the points nearest it:
+/// Through the cat's eye (S = 1) each pixel averages the lens points by
+/// the part of each one's lens cell its circle passes
+/// (`Aperture::cat_eye_weight`, the points in pixel axes: y down), and one
+/// whose circle reaches no cell the points nearest it:
 /// the device's 40-point `accum` is the CPU reference's images of each
 /// point weighed so per pixel (the pinhole's tolerance), and the cat's eye
 /// changes the image.
@@ -367,6 +368,7 @@ fn the_cats_eye_weighs_each_lens_point_per_pixel() {
         let frame = renderer
             .render(&gpu, &camera, &lens, 1, Vec3::ZERO)
             .unwrap();
+        let half_cell = Aperture::lens_cell_half_width(lens.len() as u32);
         let images: Vec<Vec<Vec3>> = lens
             .iter()
             .map(|&u| render_reference_lens(&scene, &camera, Vec3::ZERO, &[u], 1))
@@ -379,12 +381,13 @@ fn the_cats_eye_weighs_each_lens_point_per_pixel() {
                 let (mut sum, mut weights) = (Vec3::ZERO, 0.0f64);
                 for (u, image) in lens.iter().zip(&images) {
                     let u = Vec2::new(u.x, -u.y);
-                    let weight = f64::from(Aperture::cat_eye_weight(u, centre));
+                    let weight = f64::from(Aperture::cat_eye_weight(u, centre, half_cell));
                     sum += image[(y * w + x) as usize] * weight as f32;
                     weights += weight;
                 }
                 clipped += usize::from(weights < lens.len() as f64 - 0.5);
-                unlit += usize::from(weights < 0.5);
+                // No cell reaches into the circle: the fallback's weights.
+                unlit += usize::from(weights < 1e-6);
                 expected.push(sum / weights as f32);
             }
         }

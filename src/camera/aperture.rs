@@ -570,17 +570,33 @@ impl Aperture {
         (u - centre).length_squared() <= 1.0
     }
 
-    /// The weight of lens position u in the mean of the pixel whose second
-    /// circle is centred at `centre` (accum's resolve,
-    /// `glsl/gbuffer_lens_weight.glsl`): 1 where it passes, else
-    /// 2^(−40·r) at r lens radii from the centre, at least 2^−120 (a normal
-    /// float): the samples outside add less than a float's precision to a
-    /// pixel that has one inside, and a pixel with none sees through those
-    /// nearest its circle.
-    pub fn cat_eye_weight(u: Vec2, centre: Vec2) -> f32 {
-        match Self::cat_eye_passes(u, centre) {
-            true => 1.0,
-            false => (-40.0 * (u - centre).length()).max(-120.0).exp2(),
+    /// The half-width of one of `count` equal cells of the lens's circle
+    /// (area π/count): what a lens sample of `count` (accum) or a bin of
+    /// N² (RDB) stands for.
+    pub fn lens_cell_half_width(count: u32) -> f32 {
+        0.886_227 / (count as f32).sqrt()
+    }
+
+    /// The part of the lens cell of half-width `half_cell` about u inside
+    /// the circle of the pixel's cat's eye centred at `centre`: a ramp
+    /// across the circle, 1 a half cell inside, 0 a half cell outside
+    /// (RDB's bins and accum's samples weigh so, `glsl/aperture.glsl`).
+    pub fn cat_eye_cell_weight(u: Vec2, centre: Vec2, half_cell: f32) -> f32 {
+        ((1.0 - (u - centre).length()) / (2.0 * half_cell) + 0.5).clamp(0.0, 1.0)
+    }
+
+    /// The weight of lens sample u (of cell half-width `half_cell`) in the
+    /// mean of the pixel whose second circle is centred at `centre`
+    /// (accum's resolve, `glsl/gbuffer_lens_weight.glsl`): the part of its
+    /// cell inside the circle where that is above 0, else 2^(−40·r) at r
+    /// lens radii from the centre, at least 2^−120 (a normal float): the
+    /// samples outside add less than a float's precision to a pixel that
+    /// has one inside, and a pixel with none sees through those nearest
+    /// its circle.
+    pub fn cat_eye_weight(u: Vec2, centre: Vec2, half_cell: f32) -> f32 {
+        match Self::cat_eye_cell_weight(u, centre, half_cell) {
+            w if w > 0.0 => w,
+            _ => (-40.0 * (u - centre).length()).max(-120.0).exp2(),
         }
     }
 

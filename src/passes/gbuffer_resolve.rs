@@ -30,6 +30,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        half_cell: f32,
         color_scale: f32,
     }
 }
@@ -48,6 +49,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        half_cell: f32,
         color_scale: f32,
     }
 }
@@ -66,6 +68,7 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        half_cell: f32,
         color_scale: f32,
     }
 }
@@ -125,6 +128,9 @@ pub struct LensWeight {
     pub frame_size: [u32; 2],
     /// The cat's eye S; 0: every lens position weighs 1.
     pub cat_eye: f32,
+    /// The half-width of the lens cell a position stands for
+    /// ([`crate::camera::Aperture::lens_cell_half_width`]).
+    pub half_cell: f32,
 }
 
 impl LensWeight {
@@ -134,16 +140,18 @@ impl LensWeight {
         window_origin: [0, 0],
         frame_size: [1, 1],
         cat_eye: 0.0,
+        half_cell: 1.0,
     };
 
-    /// The push constants' four fields: lens_u, window_origin,
-    /// frame_size, cat_eye.
-    fn fields(&self) -> ([f32; 2], [i32; 2], [i32; 2], f32) {
+    /// The push constants' five fields: lens_u, window_origin,
+    /// frame_size, cat_eye, half_cell.
+    fn fields(&self) -> ([f32; 2], [i32; 2], [i32; 2], f32, f32) {
         (
             self.lens_u.to_array(),
             self.window_origin,
             self.frame_size.map(|v| v as i32),
             self.cat_eye,
+            self.half_cell,
         )
     }
 }
@@ -284,7 +292,7 @@ impl GBufferResolve {
     ) {
         let samples = images.sample.per_pixel();
         let (first_row, end_row) = pass.rows;
-        let (lens_u, window_origin, frame_size, cat_eye) = pass.lens_weight.fields();
+        let (lens_u, window_origin, frame_size, cat_eye, half_cell) = pass.lens_weight.fields();
         let extent = [w as i32, end_row as i32];
         let size = [groups(w, 16), groups(end_row - first_row, 16), 1];
         let image = match images.sample {
@@ -315,6 +323,7 @@ impl GBufferResolve {
                     window_origin,
                     frame_size,
                     cat_eye,
+                    half_cell,
                     color_scale: pass.color_scale,
                 };
                 let pipeline = self
@@ -348,6 +357,7 @@ impl GBufferResolve {
                 window_origin,
                 frame_size,
                 cat_eye,
+                half_cell,
                 color_scale: pass.color_scale,
             };
             rec.dispatch(&self.pipeline, &binds, &push, size);
@@ -369,6 +379,7 @@ impl GBufferResolve {
                 window_origin,
                 frame_size,
                 cat_eye,
+                half_cell,
                 color_scale: pass.color_scale,
             };
             rec.dispatch(pipeline, &binds, &push, size);

@@ -48,12 +48,39 @@ layout(push_constant, std430) uniform Push {
     // A shaped aperture: a tap reaches Q through the shape's chords
     // instead of the disk; the tree takes a block whole where its pixels
     // lie within the disk of radius shape_inner (ShapeRows::inner_radius)
-    // that every chord holds.
+    // that every chord holds, and leaves it where they lie outside the
+    // shape's bounding box, scaled by the block's largest c and turned
+    // for the pixels in front of the focus.
     uint shaped;
     int shape_rows;
     float focus_distance;
     float shape_inner;
+    vec2 pad;
+    vec4 shape_box;  // the shape's bounding box: x min, x max, y min, y max
 } pc;
+
+// Whether a block of offsets [v0, v1] from Q, of diameters up to c and
+// depths zs (min, max), can reach Q through the shape at all: its box
+// meets the shape's bounding box scaled to c/2 (v = −(s·c/2)·u, s the
+// side of the focus; the shape holds the lens centre, so a smaller c
+// reaches within the larger's box).
+bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
+    // A hundredth of a percent wider: no rounding leaves out a pixel that
+    // shape_reaches takes (the box holds the lens centre: it grows).
+    vec4 b = 0.5001 * c * pc.shape_box;
+    // Behind the focus (s = +1): v in −(c/2)·box; in front: (c/2)·box.
+    vec4 behind = vec4(-b.y, -b.x, -b.w, -b.z);
+    bool meets = false;
+    if (zs.y >= pc.focus_distance) {
+        meets = meets || (float(v0.x) <= behind.y && float(v1.x) >= behind.x
+                          && float(v0.y) <= behind.w && float(v1.y) >= behind.z);
+    }
+    if (zs.x < pc.focus_distance) {
+        meets = meets || (float(v0.x) <= b.y && float(v1.x) >= b.x
+                          && float(v0.y) <= b.w && float(v1.y) >= b.z);
+    }
+    return meets;
+}
 
 // Whether a pixel at offset v = P − Q from Q, of diameter c and depth z,
 // reaches Q through a lens position u of the shape: Q = P + sign(z)·c/2·u.
@@ -145,10 +172,12 @@ void main() {
                         ivec2 far = max(abs(x0 - q), abs(x1 - q));
                         float near2 = float(near.x * near.x + near.y * near.y);
                         float far2 = float(far.x * far.x + far.y * far.y);
-                        if (bound.x > zq || near2 > 0.25 * bound.w * bound.w) {
+                        if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
+                                || (pc.shaped != 0u && !shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy))) {
                             // No pixel passes: every one is behind Q, or out
                             // of its own disk's reach (0.25 c² grows with c,
-                            // so the largest c bounds every pixel's test).
+                            // so the largest c bounds every pixel's test),
+                            // or of the shape's box.
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
                                 && bound.y <= zq && !(far2 > 0.25 * bound.z * bound.z * inner2)) {
                             // Every pixel passes: inside the window, none

@@ -697,6 +697,33 @@ pub struct ShapeRows {
 }
 
 impl ShapeRows {
+    /// The rows' bounding box in lens units: [x min, x max, y min, y max]
+    /// over the rows their chords hold (the circle's where none does).
+    pub fn bounding_box(&self) -> [f32; 4] {
+        let height = 2.0 / self.chords.len() as f32;
+        let mut b = [
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        for (k, &[lo, hi]) in self.chords.iter().enumerate() {
+            if lo <= hi {
+                let y0 = -1.0 + k as f32 * height;
+                b = [
+                    b[0].min(lo),
+                    b[1].max(hi),
+                    b[2].min(y0),
+                    b[3].max(y0 + height),
+                ];
+            }
+        }
+        match b[0] <= b[1] {
+            true => b,
+            false => [-1.0, 1.0, -1.0, 1.0],
+        }
+    }
+
     /// The radius of the largest disk about the lens centre that every
     /// lens position inside passes by these chords (the rows' own test,
     /// `shape_row_index` of `glsl/aperture.glsl`: the row of u.y, u.x

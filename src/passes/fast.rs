@@ -84,6 +84,8 @@ push_constants! {
         shape_rows: i32,
         focus_distance: f32,
         shape_inner: f32,
+        pad: [f32; 2],
+        shape_box: [f32; 4],
     }
 }
 
@@ -534,6 +536,11 @@ impl FastFrame<'_> {
                     shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
                     focus_distance: camera.focus_distance,
                     shape_inner: images.shape.as_ref().map_or(1.0, |s| s.inner_radius()),
+                    pad: [0.0; 2],
+                    shape_box: images
+                        .shape
+                        .as_ref()
+                        .map_or([-1.0, 1.0, -1.0, 1.0], |s| s.bounding_box()),
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );

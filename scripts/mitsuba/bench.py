@@ -147,6 +147,7 @@ def parse_args(argv):
     p.add_argument("--width", type=int, default=640)
     p.add_argument("--height", type=int, default=480)
     p.add_argument("--raster", default=None, choices=["sprites", "compute"])
+    p.add_argument("--lod-px", type=float, default=None)
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     p.add_argument("--ssaa", default=None)
     p.add_argument("--methods", default=None)
@@ -236,6 +237,8 @@ def methods(args, scene):
             fail(f"--methods: unknown {', '.join(unknown)} (known: {', '.join(name for name, _ in m)})")
         m = [(name, flags) for name, flags in m if name in wanted]
     raster = ["--raster", args.raster] if args.raster else []
+    # --lod-px 0: every splat, as Mitsuba draws them.
+    raster += ["--lod-px", f"{args.lod_px:g}"] if args.lod_px is not None else []
     if not args.ssaa:
         return [(name, flags + raster) for name, flags in m]
     return [(f"{name}-ssaa{k}", flags + raster + ["--ssaa", str(k)]) for k in args.ssaa for name, flags in m]
@@ -744,6 +747,7 @@ def environment(a, mi, dr, results):
         "ref_spp": a.ref_spp,
         "pinhole_spp": a.pinhole_spp,
         "raster": a.raster or "pointlens's default",
+        "lod_px": a.lod_px if a.lod_px is not None else "pointlens's default",
         "ssaa": a.ssaa or "pointlens's default",
         "splat_shape": a.splat_shape,
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),

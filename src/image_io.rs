@@ -76,9 +76,10 @@ impl LinearImage {
 /// 61966-2-1, exact piecewise form). The input is clamped to [0, 1] first;
 /// NaN maps to 0.
 pub fn linear_to_srgb(c: f32) -> f32 {
-    match c.is_nan() {
-        true => 0.0,
-        false => linear_to_srgb_extended(c.min(1.0)),
+    if c >= 1.0 {
+        1.0
+    } else {
+        linear_to_srgb_extended(c)
     }
 }
 

@@ -77,7 +77,7 @@ def study(args, mi, dr, scene):
     d = Path(args.work) / scene
     d.mkdir(parents=True, exist_ok=True)
     ply = Path(args.repo) / SCENES[scene]["file"]
-    flags = [f for f in SCENES[scene]["flags"]]
+    flags = list(SCENES[scene]["flags"])
     if "--aperture-radius" in flags:
         i = flags.index("--aperture-radius")
         del flags[i:i + 2]
@@ -135,7 +135,7 @@ def study(args, mi, dr, scene):
                     m |= pad[dy:dy + h, dx:dx + w]
         adaptive = np.where(m[:, :, None], c8, c3)
         estimates.append((grow, psnr_np(adaptive, ref), float(m.mean())))
-    return cam, cls, rows, pixels, estimates
+    return cls, rows, pixels, estimates
 
 
 def png(mi, path, rgb):
@@ -156,7 +156,7 @@ def main():
     import drjit as dr
     mi.set_variant("llvm_ad_rgb")
     for n, scene in enumerate(args.scenes.split(",")):
-        cam, cls, rows, pixels, estimates = study(args, mi, dr, scene)
+        cls, rows, pixels, estimates = study(args, mi, dr, scene)
         print(f"\n### {scene} (640×480, every splat, Mitsuba {REF_SPP} spp pinhole)\n")
         print("pixels: " + ", ".join(f"{c} {100 * s:.1f} %" for c, s in zip(CLASSES, pixels)) + "\n")
         print("| K | PSNR | " + " | ".join(f"{c} share of the error" for c in CLASSES[:3])

@@ -697,25 +697,28 @@ pub struct ShapeRows {
 }
 
 impl ShapeRows {
+    /// Row k's chord with its y extent, (y0, y1, [x_lo, x_hi]): the rows
+    /// split [−1, 1] evenly (`shape_row_index` of `glsl/aperture.glsl`).
+    fn rows(&self) -> impl Iterator<Item = (f32, f32, [f32; 2])> + '_ {
+        let height = 2.0 / self.chords.len() as f32;
+        self.chords.iter().enumerate().map(move |(k, &chord)| {
+            let y0 = -1.0 + k as f32 * height;
+            (y0, -1.0 + (k + 1) as f32 * height, chord)
+        })
+    }
+
     /// The rows' bounding box in lens units: [x min, x max, y min, y max]
     /// over the rows their chords hold (the circle's where none does).
     pub fn bounding_box(&self) -> [f32; 4] {
-        let height = 2.0 / self.chords.len() as f32;
         let mut b = [
             f32::INFINITY,
             f32::NEG_INFINITY,
             f32::INFINITY,
             f32::NEG_INFINITY,
         ];
-        for (k, &[lo, hi]) in self.chords.iter().enumerate() {
+        for (y0, y1, [lo, hi]) in self.rows() {
             if lo <= hi {
-                let y0 = -1.0 + k as f32 * height;
-                b = [
-                    b[0].min(lo),
-                    b[1].max(hi),
-                    b[2].min(y0),
-                    b[3].max(y0 + height),
-                ];
+                b = [b[0].min(lo), b[1].max(hi), b[2].min(y0), b[3].max(y1)];
             }
         }
         match b[0] <= b[1] {
@@ -730,12 +733,9 @@ impl ShapeRows {
     /// within its chord), less a float's rounding: the tree gather takes a
     /// block whole where all its pixels lie within it.
     pub fn inner_radius(&self) -> f32 {
-        let rows = self.chords.len();
-        let height = 2.0 / rows as f32;
         let mut inner = f32::INFINITY;
-        for (k, &[lo, hi]) in self.chords.iter().enumerate() {
-            // The row's y extent, and its point nearest the centre's row.
-            let (y0, y1) = (-1.0 + k as f32 * height, -1.0 + (k + 1) as f32 * height);
+        for (y0, y1, [lo, hi]) in self.rows() {
+            // The row's point nearest the centre's row.
             let dy = if y0 <= 0.0 && y1 >= 0.0 {
                 0.0
             } else {

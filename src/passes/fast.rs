@@ -215,10 +215,47 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
     }
 }
 
+/// What the passes push of a shaped aperture's chords (the disk's
+/// defaults where there is no shape).
+struct ShapeTerms {
+    shaped: u32,
+    rows: i32,
+    y_min: f32,
+    y_max: f32,
+    /// [`ShapeRows::inner_radius`].
+    inner: f32,
+    /// [`ShapeRows::bounding_box`].
+    bounding_box: [f32; 4],
+}
+
+impl ShapeTerms {
+    fn of(shape: Option<&ShapeRows>) -> ShapeTerms {
+        match shape {
+            Some(s) => ShapeTerms {
+                shaped: 1,
+                rows: s.chords.len() as i32,
+                y_min: s.y_min,
+                y_max: s.y_max,
+                inner: s.inner_radius(),
+                bounding_box: s.bounding_box(),
+            },
+            None => ShapeTerms {
+                shaped: 0,
+                rows: 1,
+                y_min: 0.0,
+                y_max: 0.0,
+                inner: 1.0,
+                bounding_box: [-1.0, 1.0, -1.0, 1.0],
+            },
+        }
+    }
+}
+
 /// The images of one frame of the method.
 struct FastImages {
-    /// A shaped aperture's chords (None: the disk) and their buffer.
-    shape: Option<ShapeRows>,
+    /// A shaped aperture's terms and chords (one unused entry for the
+    /// disk).
+    shape: ShapeTerms,
     shape_chords: Buffer,
     coc_weight: Image,
     tile_max: Image,
@@ -294,7 +331,7 @@ impl FastImages {
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
         let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "fast")?;
         Ok(FastImages {
-            shape,
+            shape: ShapeTerms::of(shape.as_ref()),
             shape_chords,
             coc_weight: image("fast coc", vk::Format::R32G32_SFLOAT, w, h, storage)?,
             tile_max: image("fast tile max", vk::Format::R32G32_SFLOAT, tw, th, storage)?,
@@ -349,10 +386,10 @@ impl FastFrame<'_> {
                     aperture_radius: camera.aperture_radius,
                     focus_distance: camera.focus_distance,
                     area_weights: (options.weights == FastWeights::Area) as u32,
-                    shaped: u32::from(images.shape.is_some()),
-                    shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
-                    shape_y_min: images.shape.as_ref().map_or(0.0, |s| s.y_min),
-                    shape_y_max: images.shape.as_ref().map_or(0.0, |s| s.y_max),
+                    shaped: images.shape.shaped,
+                    shape_rows: images.shape.rows,
+                    shape_y_min: images.shape.y_min,
+                    shape_y_max: images.shape.y_max,
                 },
                 [groups(w as u32, 8), groups(h as u32, 8), 1],
             );
@@ -532,15 +569,12 @@ impl FastFrame<'_> {
                         .tree
                         .as_ref()
                         .map_or([w, h], |t| t.padded.map(|v| v as i32)),
-                    shaped: u32::from(images.shape.is_some()),
-                    shape_rows: images.shape.as_ref().map_or(1, |s| s.chords.len() as i32),
+                    shaped: images.shape.shaped,
+                    shape_rows: images.shape.rows,
                     focus_distance: camera.focus_distance,
-                    shape_inner: images.shape.as_ref().map_or(1.0, |s| s.inner_radius()),
+                    shape_inner: images.shape.inner,
                     pad: [0.0; 2],
-                    shape_box: images
-                        .shape
-                        .as_ref()
-                        .map_or([-1.0, 1.0, -1.0, 1.0], |s| s.bounding_box()),
+                    shape_box: images.shape.bounding_box,
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );

@@ -22,8 +22,9 @@ use crate::vk::{Context, Frame, Image};
 pub const SHAPE_ROWS: u32 = 512;
 
 /// The chords of the camera's aperture where it is shaped (not an image)
-/// or has a cat's eye (None: the round disk or an image), and their buffer on the device (one unused
-/// entry for the disk), named after the method `label`.
+/// or has a cat's eye (None: the round disk or an image), and their buffer
+/// on the device (one unused entry for the disk), named after the method
+/// `label`.
 pub fn shape_chords(
     ctx: &Arc<Context>,
     camera: &Camera,

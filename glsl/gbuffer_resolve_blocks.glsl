@@ -16,12 +16,19 @@
 #include "gbuffer_fold.glsl"
 #include "gbuffer_lens_weight.glsl"
 
+// The G-buffer row of the target's row 0: the band's first row, unless
+// the including shader's target starts elsewhere (a compute raster's
+// band with a row of its neighbours above it).
+#ifndef TARGET_FIRST_ROW
+#define TARGET_FIRST_ROW pc.first_row
+#endif
+
 void resolve_blocks() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
-    ivec2 block = (p - ivec2(0, pc.first_row)) * int(pc.scale);
+    ivec2 block = (p - ivec2(0, TARGET_FIRST_ROW)) * int(pc.scale);
     uint n = pc.scale * pc.scale;
     float w = lens_weight(p);
     Fold f;

@@ -68,6 +68,12 @@ layout(binding = 3, rgba32f) uniform readonly image2D previous;
 // A surface is this many splat diameters thick for the peel
 // (src/passes/splat_raster.rs, PEEL_THICKNESS_DIAMETERS).
 const float PEEL_THICKNESS = 1.0;
+#else
+// Per splat index, the square as this pass drew it: centre (target
+// pixels), edge (target pixels), eye depth; written by the first stage
+// for every splat with target pixels in its box, read by the area
+// resolve (gbuffer_resolve_vis.comp) for the splats its words name.
+layout(binding = 3, std430) writeonly buffer Squares { vec4 squares[]; };
 #endif
 
 // Squares of more target pixels go to the large list (mirrors
@@ -88,16 +94,7 @@ int cells() {
     return int(pc.stage_cells >> 16u);
 }
 
-// How far past its corner, along one axis, the sample of a target pixel
-// lies, in target pixels, for cell c of k (inv_k = 1/k): along y the
-// pixel's cell column, along x k − 1 − its cell row (the rotated grid
-// above). The cells of target pixel (x, y) are (x mod k, y mod k): the
-// target starts at a G-buffer pixel's corner, a band at a G-buffer row.
-// The callers keep cells and 1/k out of their loops over pixels (lavapipe
-// divides lane by lane, and reloads the push block after each atomic).
-float cell_offset(int c, float inv_k) {
-    return (float(c) + 0.5) * inv_k;
-}
+#include "raster_grid.glsl"
 
 // The target pixels t along an axis (first, last; empty when last <
 // first) whose sample, `offset` past t, lies in
@@ -216,6 +213,9 @@ void main() {
     uint width = uint(pc.extent.x);
     uint64_t word = (uint64_t(floatBitsToUint(s.z)) << 32) | uint64_t(i);
     if (pass_stage() == 0u) {
+#ifndef SPLAT_PEEL
+        squares[i] = vec4(s.p, s.size_px, s.z);
+#endif
         if (n > LARGE_PIXELS) {
             large[atomicAdd(large_dispatch[0], 1u)] = i;
             return;

@@ -23,7 +23,7 @@ use crate::image_io::LinearImage;
 use crate::input::ply::load_ply;
 use crate::metrics::{psnr, ssim};
 use crate::options::Lod;
-use crate::options::{AccumOptions, Method, Raster, SplatShape};
+use crate::options::{AccumOptions, Coverage, Method, Raster, SplatShape};
 use crate::render::{RenderOptions, Renderer, Scene, SplatSize};
 pub use crate::report::{DeviceReport, LodReport, Upload};
 use crate::vk::{Context, FrameTimings};
@@ -251,6 +251,9 @@ pub struct BenchOptions {
     pub raster: Raster,
     /// The shape of the splats (`--splat-shape`), the reference's too.
     pub splat_shape: SplatShape,
+    /// How the measured frames' G-buffers weigh the splats within a pixel
+    /// (`--coverage`).
+    pub coverage: Coverage,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
     /// The `--lod-px` values to measure (an axis of the matrix).
@@ -399,6 +402,10 @@ pub struct BenchReport {
     /// existed, which were squares).
     #[serde(default = "square")]
     pub splat_shape: String,
+    /// `--coverage` ("area" or "samples"; absent from reports before it
+    /// existed, whose G-buffers were their samples' means).
+    #[serde(default = "samples")]
+    pub coverage: String,
     pub quality_reference: Option<String>,
     /// What a measured frame reads back and encodes: `png`, the device's
     /// sRGB 8-bit pixels encoded as PNG, as `render` writes a PNG (empty
@@ -427,6 +434,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     let mut renderer = Renderer::new(ctx)?;
     renderer.set_splat_shape(options.splat_shape)?;
     renderer.set_raster(options.raster);
+    renderer.set_coverage(options.coverage);
     // The run's K (the report's): the methods' but accum's, whose default
     // is its own (each cell records its K), and the quality reference's.
     let ssaa = renderer.ssaa(options.ssaa, options.samples_per_pass, &Method::Pinhole)?;
@@ -640,6 +648,11 @@ fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) ->
             .to_possible_value()
             .map(|v| v.get_name().to_string())
             .unwrap_or_default(),
+        coverage: options
+            .coverage
+            .to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default(),
         quality_reference: options
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
@@ -837,6 +850,10 @@ fn square() -> String {
     "square".into()
 }
 
+fn samples() -> String {
+    "samples".into()
+}
+
 /// What `pointlens bench` is asked, before the device's default matrix
 /// fills in what is not given (None).
 #[derive(Debug, Clone, Default)]
@@ -855,6 +872,7 @@ pub struct BenchRequest {
     pub samples_per_pass: Option<u32>,
     pub raster: Option<Raster>,
     pub splat_shape: Option<SplatShape>,
+    pub coverage: Option<Coverage>,
     pub quality: bool,
     pub lod_px: Vec<f32>,
     /// The bundled clouds' folder (default: ./data, else the source
@@ -918,6 +936,7 @@ pub fn measure(
         samples_per_pass: r.samples_per_pass,
         raster: r.raster.unwrap_or_default(),
         splat_shape: r.splat_shape.unwrap_or_default(),
+        coverage: r.coverage.unwrap_or_default(),
         quality: r.quality,
         lod_px: r.lod_px.clone(),
         data_dir,

@@ -16,6 +16,7 @@ use glam::{Vec2, Vec3};
 use crate::camera::{Camera, EyeFromWorld};
 use crate::error::{Error, Result};
 use crate::options::{Raster, SplatShape};
+use crate::passes::gbuffer_area::{AreaBand, GBufferArea, Marked};
 use crate::passes::gbuffer_resolve::{
     GBufferResolve, LensWeight, ResolveImages, ResolvePass, Samples,
 };
@@ -152,8 +153,9 @@ pub struct GBufferPasses {
     peels: Vec<(u32, SplatRaster)>,
     /// The splats a peel may keep, before each peel pass.
     peel_cull: PeelCull,
-    /// The compute rasteriser, on devices with 64-bit buffer atomics.
-    compute: Option<ComputeRaster>,
+    /// The compute rasteriser and its area coverage, on devices with
+    /// 64-bit buffer atomics.
+    compute: Option<(ComputeRaster, GBufferArea)>,
     /// The device's largest storage buffer binding, bytes: the compute
     /// rasteriser's visibility words of one band.
     max_storage_buffer_bytes: u64,
@@ -200,7 +202,7 @@ impl GBufferPasses {
             resolve: GBufferResolve::new(ctx, rasters.len() > 1)?,
             peel_cull: PeelCull::new(ctx)?,
             compute: match ctx.info.buffer_int64_atomics {
-                true => Some(ComputeRaster::new(ctx, shape)?),
+                true => Some((ComputeRaster::new(ctx, shape)?, GBufferArea::new(ctx)?)),
                 false => None,
             },
             max_storage_buffer_bytes: ctx.info.max_storage_buffer_range,
@@ -247,7 +249,7 @@ impl GBufferPasses {
             let k = ssaa as u64;
             let limit = budget_bytes.min(self.max_storage_buffer_bytes);
             let fits = |bands: u32| {
-                let rows = h.div_ceil(bands) as u64;
+                let rows = (h.div_ceil(bands) + 2 * band_halo_rows(bands)) as u64;
                 w as u64 * k * rows * k * splat_compute::WORD_BYTES <= limit
             };
             let bands = (1..=h).find(|&b| fits(b)).ok_or_else(|| {
@@ -338,7 +340,16 @@ impl GBufferPasses {
 
     fn compute(&self) -> &ComputeRaster {
         let compute = self.compute.as_ref();
-        compute.expect("a compute plan on a device with 64-bit atomics (checked by plan)")
+        &compute
+            .expect("a compute plan on a device with 64-bit atomics (checked by plan)")
+            .0
+    }
+
+    fn area(&self) -> &GBufferArea {
+        let compute = self.compute.as_ref();
+        &compute
+            .expect("area coverage on a device with 64-bit atomics")
+            .1
     }
 
     fn raster(&self, samples: u32, peel: bool) -> &SplatRaster {
@@ -384,6 +395,20 @@ pub struct GBuffer {
     view: RasterView,
     plan: SamplePlan,
     background: Vec3,
+    /// Where the first layer resolves by area
+    /// ([`crate::options::Coverage::Area`]): its list of marked pixels.
+    marked: Option<Marked>,
+}
+
+/// G-buffer rows of the neighbouring bands a compute raster's band target
+/// holds on each side of its own: the area resolve reads each pixel's
+/// neighbours' samples (none for a plan of one band).
+pub fn band_halo_rows(bands: u32) -> u32 {
+    if bands > 1 {
+        1
+    } else {
+        0
+    }
 }
 
 impl GBuffer {
@@ -395,7 +420,9 @@ impl GBuffer {
     /// peel's splats ([`PeelCull`]; None: every peel draws every splat; the
     /// compute peel's cost per splat is small, and it draws every one).
     /// The first layer's passes draw with `raster` (a compute plan or
-    /// peel: `compute_splats`, the frame's splat count).
+    /// peel: `compute_splats`, the frame's splat count); with `area`, the
+    /// compute raster's words resolve by area (the caller checks that it
+    /// can act: [`crate::options::Coverage`]).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Arc<Context>,
@@ -407,6 +434,7 @@ impl GBuffer {
         peel: PeelPlan,
         cull_splats: Option<u32>,
         background: Vec3,
+        area: bool,
     ) -> Result<GBuffer> {
         let frame = &view.frame;
         let (w, h) = (frame.full_width(), frame.full_height());
@@ -459,7 +487,7 @@ impl GBuffer {
                 FirstTargets::Compute(Visibility::new(
                     ctx,
                     scale * w,
-                    scale * band,
+                    scale * (band + 2 * band_halo_rows(plan.bands)),
                     compute_splats,
                 )?)
             }
@@ -483,6 +511,10 @@ impl GBuffer {
                 scale,
             }),
         };
+        let marked = match (area, &targets) {
+            (true, FirstTargets::Compute(_)) => Some(Marked::new(ctx, w, band)?),
+            _ => None,
+        };
         Ok(GBuffer {
             layers: images,
             color_sums,
@@ -497,6 +529,7 @@ impl GBuffer {
             },
             plan: plan.clone(),
             background,
+            marked,
         })
     }
 
@@ -556,6 +589,7 @@ impl GBuffer {
         label: &str,
     ) -> TargetsBefore {
         let (raster_name, resolve_name) = (format!("{label}.raster"), format!("{label}.resolve"));
+        let area_name = format!("{label}.area");
         let samples = self.plan.samples_per_pass;
         let scale = self.plan.scale;
         let per_pass = self.plan.samples_per_pixel_per_pass();
@@ -576,11 +610,14 @@ impl GBuffer {
             (1, n) if n > 1 => crate::camera::pixel_jitters(n as u32),
             (_, n) => vec![Vec2::ZERO; n],
         };
+        // Area coverage resolves the one pass of every sample.
+        let marked = self.marked.as_ref().filter(|_| sample_count == per_pass);
         for rows in self.plan.band_rows(height) {
+            let target_rows = self.target_rows(rows, height);
             for (i, (l, lens_u, planned)) in self.plan.with_lens(&lens.positions).enumerate() {
                 // In target pixels: a one-sample plan's scale is 1.
                 let jitter = planned.jitter + pixel_jitters[l as usize];
-                let mut push = self.view.push(jitter, lens_u, extent, scale, rows.0);
+                let mut push = self.view.push(jitter, lens_u, extent, scale, target_rows.0);
                 let sample = match &self.targets {
                     FirstTargets::Sprites(t) => {
                         passes.raster(samples, false).record(
@@ -616,6 +653,7 @@ impl GBuffer {
                             target,
                             splats,
                             background,
+                            marked,
                         }
                     }
                 };
@@ -629,15 +667,62 @@ impl GBuffer {
                     indices: planned.packed_indices(),
                     scale,
                     rows,
+                    target_rows,
                     lens_weight: self.lens_weight(lens_u, lens),
                     color_scale: self.view.color_scale,
                 };
                 passes
                     .resolve
                     .record(frame, &resolve_name, &self.resolve_images(sample, 0), &pass);
+                if let Some(marked) = marked {
+                    let rows = (rows, target_rows);
+                    self.record_area(frame, passes, splats, marked, rows, &area_name);
+                }
             }
         }
         before
+    }
+
+    /// The G-buffer rows (first, end) the first layer's target holds for
+    /// the band of `rows` of a G-buffer `height` rows tall: a compute
+    /// band's holds its neighbours' rows too ([`band_halo_rows`]).
+    fn target_rows(&self, rows: (u32, u32), height: u32) -> (u32, u32) {
+        match &self.targets {
+            FirstTargets::Compute(_) => {
+                let halo = band_halo_rows(self.plan.bands);
+                (rows.0.saturating_sub(halo), (rows.1 + halo).min(height))
+            }
+            FirstTargets::Sprites(_) => rows,
+        }
+    }
+
+    /// Records the area pass of the band of `rows` (its rows, its
+    /// target's rows) after its marking resolve, as pass `name`.
+    fn record_area<'r>(
+        &'r self,
+        frame: &mut Frame<'r>,
+        passes: &'r GBufferPasses,
+        splats: &'r Buffer,
+        marked: &'r Marked,
+        rows: ((u32, u32), (u32, u32)),
+        name: &str,
+    ) {
+        let FirstTargets::Compute(target) = &self.targets else {
+            unreachable!("area coverage is the compute raster's")
+        };
+        let band = AreaBand {
+            target,
+            splats,
+            marked,
+            gbuffer_color: &self.layers[0].color,
+            gbuffer_eye: &self.layers[0].eye,
+            rows: rows.0,
+            target_rows: rows.1,
+            scale: self.plan.scale,
+            background: self.background.to_array(),
+            color_scale: self.view.color_scale,
+        };
+        passes.area().record(frame, name, &band);
     }
 
     /// Records every later layer as one depth peel by the sprite raster
@@ -711,6 +796,7 @@ impl GBuffer {
                 indices: PlannedPass::pack_indices(indices),
                 scale: 1,
                 rows: (0, height),
+                target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
             };
@@ -765,6 +851,7 @@ impl GBuffer {
                 target,
                 splats,
                 background,
+                marked: None,
             };
             let pass = ResolvePass {
                 first_sample: 0,
@@ -774,6 +861,7 @@ impl GBuffer {
                 indices: [0, 0],
                 scale,
                 rows: (0, height),
+                target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
             };

@@ -20,8 +20,8 @@ use pointlens::flags::{
 use pointlens::job::{JobSpec, Passes, RenderJob, Shot, Written};
 use pointlens::options::{
     check_layers, check_lod_blur, check_lod_px, check_rdb_bins, check_samples,
-    check_samples_per_pass, check_ssaa, EdlOptions, FastGather, FastWeights, GatherWindow, Lod,
-    Method, MethodFlags, MethodKind, Raster, RdbAtomics, RdbMode, SplatShape,
+    check_samples_per_pass, check_ssaa, Coverage, EdlOptions, FastGather, FastWeights,
+    GatherWindow, Lod, Method, MethodFlags, MethodKind, Raster, RdbAtomics, RdbMode, SplatShape,
 };
 use pointlens::scene::SceneSpec;
 use pointlens::sequence::{FrameRange, Motion};
@@ -191,7 +191,7 @@ struct BenchArgs {
     /// machine) and print its table, CSV and chart.
     #[arg(long, value_name = "FILE", conflicts_with_all = [
         "width", "height", "methods", "models", "points", "runs", "warmup", "samples_per_pass",
-        "ssaa", "quality", "data", "device", "validate", "raster", "splat_shape",
+        "ssaa", "quality", "data", "device", "validate", "raster", "splat_shape", "coverage",
     ])]
     from_json: Option<PathBuf>,
 }
@@ -453,6 +453,9 @@ struct GBufferArgs {
     /// alike).
     #[arg(long, value_enum, value_name = "SHAPE")]
     splat_shape: Option<SplatShape>,
+    /// How the G-buffer weighs a pixel's splats (default: area).
+    #[arg(long, value_enum, value_name = "HOW")]
+    coverage: Option<Coverage>,
 }
 
 /// `--memory-mb`, of `render` and `info`.
@@ -602,6 +605,7 @@ fn bench_request(args: &BenchArgs) -> Result<BenchRequest> {
         samples_per_pass: args.gbuffer.samples_per_pass,
         raster: args.gbuffer.raster,
         splat_shape: args.gbuffer.splat_shape,
+        coverage: args.gbuffer.coverage,
         quality: args.quality,
         lod_px: pointlens::flags::lod_px_list(&args.lod_px).map_err(anyhow::Error::msg)?,
         data_dir: args.data.clone(),
@@ -621,6 +625,7 @@ fn scene_spec(args: &RenderArgs) -> Result<SceneSpec> {
         tile_px: args.tile_px,
         raster: args.gbuffer.raster,
         splat_shape: args.gbuffer.splat_shape,
+        coverage: args.gbuffer.coverage,
     })
 }
 

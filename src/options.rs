@@ -70,6 +70,20 @@ pub enum Raster {
     Compute,
 }
 
+/// How the G-buffer weighs the splats within a pixel (`--coverage`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum Coverage {
+    /// By area: a pixel whose samples do not all see one splat is made of
+    /// the nearest splats its samples and its neighbours' found, each by
+    /// the part of the pixel it covers in front of the others (exact for
+    /// square splats). Where it cannot act (the sprite raster, disc
+    /// splats, several lens positions: `accum`), the samples' mean.
+    #[default]
+    Area,
+    /// The mean of the pixel's K×K samples.
+    Samples,
+}
+
 /// The shape of a splat in the image (`--splat-shape`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
 pub enum SplatShape {

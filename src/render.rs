@@ -16,13 +16,14 @@ use crate::gbuffer::{clip_range, depth_range_with, GBuffer, GBufferPasses, PeelP
 use crate::host_gbuffer::HostGBuffer;
 use crate::image_io::{f16_to_f32, LinearImage, Srgb8Image};
 use crate::options::{
-    check_lod, check_samples_per_pass, check_ssaa, EdlOptions, Lod, Method, Raster, SplatShape,
+    check_lod, check_samples_per_pass, check_ssaa, Coverage, EdlOptions, Lod, Method, Raster,
+    SplatShape,
 };
 use crate::passes::edl::Edl;
 use crate::passes::output::{OutputBuffers, OutputConvert, OutputFormat};
 use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
-use crate::passes::{DofInput, DofMethod, FrameView, Methods, VeilRule, Window};
+use crate::passes::{DofInput, DofMethod, FrameView, GBufferLens, Methods, VeilRule, Window};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
 use crate::veil::{Veil, VeilSplat};
@@ -396,6 +397,8 @@ pub struct Renderer {
     raster: Raster,
     /// The shape the G-buffer's pipelines draw.
     splat_shape: SplatShape,
+    /// How the G-buffer weighs the splats within a pixel.
+    coverage: Coverage,
     /// Eye-dome lighting of the G-buffer (`--edl`), if asked for.
     edl: Option<EdlOptions>,
     edl_pass: Edl,
@@ -418,6 +421,7 @@ impl Renderer {
             peel_cull: true,
             raster: Raster::default(),
             splat_shape,
+            coverage: Coverage::default(),
             edl: None,
             edl_pass: Edl::new(ctx)?,
             tile_px: None,
@@ -440,6 +444,23 @@ impl Renderer {
         self.gbuffer = GBufferPasses::new(&self.ctx, shape)?;
         self.splat_shape = shape;
         Ok(())
+    }
+
+    /// How the G-buffer weighs the splats within a pixel (`--coverage`;
+    /// default [`Coverage::Area`], which acts on the compute raster's
+    /// square splats seen from one lens position).
+    pub fn set_coverage(&mut self, coverage: Coverage) {
+        self.coverage = coverage;
+    }
+
+    /// Whether a G-buffer of `raster` seen through `lens` resolves by
+    /// area: asked for, and able to act.
+    fn area_coverage(&self, raster: Raster, lens: &GBufferLens) -> bool {
+        self.coverage == Coverage::Area
+            && raster == Raster::Compute
+            && self.splat_shape == SplatShape::Square
+            && lens.positions.len() == 1
+            && lens.cat_eye == 0.0
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the
@@ -972,6 +993,7 @@ impl Renderer {
         keep_gbuffer: bool,
     ) -> Result<WindowResult> {
         let (splats, view, method) = (tile.splats, &tile.view, tile.method);
+        let lens = method.gbuffer_lens(&view.frame.camera);
         let gbuffer = GBuffer::new(
             &self.ctx,
             view,
@@ -982,6 +1004,7 @@ impl Renderer {
             tile.peel,
             self.peel_cull.then_some(splats.count),
             options.background,
+            self.area_coverage(tile.raster, &lens),
         )?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
         let readback = Readback::new(
@@ -991,7 +1014,6 @@ impl Renderer {
             keep_gbuffer,
             self.staged_output,
         )?;
-        let lens = method.gbuffer_lens(&view.frame.camera);
 
         let mut frame = Frame::begin(&self.ctx, "frame")?;
         gbuffer.record(

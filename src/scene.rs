@@ -33,7 +33,9 @@ use crate::input::gaussians::GaussianScene;
 use crate::input::{self, InputKind};
 use crate::job::{FrameJob, JobEvent, RenderJob};
 use crate::options::Lod;
-use crate::options::{EdlOptions, Method, Raster, SplatShape, DEFAULT_LAYERS, DEFAULT_LOD_PX};
+use crate::options::{
+    Coverage, EdlOptions, Method, Raster, SplatShape, DEFAULT_LAYERS, DEFAULT_LOD_PX,
+};
 use crate::render::{Renderer, Scene, SplatSize};
 use crate::tree::Widening;
 use crate::vk::Context;
@@ -65,6 +67,8 @@ pub struct SceneSpec {
     pub raster: Option<Raster>,
     /// `--splat-shape`: square or disc.
     pub splat_shape: Option<SplatShape>,
+    /// `--coverage`: how the G-buffer weighs the splats within a pixel.
+    pub coverage: Option<Coverage>,
 }
 
 impl SceneSpec {
@@ -81,6 +85,7 @@ impl SceneSpec {
             tile_px: None,
             raster: None,
             splat_shape: None,
+            coverage: None,
         }
     }
 }
@@ -182,6 +187,12 @@ pub const FLAGS: &[SceneFlag] = &[
     SceneFlag {
         flag: "--splat-shape",
         given: |_, s| s.splat_shape.is_some(),
+        kinds: POINTS,
+        why: Why::AboutPoints,
+    },
+    SceneFlag {
+        flag: "--coverage",
+        given: |_, s| s.coverage.is_some(),
         kinds: POINTS,
         why: Why::AboutPoints,
     },
@@ -350,6 +361,7 @@ impl HostScene {
         renderer.set_edl(spec.edl);
         renderer.set_tile_px(spec.tile_px);
         renderer.set_splat_shape(spec.splat_shape.unwrap_or_default())?;
+        renderer.set_coverage(spec.coverage.unwrap_or_default());
         match self {
             // The hierarchy holds the points from its leaves on.
             HostScene::Cloud(cloud) => {

@@ -8,7 +8,7 @@ use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
 use pointlens::input::ply::load_ply;
 use pointlens::metrics::psnr;
-use pointlens::options::{Method, Raster};
+use pointlens::options::{Coverage, Method, Raster};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::PointCloud;
 
@@ -185,6 +185,9 @@ fn at_one_sample_a_pixel_the_lens_positions_anti_alias_the_image() {
         for raster in [Raster::Compute, Raster::Sprites] {
             let mut renderer = Renderer::new(ctx).unwrap();
             renderer.set_raster(raster);
+            // The pinhole G-buffer's samples, as accum takes them (area
+            // coverage is of one lens position: tests/coverage.rs).
+            renderer.set_coverage(Coverage::Samples);
             let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
             let render = |method: Method, ssaa: u32| {
                 let options = RenderOptions {

@@ -48,6 +48,10 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
         "1",
         "--ssaa",
         "1",
+        // The quality floors below were measured on the samples'
+        // G-buffers (area coverage: tests/coverage.rs).
+        "--coverage",
+        "samples",
         "--quality",
         "--device",
         "llvmpipe",
@@ -84,6 +88,7 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
     assert_eq!(report["runs"], 3);
     assert_eq!(report["warmup"], 1);
     assert_eq!(report["ssaa"], 1);
+    assert_eq!(report["coverage"], "samples");
     assert!(report["quality_reference"]
         .as_str()
         .unwrap()
@@ -561,6 +566,8 @@ fn bench_fails_on_any_validation_message() {
         samples_per_pass: None,
         raster: pointlens::options::Raster::Sprites,
         splat_shape: pointlens::options::SplatShape::Square,
+        // The floors below were measured on the samples' G-buffers.
+        coverage: pointlens::options::Coverage::Samples,
         quality: false,
         lod_px: vec![1.0],
         data_dir: common::root().join("data"),

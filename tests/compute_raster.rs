@@ -10,11 +10,15 @@ use pointlens::bench::BenchModel;
 use pointlens::cloud::PointCloud;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
-use pointlens::options::{FastWeights, GatherWindow, Lod, Method, Raster, RdbMode};
+use pointlens::options::{Coverage, FastWeights, GatherWindow, Lod, Method, Raster, RdbMode};
 use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
 
+/// A frame by raster `r`, its G-buffer the mean of its samples: the two
+/// rasters' samples are what these tests compare (area coverage, which
+/// the compute raster's squares allow, is tests/coverage.rs's).
 fn render(renderer: &mut Renderer, scene: &Scene, options: &RenderOptions, r: Raster) -> Rendered {
     renderer.set_raster(r);
+    renderer.set_coverage(Coverage::Samples);
     renderer.render(scene, options).expect("render")
 }
 
@@ -191,25 +195,48 @@ fn large_splats_and_bands_of_the_compute_raster() {
             let (s, c) = (&sprites.image, &compute.image);
             assert_as_good(&what, None, &converged, s, c, FLOOR_DB);
         }
-        // Bands: the visibility words of the whole target (guard band
-        // included) are 8 bytes a sample; a budget of a third of them
-        // draws three bands, which give the whole target's image bit for
-        // bit (measured: the projection moved up by a band's rows rounds
-        // alike here; the sprite path's bands are held to 60 dB).
+        // Bands: the visibility words of a band's target (guard band
+        // included, and a row of each neighbouring band, which the area
+        // resolve reads) are 8 bytes a sample; a budget of a third of the
+        // rows and those two draws three bands. By the samples they give
+        // the whole target's image bit for bit (measured: the projection
+        // moved up by a band's rows rounds alike here; the sprite path's
+        // bands are held to 60 dB). By area, a square's place moved up by
+        // a band's rows rounds in its last bits, and an area with it: at
+        // most one half-float step (2^-11 below 1) in a few pixels
+        // (measured: 87 of 6,912, 0.00049).
         let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
-        for method in [Method::Pinhole, Method::accum(3)] {
+        let coverages = [Coverage::Samples, Coverage::Area];
+        for (method, coverage) in [Method::Pinhole, Method::accum(3)]
+            .into_iter()
+            .flat_map(|m| coverages.map(|c| (m, c)))
+        {
             let options = RenderOptions { method, ..base };
             let lens = if method == Method::Pinhole { 1 } else { 3 };
             renderer.set_sample_budget(u64::MAX);
-            let whole = render(&mut renderer, &scene, &options, Raster::Compute);
+            renderer.set_raster(Raster::Compute);
+            renderer.set_coverage(coverage);
+            let whole = renderer.render(&scene, &options).unwrap();
             assert_eq!(rasters(&whole), lens, "{method:?}");
             let g = whole.guard as u64;
-            let bytes = (96 + 2 * g) * (72 + 2 * g) * 16 * 8;
-            renderer.set_sample_budget(bytes / 3 + bytes / 100);
-            let banded = render(&mut renderer, &scene, &options, Raster::Compute);
+            let rows = (72 + 2 * g).div_ceil(3) + 2;
+            renderer.set_sample_budget((96 + 2 * g) * rows * 16 * 8);
+            let banded = renderer.render(&scene, &options).unwrap();
             assert_eq!(rasters(&banded), 3 * lens, "{method:?}");
             let n = differing(&whole.image, &banded.image);
-            assert_eq!(n, 0, "{method:?} 3 bands: {n} pixels differ");
+            let worst = (whole.image.pixels.iter().zip(&banded.image.pixels))
+                .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+                .fold(0.0f32, f32::max);
+            let what = format!("{method:?} {coverage:?} 3 bands");
+            eprintln!("{what}: {n} pixels differ, by {worst} at most");
+            let area = coverage == Coverage::Area && method == Method::Pinhole;
+            match area {
+                false => assert_eq!(n, 0, "{what}: {n} pixels differ"),
+                true => assert!(
+                    n <= 96 * 72 / 50 && worst <= 1.0 / 2048.0,
+                    "{what}: {n}, {worst}"
+                ),
+            }
         }
     });
 }

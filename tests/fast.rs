@@ -11,7 +11,7 @@ use pointlens::camera::Camera;
 use pointlens::image_io::LinearImage;
 use pointlens::input::ply::load_ply;
 use pointlens::metrics::psnr;
-use pointlens::options::Method;
+use pointlens::options::{Coverage, Method};
 use pointlens::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use pointlens::reference;
 use pointlens::render::{RenderOptions, Rendered, Renderer, Scene, SplatSize};
@@ -423,7 +423,9 @@ fn the_block_tree_and_the_pixel_loop_agree_bit_for_bit_where_sums_are_exact() {
     // checkers and stripes, so that blocks are taken whole, left, and
     // opened at silhouettes and at the z test's boundary.
     with_gpu(|ctx| {
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
+        // The samples' means, in quarters (area coverage weighs by areas).
+        renderer.set_coverage(Coverage::Samples);
         let mut cam = camera(96, 72);
         cam.focus_distance = 1.0;
         cam.aperture_radius = 0.3;

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 use pointlens::camera::{self, Camera, CameraSpec};
 use pointlens::image_io::LinearImage;
 use pointlens::input::ply::load_ply;
-use pointlens::options::Method;
+use pointlens::options::{Coverage, Method};
 use pointlens::render::{RenderOptions, Renderer, SplatSize};
 use pointlens::vk::{Context, ContextOptions};
 use pointlens::PointCloud;
@@ -117,7 +117,7 @@ fn camera_file_places_points_where_the_formula_says() {
 #[test]
 fn a_half_covered_pixel_gets_half_the_color() {
     with_gpu(|ctx| {
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
         let cam = camera(40, 40);
         let f_px = cam.f_px();
         // Centre at pixel (20.5, 20.5): an 8 px square spans [16.5, 24.5] on
@@ -144,15 +144,22 @@ fn a_half_covered_pixel_gets_half_the_color() {
             at(16, 16)
         );
         assert!(close(at(15, 20), Vec3::ZERO) && close(at(25, 20), Vec3::ZERO));
-        // With hard sprites (K = 1) the edge pixels are all or nothing.
-        let hard = render(
-            &renderer,
-            &cloud(&[(p, color)]),
-            SplatSize::Pixels(8.0),
-            cam,
-            1,
-        );
-        let v = hard.pixels[20 * 40 + 16][0];
+        // With one sample a pixel (K = 1) the samples' edge pixels are all
+        // or nothing; by area (the default) half, as above.
+        let edge = |renderer: &Renderer| {
+            let image = render(
+                renderer,
+                &cloud(&[(p, color)]),
+                SplatSize::Pixels(8.0),
+                cam,
+                1,
+            );
+            image.pixels[20 * 40 + 16][0]
+        };
+        let v = edge(&renderer);
+        assert!((v - 0.5 * color.x).abs() < 2e-3, "area edge {v}");
+        renderer.set_coverage(Coverage::Samples);
+        let v = edge(&renderer);
         assert!(v == 0.0 || (v - color.x).abs() < 2e-3, "hard edge {v}");
     });
 }

@@ -12,7 +12,7 @@ use pointlens::bench::BenchModel;
 use pointlens::camera::Camera;
 use pointlens::image_io::{write_image, LinearImage};
 use pointlens::metrics;
-use pointlens::options::{FastWeights, GatherWindow, LayeredOptions, Method, RdbMode};
+use pointlens::options::{Coverage, FastWeights, GatherWindow, LayeredOptions, Method, RdbMode};
 use pointlens::passes::spread_disk;
 use pointlens::render::{RenderOptions, Renderer, Scene, SplatSize};
 
@@ -284,7 +284,10 @@ fn a_surface_cut_by_the_peel_shows_no_seam() {
 #[test]
 fn a_single_pixel_spreads_as_the_cpu_disk_says_with_its_energy() {
     with_gpu(|ctx| {
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
+        // One sample lit: the samples' G-buffer (by area the splat's
+        // square lights the four pixels it straddles).
+        renderer.set_coverage(Coverage::Samples);
         let color = Vec3::new(0.9, 0.5, 0.25);
         // One point on the axis at z = 1, one pixel wide; focus at 2.
         let scene = renderer

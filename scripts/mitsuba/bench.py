@@ -150,6 +150,7 @@ def parse_args(argv):
     p.add_argument("--lod-px", type=float, default=None)
     p.add_argument("--splat-shape", default="square", choices=["square", "disc"])
     p.add_argument("--ssaa", default=None)
+    p.add_argument("--coverage", default=None)
     p.add_argument("--methods", default=None)
     p.add_argument("--aperture", default=None,
                    help="pointlens aperture flags, one string (e.g. \"--aperture-blades 6\"): to "
@@ -169,6 +170,9 @@ def parse_args(argv):
     args.spp = sorted(set(parse_list(args.spp, "--spp")))
     args.accum = sorted(set(parse_list(args.accum, "--accum"))) if args.accum else None
     args.ssaa = parse_list(args.ssaa, "--ssaa") if args.ssaa else None
+    args.coverage = args.coverage.split(",") if args.coverage else None
+    if args.coverage and (set(args.coverage) - {"area", "samples"} or len(set(args.coverage)) != len(args.coverage)):
+        fail("--coverage: distinct values of area and samples, as pointlens takes them")
     if args.ssaa and (max(args.ssaa) > 16 or len(set(args.ssaa)) != len(args.ssaa)):
         fail("--ssaa: distinct values from 1 to 16, as pointlens takes them")
     if not args.scenes:
@@ -222,7 +226,8 @@ def parse_aperture(text):
 def methods(args, scene):
     """pointlens methods: (name as `bench` names it, render flags); accum's
     sample counts from --accum, else the scene's. With --ssaa, each method
-    at each K, named with `-ssaaK`."""
+    at each K, named with `-ssaaK`; with --coverage, each at each
+    coverage, named with `-area` or `-samples`."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
          ("fast-tree", ["--method", "fast", "--fast-gather", "tree"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
@@ -239,6 +244,8 @@ def methods(args, scene):
     raster = ["--raster", args.raster] if args.raster else []
     # --lod-px 0: every splat, as Mitsuba draws them.
     raster += ["--lod-px", f"{args.lod_px:g}"] if args.lod_px is not None else []
+    if args.coverage:
+        m = [(f"{name}-{c}", flags + ["--coverage", c]) for c in args.coverage for name, flags in m]
     if not args.ssaa:
         return [(name, flags + raster) for name, flags in m]
     return [(f"{name}-ssaa{k}", flags + raster + ["--ssaa", str(k)]) for k in args.ssaa for name, flags in m]
@@ -749,6 +756,7 @@ def environment(a, mi, dr, results):
         "raster": a.raster or "pointlens's default",
         "lod_px": a.lod_px if a.lod_px is not None else "pointlens's default",
         "ssaa": a.ssaa or "pointlens's default",
+        "coverage": a.coverage or "pointlens's default",
         "splat_shape": a.splat_shape,
         "command": ("scripts/bench-vs-mitsuba " + os.environ.get("BENCH_ARGS", "")).strip(),
         "load_average_1min": results.get("load_average_1min"),

@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use glam::Vec2;
 
+use super::gbuffer_area::Marked;
 use super::splat_compute::Visibility;
 use crate::error::Result;
 use crate::push_constants;
@@ -43,7 +44,7 @@ push_constants! {
         scale: u32,
         first_row: i32,
         target_width: u32,
-        pad: u32,
+        target_first_row: i32,
         background: [f32; 4],
         lens_u: [f32; 2],
         window_origin: [i32; 2],
@@ -51,6 +52,7 @@ push_constants! {
         cat_eye: f32,
         half_cell: f32,
         color_scale: f32,
+        target_end_row: i32,
     }
 }
 
@@ -75,13 +77,18 @@ push_constants! {
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve.comp.spv"));
 static VIS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_vis.comp.spv"));
+static VIS_MARKS_SPIRV: &[u8] = include_bytes!(concat!(
+    env!("OUT_DIR"),
+    "/gbuffer_resolve_vis_marks.comp.spv"
+));
 static MS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_ms.comp.spv"));
 
 pub struct GBufferResolve {
     pipeline: ComputePipeline<Push>,
     /// For the compute rasteriser's visibility words (on devices with
-    /// 64-bit buffer atomics).
-    visibility: Option<ComputePipeline<VisPush>>,
+    /// 64-bit buffer atomics): plain, and marking the pixels that
+    /// resolve by area.
+    visibility: Option<(ComputePipeline<VisPush>, ComputePipeline<VisPush>)>,
     /// For multisampled passes, on devices that have them.
     multisampled: Option<ComputePipeline<MsPush>>,
 }
@@ -108,6 +115,11 @@ pub struct ResolvePass {
     /// row, or a band's ([`super::sample_plan::SamplePlan::band_rows`];
     /// one-sample targets only), whose target holds only its rows.
     pub rows: (u32, u32),
+    /// The G-buffer rows (first, end) the pass's target holds: `rows`,
+    /// or (visibility words only) those with a row of the neighbouring
+    /// bands on each side, which the area resolve reads
+    /// ([`super::gbuffer_area`]).
+    pub target_rows: (u32, u32),
     /// How each receiving pixel weighs the pass's lens position.
     pub lens_weight: LensWeight,
     /// The linear colour of a splat's code 65535 (1: white): a covered
@@ -161,12 +173,15 @@ impl LensWeight {
 pub enum Samples<'a> {
     /// The sprite path's sample target: (r, g, b, z).
     Target(&'a Image),
-    /// The compute rasteriser's words, the splats they index, and the
-    /// color of a sample no splat covers.
+    /// The compute rasteriser's words, the splats they index, the
+    /// color of a sample no splat covers and, where the G-buffer resolves
+    /// by area, the list the resolve marks pixels in (cleared by the
+    /// resolve pass first; [`super::gbuffer_area`]).
     Visibility {
         target: &'a Visibility,
         splats: &'a Buffer,
         background: [f32; 3],
+        marked: Option<&'a Marked>,
     },
 }
 
@@ -200,12 +215,15 @@ impl GBufferResolve {
         Ok(GBufferResolve {
             pipeline: ComputePipeline::new(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
             visibility: match ctx.info.buffer_int64_atomics {
-                true => Some(ComputePipeline::new(
-                    ctx,
-                    "gbuffer_resolve_vis",
-                    VIS_SPIRV,
-                    &vis_bindings,
-                )?),
+                true => Some((
+                    ComputePipeline::new(ctx, "gbuffer_resolve_vis", VIS_SPIRV, &vis_bindings)?,
+                    ComputePipeline::new(
+                        ctx,
+                        "gbuffer_resolve_vis_marks",
+                        VIS_MARKS_SPIRV,
+                        &[buffer, image, image, image, buffer, buffer],
+                    )?,
+                )),
                 false => None,
             },
             multisampled: match multisampled {
@@ -250,6 +268,11 @@ impl GBufferResolve {
             pass.rows == (0, h) || (samples == 1 && pass.read_offsets == 0),
             "bands of one-sample targets only"
         );
+        assert!(
+            pass.target_rows.0 <= first_row && end_row <= pass.target_rows.1,
+            "the target holds the pass's rows"
+        );
+
         // The first resolve into the G-buffer images this frame: before it
         // they hold nothing; after it, a later pass's or band's resolve
         // reads or writes what the earlier ones wrote.
@@ -301,8 +324,9 @@ impl GBufferResolve {
                 target,
                 splats,
                 background,
+                marked,
             } => {
-                let binds = [
+                let mut binds = vec![
                     Bind::StorageBuffer(&target.words),
                     Bind::StorageImage(images.color_sum),
                     Bind::StorageImage(images.gbuffer_eye),
@@ -317,7 +341,7 @@ impl GBufferResolve {
                     scale: pass.scale,
                     first_row: first_row as i32,
                     target_width: target.width(),
-                    pad: 0,
+                    target_first_row: pass.target_rows.0 as i32,
                     background: [r, g, b, 0.0],
                     lens_u,
                     window_origin,
@@ -325,11 +349,26 @@ impl GBufferResolve {
                     cat_eye,
                     half_cell,
                     color_scale: pass.color_scale,
+                    target_end_row: pass.target_rows.1 as i32,
                 };
-                let pipeline = self
+                let (plain, marks) = self
                     .visibility
                     .as_ref()
                     .expect("visibility words on a device with 64-bit atomics");
+                let pipeline = match marked {
+                    Some(marked) => {
+                        assert!(
+                            pass.first_sample == 0
+                                && pass.sample_count == pass.scale * pass.scale
+                                && pass.lens_weight.cat_eye == 0.0,
+                            "a G-buffer resolved by area has one pass of every sample"
+                        );
+                        marked.record_clear(rec);
+                        binds.push(Bind::StorageBuffer(marked.buffer()));
+                        marks
+                    }
+                    None => plain,
+                };
                 rec.dispatch(pipeline, &binds, &push, size);
                 return;
             }
@@ -396,6 +435,7 @@ mod tests {
     fn push_constants_match_the_glsl_block() {
         check_push_layout::<Push>("gbuffer_resolve", SPIRV).unwrap();
         check_push_layout::<VisPush>("gbuffer_resolve_vis", VIS_SPIRV).unwrap();
+        check_push_layout::<VisPush>("gbuffer_resolve_vis_marks", VIS_MARKS_SPIRV).unwrap();
         check_push_layout::<MsPush>("gbuffer_resolve_ms", MS_SPIRV).unwrap();
     }
 }

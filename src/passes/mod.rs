@@ -88,6 +88,7 @@ pub mod accum;
 pub mod edl;
 pub mod fast;
 pub mod fields;
+pub mod gbuffer_area;
 pub mod gbuffer_resolve;
 pub mod layered;
 pub mod output;

@@ -57,6 +57,8 @@ pub fn large_chunks(max_point_size: f32) -> u32 {
 
 /// Bytes of one visibility word: a target pixel.
 pub const WORD_BYTES: u64 = 8;
+/// Bytes of one splat's square in [`Visibility::squares`].
+pub const SQUARE_BYTES: u64 = 16;
 
 pub struct ComputeRaster {
     pipeline: ComputePipeline<SplatComputePush>,
@@ -70,6 +72,9 @@ pub struct ComputeRaster {
 pub struct Visibility {
     /// One per target pixel (a sample).
     pub words: Buffer,
+    /// Per splat index, the square the pass drew (centre and edge in
+    /// target pixels, eye depth: 4 floats), for the area resolve.
+    pub squares: Buffer,
     large: Buffer,
     width: u32,
     height: u32,
@@ -86,6 +91,13 @@ impl Visibility {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
         Ok(Visibility {
             words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
+            squares: Buffer::new(
+                ctx,
+                "raster squares",
+                SQUARE_BYTES * splats.max(1) as u64,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuOnly,
+            )?,
             large: Buffer::new(
                 ctx,
                 "large splats",
@@ -121,7 +133,7 @@ impl ComputeRaster {
         };
         let image = Binding::StorageImage;
         Ok(ComputeRaster {
-            pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b])?,
+            pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b, b])?,
             peel: ComputePipeline::new(ctx, "splat_compute_peel", peel, &[b, b, b, image])?,
         })
     }
@@ -184,7 +196,10 @@ impl ComputeRaster {
                 binds.push(Bind::StorageImage(image));
                 &self.peel
             }
-            None => &self.pipeline,
+            None => {
+                binds.push(Bind::StorageBuffer(&target.squares));
+                &self.pipeline
+            }
         };
         frame.pass(name, |rec| {
             // The words and the large list were last read by the previous

@@ -1,0 +1,86 @@
+// Resolves the compute rasteriser's visibility buffer (splat_compute.comp)
+// into the G-buffer: a target pixel's sample is its word's splat — linear
+// color as the vertex input reads the UNORM16 color, eye depth from the
+// word's upper half — or (background, +inf) where no splat covers it, as
+// the sprite path's cleared sample; then the fold of
+// gbuffer_resolve_blocks.glsl. Included by gbuffer_resolve_vis.comp and,
+// with AREA_MARKS, by gbuffer_resolve_vis_marks.comp, which also marks
+// the pixels that resolve by area (gbuffer_area.glsl).
+#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+
+layout(local_size_x = 16, local_size_y = 16) in;
+
+layout(binding = 0, std430) readonly buffer Visibility { uint64_t visibility[]; };
+layout(binding = 1, rgba32f) uniform image2D color_sum;
+layout(binding = 2, rgba32f) uniform image2D gbuffer_eye;   // w: nearest's index, then coverage
+layout(binding = 3, rgba16f) uniform writeonly image2D gbuffer_color;
+// The splats (24 bytes each: position and size, then the UNORM16 color),
+// read as pairs of words: splat i's color is pair 3i + 2 (one load).
+layout(binding = 4, std430) readonly buffer Splats { uvec2 splat_pairs[]; };
+
+layout(push_constant, std430) uniform VisPush {
+    ivec2 extent;        // of the G-buffer (y: the end of the band's rows)
+    uint sample_index;   // of this pass's first sample
+    uint sample_count;   // samples of the whole G-buffer
+    uint scale;          // target pixels per output pixel along each axis
+    int first_row;       // the band's first G-buffer row
+    uint target_width;   // visibility words per row
+    int target_first_row; // the G-buffer row of the target's row 0
+    vec4 background;     // linear RGB of an uncovered sample
+    vec2 lens_u;         // this pass's lens position
+    ivec2 window_origin; // the frame pixel of G-buffer pixel (0, 0)
+    ivec2 frame_size;    // the whole frame, pixels
+    float cat_eye;       // S (0: off)
+    float half_cell;     // a lens sample's cell (Aperture::lens_cell_half_width)
+    float color_scale;   // the linear color of a splat's code 65535 (1: white)
+    int target_end_row;  // the G-buffer row after the target's last
+} pc;
+
+vec4 target_sample(ivec2 q) {
+    uint64_t word = visibility[uint(q.y) * pc.target_width + uint(q.x)];
+    if (word == ~uint64_t(0)) {
+        return vec4(pc.background.rgb, 1.0 / 0.0);
+    }
+    uint i = uint(word & 0xffffffffUL);
+    uvec2 c = splat_pairs[3u * i + 2u];
+    vec3 color = vec3(unpackUnorm2x16(c.x), unpackUnorm2x16(c.y).x);
+    return vec4(color, uintBitsToFloat(uint(word >> 32)));
+}
+
+#define TARGET_FIRST_ROW pc.target_first_row
+#include "gbuffer_resolve_blocks.glsl"
+
+#ifdef AREA_MARKS
+#define AREA_LIST_BINDING 5
+#include "gbuffer_area.glsl"
+
+// Whether the words of the target pixels [lo, hi) are all `first`.
+bool all_of(ivec2 lo, ivec2 hi, uint64_t first) {
+    bool one = true;
+    for (int y = lo.y; y < hi.y; ++y) {
+        for (int x = lo.x; x < hi.x; ++x) {
+            one = one && visibility[uint(y) * pc.target_width + uint(x)] == first;
+        }
+    }
+    return one;
+}
+#endif
+
+void main() {
+    resolve_blocks();
+#ifdef AREA_MARKS
+    // Marked: the pixel's samples and the ring of its neighbours' nearest
+    // samples around them (within the target) do not all hold one word.
+    ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
+    if (any(greaterThanEqual(p, pc.extent))) {
+        return;
+    }
+    int k = int(pc.scale);
+    ivec2 block = (p - ivec2(0, TARGET_FIRST_ROW)) * k;
+    ivec2 lo, hi;
+    area_window(block, k, ivec2(pc.extent.x, pc.target_end_row - TARGET_FIRST_ROW) * k, lo, hi);
+    if (!all_of(lo, hi, visibility[uint(block.y) * pc.target_width + uint(block.x)])) {
+        mark(p);
+    }
+#endif
+}

@@ -438,6 +438,12 @@ impl RenderJob {
         if scene.edl.is_some() {
             crate::options::check_edl_with(&self.spec.method)?;
         }
+        crate::options::check_coverage_with(
+            scene.coverage,
+            &self.spec.method,
+            scene.raster,
+            scene.splat_shape,
+        )?;
         if kind == SceneKind::Gaussians {
             self.gaussian_lens(&camera::Aperture::ROUND)?;
         }

@@ -374,6 +374,31 @@ pub fn check_edl_with(method: &Method) -> Result<()> {
     }
 }
 
+/// The one check of an explicit `--coverage area`: it weighs the compute
+/// raster's square splats seen from one lens position, so it is refused
+/// with `accum`, `--raster sprites` or `--splat-shape disc`, where it would
+/// not act (the default, not given, falls back on the samples there).
+pub fn check_coverage_with(
+    coverage: Option<Coverage>,
+    method: &Method,
+    raster: Option<Raster>,
+    shape: Option<SplatShape>,
+) -> Result<()> {
+    if coverage != Some(Coverage::Area) {
+        return Ok(());
+    }
+    let why = match (method, raster, shape) {
+        (Method::Accum(_), _, _) => "accum, which averages a G-buffer per lens position",
+        (_, Some(Raster::Sprites), _) => "--raster sprites, whose samples name no splat",
+        (_, _, Some(SplatShape::Disc)) => "--splat-shape disc",
+        _ => return Ok(()),
+    };
+    Err(Error::InvalidArgument(format!(
+        "--coverage area weighs the compute raster's square splats seen from one lens \
+         position, not {why} (leave --coverage out, or give samples)"
+    )))
+}
+
 /// The options of the methods as the command line gives them: None where
 /// a flag is not given ([`MethodKind::with_flags`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]

@@ -315,6 +315,20 @@ fn catalogue() -> Vec<Case> {
             "render {dir}/no-such.ply -o {out} R --edl 1 --method accum",
             "accum averages",
         ),
+        // Area coverage where it cannot act, before the file is read.
+        case(
+            "render {dir}/no-such.ply -o {out} R --coverage area --method accum",
+            "not accum",
+        ),
+        case(
+            "render {bunny} -o {out} R --coverage area --raster sprites",
+            "not --raster sprites",
+        ),
+        case(
+            "render {bunny} -o {out} R --coverage area --splat-shape disc",
+            "not --splat-shape disc",
+        ),
+        case("render {bunny} -o {out} R --coverage exact", "--coverage"),
         case("render {bunny} -o {out} R --edl -1", "--edl strength"),
         case("render {bunny} -o {out} R --edl 1,2,3", "STRENGTH[,RADIUS_PX]"),
         case("render {bunny} -o {out} R --edl 1,64", "--edl radius"),

@@ -248,6 +248,7 @@ fn the_command_line_knows_a_gaussian_scene() {
             vec!["--splat-shape", "disc"],
             "--splat-shape is about points",
         ),
+        (vec!["--coverage", "samples"], "--coverage is about points"),
         (
             vec!["--method", "pinhole", "--focus-pixel", "3,3"],
             "without --focus-pixel",

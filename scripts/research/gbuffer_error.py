@@ -1,6 +1,7 @@
 """Where the G-buffer's error against the exact pixel integral lies
 (docs/bench/gbuffer-error.md): each bundled scene's pinhole image at
-K = 1…8 (every splat, `--lod-px 0`) against Mitsuba 3's pinhole render of
+K = 1…8 by the samples' mean (`--coverage samples`; every splat,
+`--lod-px 0`; and by area at K = 3 and 4, the default) against Mitsuba 3's pinhole render of
 the same squares at REF_SPP (box filter: the pixel-area integral), its
 squared error (sRGB, as bench-vs-mitsuba's PSNR) split by pixel class:
 
@@ -102,11 +103,19 @@ def study(args, mi, dr, scene):
         del mscene
     ref = read(mi, ref_path)
     images = {}
+    # The samples' G-buffer at each K (the study's subject), and the
+    # default's area coverage at K = 3 and 4 beside it.
+    pinhole = [args.pointlens, "render", ply, "--camera", d / "camera.json", "--method", "pinhole",
+               "--lod-px", "0", "--passes", "z"]
     for k in KS:
         out = d / f"pinhole_k{k}.exr"
-        run([args.pointlens, "render", ply, "-o", out, "--camera", d / "camera.json", "--method", "pinhole",
-             "--lod-px", "0", "--ssaa", str(k), "--passes", "z"])
+        run(pinhole + ["-o", out, "--ssaa", str(k), "--coverage", "samples"])
         images[k] = out
+    area = []
+    for k in (3, 4):
+        out = d / f"pinhole_area_k{k}.exr"
+        run(pinhole + ["-o", out, "--ssaa", str(k), "--coverage", "area"])
+        area.append((k, psnr_np(read(mi, out), ref)))
     c1, c8 = read(mi, images[1]), read(mi, images[8])
     z1 = read(mi, images[1], "Z")
     cls = classes(c1, c8, z1)
@@ -135,7 +144,7 @@ def study(args, mi, dr, scene):
                     m |= pad[dy:dy + h, dx:dx + w]
         adaptive = np.where(m[:, :, None], c8, c3)
         estimates.append((grow, psnr_np(adaptive, ref), float(m.mean())))
-    return cls, rows, pixels, estimates
+    return cls, rows, pixels, estimates, area
 
 
 def png(mi, path, rgb):
@@ -156,7 +165,7 @@ def main():
     import drjit as dr
     mi.set_variant("llvm_ad_rgb")
     for n, scene in enumerate(args.scenes.split(",")):
-        cls, rows, pixels, estimates = study(args, mi, dr, scene)
+        cls, rows, pixels, estimates, area = study(args, mi, dr, scene)
         print(f"\n### {scene} (640×480, every splat, Mitsuba {REF_SPP} spp pinhole)\n")
         print("pixels: " + ", ".join(f"{c} {100 * s:.1f} %" for c, s in zip(CLASSES, pixels)) + "\n")
         print("| K | PSNR | " + " | ".join(f"{c} share of the error" for c in CLASSES[:3])
@@ -171,6 +180,7 @@ def main():
         for grow, adaptive_psnr, marked in estimates:
             print(f"\nK = 8 where K = 3 differs from K = 1 (grown by {grow} px: {100 * marked:.1f} % "
                   f"of the pixels), K = 3 elsewhere: {adaptive_psnr:.2f} dB")
+        print("\nBy area (`--coverage area`): " + ", ".join(f"K = {k} {p:.2f} dB" for k, p in area))
         if args.images and n == 0:
             out = Path(args.images)
             out.mkdir(parents=True, exist_ok=True)

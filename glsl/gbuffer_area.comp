@@ -9,10 +9,11 @@
 // candidates' y edges (exact) and 64 columns (a box's x edges count to
 // 1/64 of a pixel), and front to back a candidate takes the columns of
 // its box, in the rows of its box, that no nearer one took. The part none
-// covers is background where one of the pixel's own samples saw
-// background, else shared out in proportion, as its samples would. The
-// eye image keeps the samples' depth (the plain resolve's) and takes the
-// color's coverage.
+// covers is what the window's samples outside every candidate saw (the
+// pixel's own, else the ring's; with none, the candidates' colors in
+// proportion). The eye image keeps the samples' depth (the plain
+// resolve's; the nearest candidate's where no sample saw a splat) and
+// takes the color's coverage.
 #extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
 #extension GL_EXT_control_flow_attributes : require
 

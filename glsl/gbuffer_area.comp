@@ -222,42 +222,36 @@ void main() {
     // outside every candidate saw (background, or splats past a full
     // list): the pixel's own, if any lies there, else the ring's; with
     // none, the candidates' colors fill it in proportion.
+    vec4 rest_own = vec4(0.0), rest_ring = vec4(0.0);  // color sum, hits
+    float own_samples = 0.0, ring_samples = 0.0;
     float inv_k = 1.0 / side;
-    vec4 rest_sum = vec4(0.0);  // color sum, hits
-    float rest_samples = 0.0;
-    // The pixel's own samples, then (where none lies outside every
-    // candidate) the ring's: a pass over the window that takes the own
-    // block or leaves it.
-    for (int pass = 0; pass < 2 && rest_samples == 0.0; ++pass) {
-        bool own_pass = pass == 0;
-        ivec2 lo = own_pass ? block : t_lo;
-        ivec2 hi = own_pass ? block + k : t_hi;
-        for (int y = lo.y; y < hi.y; ++y) {
-            int v = y - block.y;
-            int j = v < 0 ? k - 1 : (v >= k ? 0 : v);
-            for (int x = lo.x; x < hi.x; ++x) {
-                int u = x - block.x;
-                int i = u < 0 ? k - 1 : (u >= k ? 0 : u);
+    for (int y = t_lo.y; y < t_hi.y; ++y) {
+        int v = y - block.y;
+        int j = v < 0 ? k - 1 : (v >= k ? 0 : v);
+        for (int x = t_lo.x; x < t_hi.x; ++x) {
+            int u = x - block.x;
+            int i = u < 0 ? k - 1 : (u >= k ? 0 : u);
+            vec2 s = vec2(u - i, v - j) + block_sample(i, j, k, inv_k);
+            bool inside = false;
+            [[unroll]] for (int c = 0; c < AREA_CANDIDATES; ++c) {
+                vec4 b = boxes[c];
+                inside = inside || (s.x >= b.x && s.x < b.y && s.y >= b.z && s.y < b.w);
+            }
+            if (!inside) {
+                uint64_t word = word_at(ivec2(x, y));
+                vec4 seen = word == NOTHING
+                    ? vec4(pc.background.rgb, 0.0)
+                    : vec4(pc.color_scale * splat_color(uint(word & 0xffffffffUL)), 1.0);
                 bool own = u >= 0 && u < k && v >= 0 && v < k;
-                if (own != own_pass) {
-                    continue;
-                }
-                vec2 s = vec2(u - i, v - j) + block_sample(i, j, k, inv_k);
-                bool inside = false;
-                [[unroll]] for (int c = 0; c < AREA_CANDIDATES; ++c) {
-                    vec4 b = boxes[c];
-                    inside = inside || (s.x >= b.x && s.x < b.y && s.y >= b.z && s.y < b.w);
-                }
-                if (!inside) {
-                    uint64_t word = word_at(ivec2(x, y));
-                    rest_sum += word == NOTHING
-                        ? vec4(pc.background.rgb, 0.0)
-                        : vec4(pc.color_scale * splat_color(uint(word & 0xffffffffUL)), 1.0);
-                    rest_samples += 1.0;
-                }
+                rest_own += own ? seen : vec4(0.0);
+                own_samples += own ? 1.0 : 0.0;
+                rest_ring += own ? vec4(0.0) : seen;
+                ring_samples += own ? 0.0 : 1.0;
             }
         }
     }
+    vec4 rest_sum = own_samples > 0.0 ? rest_own : rest_ring;
+    float rest_samples = own_samples > 0.0 ? own_samples : ring_samples;
     // The pixel in rows at the boxes' y edges (exact) and 64 columns: a
     // candidate takes the columns of its box, in the rows of its box,
     // that no nearer one took.

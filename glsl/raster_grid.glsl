@@ -5,8 +5,9 @@
 // How far past its corner, along one axis, the sample of a target pixel
 // lies, in target pixels, for cell c of k (inv_k = 1/k): along y the
 // pixel's cell column, along x k − 1 − its cell row (the grid rotated
-// by atan(1/k): splat_compute_main.glsl). The cells of target pixel (x, y) are (x mod k, y mod k): the
-// target starts at a G-buffer pixel's corner, a band at a G-buffer row.
+// by atan(1/k): splat_compute_main.glsl). The cells of target pixel
+// (x, y) are (x mod k, y mod k): the target starts at a G-buffer pixel's
+// corner, a band at a G-buffer row.
 // The callers keep cells and 1/k out of their loops over pixels (lavapipe
 // divides lane by lane, and reloads the push block after each atomic).
 float cell_offset(int c, float inv_k) {

@@ -71,8 +71,8 @@ const float PEEL_THICKNESS = 1.0;
 #else
 // Per splat index, the square as this pass drew it: centre (target
 // pixels), edge (target pixels), eye depth; written by the first stage
-// for every splat with target pixels in its box, read by the area
-// resolve (gbuffer_resolve_vis.comp) for the splats its words name.
+// for every splat with target pixels in its box, read by the area pass
+// (gbuffer_area.comp) for the splats its words name.
 layout(binding = 3, std430) writeonly buffer Squares { vec4 squares[]; };
 #endif
 

@@ -1,11 +1,11 @@
 //! The G-buffer's area coverage ([`crate::options::Coverage::Area`]):
-//! after the compute raster's plain resolve of a band, the pixels whose
-//! 3×3 neighbourhood's samples do not all hold one visibility word are
-//! marked (`glsl/gbuffer_area_marks.comp`) and only those take their
-//! color from the exact visible areas of the nearest splats their
+//! the compute raster's resolve of a band (`glsl/gbuffer_resolve_vis_marks.comp`)
+//! marks the pixels whose K×K samples and the ring of their neighbours'
+//! nearest samples do not all hold one visibility word, and only those
+//! take their color from the visible areas of the nearest splats those
 //! samples found (`glsl/gbuffer_area.comp`, dispatched over the marked
-//! pixels alone). A pixel whose neighbourhood sees one splat keeps the
-//! plain resolve's color, bit for bit (docs/decisions/area-coverage.md).
+//! pixels alone). Every other pixel keeps the resolve's color, bit for
+//! bit (docs/decisions/area-coverage.md).
 
 use std::sync::Arc;
 

@@ -272,7 +272,6 @@ impl GBufferResolve {
             pass.target_rows.0 <= first_row && end_row <= pass.target_rows.1,
             "the target holds the pass's rows"
         );
-
         // The first resolve into the G-buffer images this frame: before it
         // they hold nothing; after it, a later pass's or band's resolve
         // reads or writes what the earlier ones wrote.

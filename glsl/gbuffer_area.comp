@@ -159,9 +159,8 @@ void main() {
     }
     int k = int(pc.scale);
     float side = float(k);
-    ivec2 block = (p - ivec2(0, pc.target_first_row)) * k;
-    ivec2 t_lo, t_hi;
-    area_window(block, k, ivec2(pc.extent.x, pc.target_end_row - pc.target_first_row) * k, t_lo, t_hi);
+    ivec2 block, t_lo, t_hi;
+    area_window(p, k, pc.extent.x, pc.target_first_row, pc.target_end_row, block, t_lo, t_hi);
     // The candidates, nearest first by their words, and their squares
     // (target pixels from the pixel's corner: x0, x1, y0, y1; the pixel's
     // box is [0, K]²).

@@ -21,12 +21,16 @@ layout(binding = AREA_LIST_BINDING, std430) buffer Marked {
 const uint AREA_GROUP = 64u;
 const uint AREA_ROW_GROUPS = 65535u;
 
-// The target pixels [lo, hi) whose samples find a pixel's splats: its
-// K×K block at `block` and a ring one target pixel wide around it (its
-// neighbours' nearest samples), within the target's `size`.
-void area_window(ivec2 block, int k, ivec2 size, out ivec2 lo, out ivec2 hi) {
+// G-buffer pixel p's K×K block of target pixels (`block`, its first),
+// and the target pixels [lo, hi) whose samples find its splats: the block
+// and a ring one target pixel wide around it (its neighbours' nearest
+// samples), within the target, which holds the G-buffer rows
+// [first_row, end_row) of a G-buffer `width` pixels wide.
+void area_window(ivec2 p, int k, int width, int first_row, int end_row, out ivec2 block,
+                 out ivec2 lo, out ivec2 hi) {
+    block = (p - ivec2(0, first_row)) * k;
     lo = max(block - 1, ivec2(0));
-    hi = min(block + k + 1, size);
+    hi = min(block + k + 1, ivec2(width, end_row - first_row) * k);
 }
 
 // Appends pixel p to the list; the first pixel of each AREA_GROUP opens

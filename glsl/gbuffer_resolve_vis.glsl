@@ -75,10 +75,8 @@ void main() {
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
-    int k = int(pc.scale);
-    ivec2 block = (p - ivec2(0, TARGET_FIRST_ROW)) * k;
-    ivec2 lo, hi;
-    area_window(block, k, ivec2(pc.extent.x, pc.target_end_row - TARGET_FIRST_ROW) * k, lo, hi);
+    ivec2 block, lo, hi;
+    area_window(p, int(pc.scale), pc.extent.x, TARGET_FIRST_ROW, pc.target_end_row, block, lo, hi);
     if (!all_of(lo, hi, visibility[uint(block.y) * pc.target_width + uint(block.x)])) {
         mark(p);
     }

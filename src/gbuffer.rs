@@ -507,7 +507,7 @@ impl GBuffer {
                 ctx, w, h, samples,
             )?)),
             PeelPlan::Compute { scale } => Some(PeelTargets::Compute {
-                target: Visibility::new(ctx, scale * w, scale * h, compute_splats)?,
+                target: Visibility::peel(ctx, scale * w, scale * h, compute_splats)?,
                 scale,
             }),
         };

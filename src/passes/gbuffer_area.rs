@@ -174,7 +174,7 @@ impl GBufferArea {
             let binds = [
                 Bind::StorageBuffer(&band.target.words),
                 Bind::StorageBuffer(list),
-                Bind::StorageBuffer(&band.target.squares),
+                Bind::StorageBuffer(band.target.squares()),
                 Bind::StorageBuffer(band.splats),
                 Bind::StorageImage(band.gbuffer_color),
                 Bind::StorageImage(band.gbuffer_eye),

@@ -73,16 +73,32 @@ pub struct Visibility {
     /// One per target pixel (a sample).
     pub words: Buffer,
     /// Per splat index, the square the pass drew (centre and edge in
-    /// target pixels, eye depth: 4 floats), for the area resolve.
-    pub squares: Buffer,
+    /// target pixels, eye depth: 4 floats), for the area resolve; a depth
+    /// peel's target has none (the peel writes none).
+    squares: Option<Buffer>,
     large: Buffer,
     width: u32,
     height: u32,
 }
 
 impl Visibility {
-    /// The buffers of a `width` × `height` target for up to `splats` splats.
+    /// The buffers of a first layer's `width` × `height` target for up
+    /// to `splats` splats, the squares' included.
     pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
+        let mut target = Visibility::peel(ctx, width, height, splats)?;
+        target.squares = Some(Buffer::new(
+            ctx,
+            "raster squares",
+            SQUARE_BYTES * splats.max(1) as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?);
+        Ok(target)
+    }
+
+    /// The buffers of a depth peel's `width` × `height` target for up to
+    /// `splats` splats: no squares.
+    pub fn peel(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
         let bytes = width as u64 * height as u64 * WORD_BYTES;
         assert!(
             bytes <= ctx.info.max_storage_buffer_range,
@@ -91,13 +107,7 @@ impl Visibility {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
         Ok(Visibility {
             words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
-            squares: Buffer::new(
-                ctx,
-                "raster squares",
-                SQUARE_BYTES * splats.max(1) as u64,
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                MemoryLocation::GpuOnly,
-            )?,
+            squares: None,
             large: Buffer::new(
                 ctx,
                 "large splats",
@@ -118,6 +128,12 @@ impl Visibility {
     /// Rows of visibility words.
     pub fn height(&self) -> u32 {
         self.height
+    }
+
+    /// The squares of a first layer's target ([`Visibility::new`]).
+    pub fn squares(&self) -> &Buffer {
+        let squares = self.squares.as_ref();
+        squares.expect("a first layer's target holds the squares")
     }
 }
 
@@ -197,7 +213,7 @@ impl ComputeRaster {
                 &self.peel
             }
             None => {
-                binds.push(Bind::StorageBuffer(&target.squares));
+                binds.push(Bind::StorageBuffer(target.squares()));
                 &self.pipeline
             }
         };

@@ -252,8 +252,8 @@ pub struct BenchOptions {
     /// The shape of the splats (`--splat-shape`), the reference's too.
     pub splat_shape: SplatShape,
     /// How the measured frames' G-buffers weigh the splats within a pixel
-    /// (`--coverage`).
-    pub coverage: Coverage,
+    /// (`--coverage`; None: the default, area where it can act).
+    pub coverage: Option<Coverage>,
     /// PSNR and SSIM of each cell against accum with 256 samples.
     pub quality: bool,
     /// The `--lod-px` values to measure (an axis of the matrix).
@@ -466,9 +466,12 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 let reference = Method::Accum(AccumOptions {
                     samples: REFERENCE_SAMPLES,
                 });
-                // Every point: what the LOD's cost is measured against.
+                // Every point: what the LOD's cost is measured against,
+                // by the samples of each lens position (accum's own).
                 renderer.set_raster(Raster::Sprites);
+                renderer.set_coverage(None);
                 let r = renderer.render(&scene, &frame(reference, ssaa, 0.0))?;
+                renderer.set_coverage(options.coverage);
                 Some(r.image)
             } else {
                 None
@@ -562,6 +565,15 @@ fn check_matrix(options: &BenchOptions) -> Result<()> {
     {
         return Err(Error::InvalidArgument("bench: the matrix is empty".into()));
     }
+    let raster = crate::options::frame_raster(options.raster, options.samples_per_pass, None)?;
+    for m in &options.methods {
+        crate::options::check_coverage_with(
+            options.coverage,
+            &m.method,
+            Some(raster),
+            Some(options.splat_shape),
+        )?;
+    }
     Ok(())
 }
 
@@ -650,6 +662,7 @@ fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) ->
             .unwrap_or_default(),
         coverage: options
             .coverage
+            .unwrap_or_default()
             .to_possible_value()
             .map(|v| v.get_name().to_string())
             .unwrap_or_default(),
@@ -936,7 +949,7 @@ pub fn measure(
         samples_per_pass: r.samples_per_pass,
         raster: r.raster.unwrap_or_default(),
         splat_shape: r.splat_shape.unwrap_or_default(),
-        coverage: r.coverage.unwrap_or_default(),
+        coverage: r.coverage,
         quality: r.quality,
         lod_px: r.lod_px.clone(),
         data_dir,

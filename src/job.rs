@@ -438,10 +438,17 @@ impl RenderJob {
         if scene.edl.is_some() {
             crate::options::check_edl_with(&self.spec.method)?;
         }
+        // The raster as far as the command line says (the device's
+        // atomics are not known yet).
+        let raster = crate::options::frame_raster(
+            scene.raster.unwrap_or_default(),
+            self.spec.samples_per_pass,
+            None,
+        )?;
         crate::options::check_coverage_with(
             scene.coverage,
             &self.spec.method,
-            scene.raster,
+            Some(raster),
             scene.splat_shape,
         )?;
         if kind == SceneKind::Gaussians {

@@ -374,10 +374,60 @@ pub fn check_edl_with(method: &Method) -> Result<()> {
     }
 }
 
-/// The one check of an explicit `--coverage area`: it weighs the compute
-/// raster's square splats seen from one lens position, so it is refused
-/// with `accum`, `--raster sprites` or `--splat-shape disc`, where it would
-/// not act (the default, not given, falls back on the samples there).
+/// The raster a frame draws with: `auto` is the compute raster where the
+/// device has 64-bit buffer atomics (`int64_atomics`; None: not known yet,
+/// and `auto` stays), except that a limit on the samples per pass asks for
+/// the sprite path's plans (the compute raster takes every sample in one
+/// pass, and refuses the limit).
+pub fn frame_raster(
+    raster: Raster,
+    samples_per_pass: Option<u32>,
+    int64_atomics: Option<bool>,
+) -> Result<Raster> {
+    Ok(match (raster, samples_per_pass, int64_atomics) {
+        (Raster::Auto, Some(_), _) => Raster::Sprites,
+        (Raster::Auto, None, Some(true)) => Raster::Compute,
+        (Raster::Auto, None, Some(false)) => Raster::Sprites,
+        (Raster::Compute, Some(_), _) => {
+            return Err(Error::InvalidArgument(
+                "--samples-per-pass limits the sprite raster's passes; the compute raster \
+                 takes every sample in one pass (use --raster sprites)"
+                    .into(),
+            ))
+        }
+        (chosen, _, _) => chosen,
+    })
+}
+
+/// What keeps area coverage from acting on a frame of `method` drawn by
+/// `raster` with `shape` splats (None: nothing): it weighs the compute
+/// raster's square splats seen from one lens position, so not `accum`'s
+/// G-buffers (one per lens position), the sprite raster's samples (they
+/// name no splat) or disc splats. `raster` and `shape` as far as they are
+/// known (None, or [`Raster::Auto`]: not yet). The one rule: the renderer
+/// resolves by area where this is None, and [`check_coverage_with`]
+/// refuses an explicit `--coverage area` where it is not.
+pub fn area_coverage_blocker(
+    method: &Method,
+    raster: Option<Raster>,
+    shape: Option<SplatShape>,
+) -> Option<&'static str> {
+    match (method, raster, shape) {
+        (Method::Accum(_), _, _) => Some("accum, which averages a G-buffer per lens position"),
+        (_, Some(Raster::Sprites), _) => Some(
+            "the sprite raster (--raster sprites, --samples-per-pass, or a device without \
+             64-bit buffer atomics), whose samples name no splat",
+        ),
+        (_, _, Some(SplatShape::Disc)) => Some("--splat-shape disc"),
+        _ => None,
+    }
+}
+
+/// The one check of an explicit `--coverage area`: refused where
+/// [`area_coverage_blocker`] finds it cannot act (the default, not given,
+/// falls back on the samples there). Run before the file is read, with
+/// what the command line says (`--samples-per-pass` asks for the sprite
+/// raster), and again on each frame with the raster the device gives.
 pub fn check_coverage_with(
     coverage: Option<Coverage>,
     method: &Method,
@@ -387,16 +437,13 @@ pub fn check_coverage_with(
     if coverage != Some(Coverage::Area) {
         return Ok(());
     }
-    let why = match (method, raster, shape) {
-        (Method::Accum(_), _, _) => "accum, which averages a G-buffer per lens position",
-        (_, Some(Raster::Sprites), _) => "--raster sprites, whose samples name no splat",
-        (_, _, Some(SplatShape::Disc)) => "--splat-shape disc",
-        _ => return Ok(()),
-    };
-    Err(Error::InvalidArgument(format!(
-        "--coverage area weighs the compute raster's square splats seen from one lens \
-         position, not {why} (leave --coverage out, or give samples)"
-    )))
+    match area_coverage_blocker(method, raster, shape) {
+        None => Ok(()),
+        Some(why) => Err(Error::InvalidArgument(format!(
+            "--coverage area weighs the compute raster's square splats seen from one lens \
+             position, not {why} (leave --coverage out, or give samples)"
+        ))),
+    }
 }
 
 /// The options of the methods as the command line gives them: None where

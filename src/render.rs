@@ -23,7 +23,7 @@ use crate::passes::edl::Edl;
 use crate::passes::output::{OutputBuffers, OutputConvert, OutputFormat};
 use crate::passes::sample_plan::SamplePlan;
 use crate::passes::splat_raster::{SplatVertex, COLOR_FORMAT, EYE_FORMAT};
-use crate::passes::{DofInput, DofMethod, FrameView, GBufferLens, Methods, VeilRule, Window};
+use crate::passes::{DofInput, DofMethod, FrameView, Methods, VeilRule, Window};
 use crate::report::{LodReport, Upload};
 use crate::tree::{self, LeafSize, Points, Splat, SplatTree, Widening};
 use crate::veil::{Veil, VeilSplat};
@@ -397,8 +397,9 @@ pub struct Renderer {
     raster: Raster,
     /// The shape the G-buffer's pipelines draw.
     splat_shape: SplatShape,
-    /// How the G-buffer weighs the splats within a pixel.
-    coverage: Coverage,
+    /// How the G-buffer weighs the splats within a pixel, if asked
+    /// (None: the default, [`Coverage::Area`] where it can act).
+    coverage: Option<Coverage>,
     /// Eye-dome lighting of the G-buffer (`--edl`), if asked for.
     edl: Option<EdlOptions>,
     edl_pass: Edl,
@@ -421,7 +422,7 @@ impl Renderer {
             peel_cull: true,
             raster: Raster::default(),
             splat_shape,
-            coverage: Coverage::default(),
+            coverage: None,
             edl: None,
             edl_pass: Edl::new(ctx)?,
             tile_px: None,
@@ -447,20 +448,20 @@ impl Renderer {
     }
 
     /// How the G-buffer weighs the splats within a pixel (`--coverage`;
-    /// default [`Coverage::Area`], which acts on the compute raster's
-    /// square splats seen from one lens position).
-    pub fn set_coverage(&mut self, coverage: Coverage) {
+    /// None: the default, [`Coverage::Area`] where it can act). A frame
+    /// where an asked-for area coverage cannot act is an error
+    /// ([`crate::options::check_coverage_with`]).
+    pub fn set_coverage(&mut self, coverage: Option<Coverage>) {
         self.coverage = coverage;
     }
 
-    /// Whether a G-buffer of `raster` seen through `lens` resolves by
-    /// area: asked for, and able to act.
-    fn area_coverage(&self, raster: Raster, lens: &GBufferLens) -> bool {
-        self.coverage == Coverage::Area
-            && raster == Raster::Compute
-            && self.splat_shape == SplatShape::Square
-            && lens.positions.len() == 1
-            && lens.cat_eye == 0.0
+    /// Whether a G-buffer of `method` drawn by `raster` resolves by area:
+    /// asked for (or left to the default) and able to act
+    /// ([`crate::options::area_coverage_blocker`]).
+    fn area_coverage(&self, raster: Raster, method: &Method) -> bool {
+        self.coverage.unwrap_or_default() == Coverage::Area
+            && crate::options::area_coverage_blocker(method, Some(raster), Some(self.splat_shape))
+                .is_none()
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the
@@ -477,24 +478,14 @@ impl Renderer {
         self.raster = raster;
     }
 
-    /// The raster of a frame with `samples_per_pass`: `auto` is the
-    /// compute raster where the device has 64-bit buffer atomics, except
-    /// that a limit on the samples per pass asks for the sprite path's
-    /// plans (the compute raster takes every sample in one pass).
+    /// The raster of a frame with `samples_per_pass`
+    /// ([`crate::options::frame_raster`] on this device).
     fn raster_with(&self, samples_per_pass: Option<u32>) -> Result<Raster> {
-        Ok(match (self.raster, samples_per_pass) {
-            (Raster::Auto, Some(_)) => Raster::Sprites,
-            (Raster::Auto, None) if self.ctx.info.buffer_int64_atomics => Raster::Compute,
-            (Raster::Auto, None) => Raster::Sprites,
-            (Raster::Compute, Some(_)) => {
-                return Err(Error::InvalidArgument(
-                    "--samples-per-pass limits the sprite raster's passes; the compute raster \
-                     takes every sample in one pass (use --raster sprites)"
-                        .into(),
-                ))
-            }
-            (chosen, _) => chosen,
-        })
+        crate::options::frame_raster(
+            self.raster,
+            samples_per_pass,
+            Some(self.ctx.info.buffer_int64_atomics),
+        )
     }
 
     /// K of a frame of `method` with `--ssaa` `ssaa` and
@@ -882,6 +873,12 @@ impl Renderer {
             height: windows.iter().map(|w| w.height).max().unwrap_or(0),
         };
         let raster = self.raster_with(options.samples_per_pass)?;
+        crate::options::check_coverage_with(
+            self.coverage,
+            &options.method,
+            Some(raster),
+            Some(self.splat_shape),
+        )?;
         let plan_view = RasterView {
             frame: FrameView {
                 window: largest,
@@ -1004,7 +1001,7 @@ impl Renderer {
             tile.peel,
             self.peel_cull.then_some(splats.count),
             options.background,
-            self.area_coverage(tile.raster, &lens),
+            self.area_coverage(tile.raster, &options.method),
         )?;
         let dof = method.prepare(&self.ctx, &view.frame)?;
         let readback = Readback::new(

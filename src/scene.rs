@@ -361,7 +361,7 @@ impl HostScene {
         renderer.set_edl(spec.edl);
         renderer.set_tile_px(spec.tile_px);
         renderer.set_splat_shape(spec.splat_shape.unwrap_or_default())?;
-        renderer.set_coverage(spec.coverage.unwrap_or_default());
+        renderer.set_coverage(spec.coverage);
         match self {
             // The hierarchy holds the points from its leaves on.
             HostScene::Cloud(cloud) => {

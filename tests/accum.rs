@@ -187,7 +187,7 @@ fn at_one_sample_a_pixel_the_lens_positions_anti_alias_the_image() {
             renderer.set_raster(raster);
             // The pinhole G-buffer's samples, as accum takes them (area
             // coverage is of one lens position: tests/coverage.rs).
-            renderer.set_coverage(Coverage::Samples);
+            renderer.set_coverage(Some(Coverage::Samples));
             let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
             let render = |method: Method, ssaa: u32| {
                 let options = RenderOptions {

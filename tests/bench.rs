@@ -567,7 +567,7 @@ fn bench_fails_on_any_validation_message() {
         raster: pointlens::options::Raster::Sprites,
         splat_shape: pointlens::options::SplatShape::Square,
         // The floors below were measured on the samples' G-buffers.
-        coverage: pointlens::options::Coverage::Samples,
+        coverage: Some(pointlens::options::Coverage::Samples),
         quality: false,
         lod_px: vec![1.0],
         data_dir: common::root().join("data"),

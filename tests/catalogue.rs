@@ -321,8 +321,17 @@ fn catalogue() -> Vec<Case> {
             "not accum",
         ),
         case(
-            "render {bunny} -o {out} R --coverage area --raster sprites",
-            "not --raster sprites",
+            "render {dir}/no-such.ply -o {out} R --coverage area --raster sprites",
+            "not the sprite raster",
+        ),
+        // --samples-per-pass draws through the sprites.
+        case(
+            "render {dir}/no-such.ply -o {out} R --coverage area --samples-per-pass 4",
+            "not the sprite raster",
+        ),
+        case(
+            "bench --methods pinhole,accum4 --coverage area --models synthetic --points 10",
+            "not accum",
         ),
         case(
             "render {bunny} -o {out} R --coverage area --splat-shape disc",

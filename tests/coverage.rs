@@ -18,12 +18,13 @@ fn render(
     renderer: &mut Renderer,
     scene: &Scene,
     options: &RenderOptions,
-    coverage: Coverage,
+    coverage: Option<Coverage>,
 ) -> LinearImage {
     renderer.set_coverage(coverage);
     let r = renderer.render(scene, options).expect("render");
     let areas = pass_count(&r, "gbuffer.area");
-    let want = u32::from(coverage == Coverage::Area && !matches!(options.method, Method::Accum(_)));
+    let area = coverage.unwrap_or_default() == Coverage::Area;
+    let want = u32::from(area && !matches!(options.method, Method::Accum(_)));
     assert_eq!(areas, want, "{coverage:?} {:?}", options.method);
     r.image
 }
@@ -52,8 +53,8 @@ fn area_coverage_sees_a_square_edge_as_its_area() {
                 ssaa: k,
                 ..common::options(common::camera(96, 72), Method::Pinhole)
             };
-            let area = render(&mut renderer, &scene, &options, Coverage::Area);
-            let samples = render(&mut renderer, &scene, &options, Coverage::Samples);
+            let area = render(&mut renderer, &scene, &options, Some(Coverage::Area));
+            let samples = render(&mut renderer, &scene, &options, Some(Coverage::Samples));
             let alpha = |x: usize, y: usize| area.pixels[y * 96 + x][3];
             let (mut rows, mut columns) = (0.0f32, 0.0f32);
             for t in 16..=55 {
@@ -110,8 +111,8 @@ fn a_frame_of_one_splat_keeps_its_samples_bit_for_bit() {
                 background: Vec3::new(0.05, 0.1, 0.2),
                 ..common::options(common::camera(96, 72), Method::Pinhole)
             };
-            let area = render(&mut renderer, &scene, &options, Coverage::Area);
-            let samples = render(&mut renderer, &scene, &options, Coverage::Samples);
+            let area = render(&mut renderer, &scene, &options, Some(Coverage::Area));
+            let samples = render(&mut renderer, &scene, &options, Some(Coverage::Samples));
             assert_eq!(differing(&area, &samples), 0, "{what}");
         }
     });
@@ -146,9 +147,9 @@ fn area_coverage_brings_the_edges_near_k8_and_every_method_follows() {
             },
         };
         let k8 = RenderOptions { ssaa: 8, ..base };
-        let converged = render(&mut renderer, &scene, &k8, Coverage::Samples);
-        let samples = render(&mut renderer, &scene, &base, Coverage::Samples);
-        let area = render(&mut renderer, &scene, &base, Coverage::Area);
+        let converged = render(&mut renderer, &scene, &k8, Some(Coverage::Samples));
+        let samples = render(&mut renderer, &scene, &base, Some(Coverage::Samples));
+        let area = render(&mut renderer, &scene, &base, Some(Coverage::Area));
         let (s, a) = (
             psnr(&converged, &samples).unwrap(),
             psnr(&converged, &area).unwrap(),
@@ -160,18 +161,18 @@ fn area_coverage_brings_the_edges_near_k8_and_every_method_follows() {
             ssaa: 1,
             ..base
         };
-        let reference = render(&mut renderer, &scene, &reference, Coverage::Area);
+        let reference = render(&mut renderer, &scene, &reference, None);
         let fast = Method::Fast(Default::default());
         for method in [Method::layered(2), fast, Method::rdb(5, Default::default())] {
             let options = RenderOptions { method, ..base };
             let s = psnr(
                 &reference,
-                &render(&mut renderer, &scene, &options, Coverage::Samples),
+                &render(&mut renderer, &scene, &options, Some(Coverage::Samples)),
             )
             .unwrap();
             let a = psnr(
                 &reference,
-                &render(&mut renderer, &scene, &options, Coverage::Area),
+                &render(&mut renderer, &scene, &options, Some(Coverage::Area)),
             )
             .unwrap();
             eprintln!("{method:?} against accum 32: samples {s:.2} dB, area {a:.2} dB");
@@ -179,6 +180,36 @@ fn area_coverage_brings_the_edges_near_k8_and_every_method_follows() {
                 a >= s - 0.05,
                 "{method:?}: area {a:.2} dB, samples {s:.2} dB"
             );
+        }
+    });
+}
+
+/// One rule for where area coverage acts
+/// (`pointlens::options::area_coverage_blocker`): asked for, it is refused
+/// on a frame it cannot act on (accum, the sprite raster); left to the
+/// default, such a frame takes the samples' mean.
+#[test]
+fn an_asked_for_area_coverage_that_cannot_act_is_refused() {
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let one = common::cloud(&[(Vec3::new(0.0, 0.0, -2.0), Vec3::ONE)]);
+        let scene = renderer.upload(&one, SplatSize::Pixels(10.5)).unwrap();
+        let camera = common::camera(32, 24);
+        for (method, raster) in [
+            (Method::accum(2), Raster::Compute),
+            (Method::Pinhole, Raster::Sprites),
+        ] {
+            let options = common::options(camera, method);
+            renderer.set_raster(raster);
+            renderer.set_coverage(Some(Coverage::Area));
+            let err = renderer.render(&scene, &options).err().expect("refused");
+            assert!(
+                err.to_string().contains("--coverage area weighs"),
+                "{method:?} {raster:?}: {err}"
+            );
+            renderer.set_coverage(None);
+            let r = renderer.render(&scene, &options).expect("the default");
+            assert_eq!(pass_count(&r, "gbuffer.area"), 0, "{method:?} {raster:?}");
         }
     });
 }

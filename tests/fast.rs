@@ -425,7 +425,7 @@ fn the_block_tree_and_the_pixel_loop_agree_bit_for_bit_where_sums_are_exact() {
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
         // The samples' means, in quarters (area coverage weighs by areas).
-        renderer.set_coverage(Coverage::Samples);
+        renderer.set_coverage(Some(Coverage::Samples));
         let mut cam = camera(96, 72);
         cam.focus_distance = 1.0;
         cam.aperture_radius = 0.3;

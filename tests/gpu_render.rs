@@ -158,7 +158,7 @@ fn a_half_covered_pixel_gets_half_the_color() {
         };
         let v = edge(&renderer);
         assert!((v - 0.5 * color.x).abs() < 2e-3, "area edge {v}");
-        renderer.set_coverage(Coverage::Samples);
+        renderer.set_coverage(Some(Coverage::Samples));
         let v = edge(&renderer);
         assert!(v == 0.0 || (v - color.x).abs() < 2e-3, "hard edge {v}");
     });

@@ -287,7 +287,7 @@ fn a_single_pixel_spreads_as_the_cpu_disk_says_with_its_energy() {
         let mut renderer = Renderer::new(ctx).unwrap();
         // One sample lit: the samples' G-buffer (by area the splat's
         // square lights the four pixels it straddles).
-        renderer.set_coverage(Coverage::Samples);
+        renderer.set_coverage(Some(Coverage::Samples));
         let color = Vec3::new(0.9, 0.5, 0.25);
         // One point on the axis at z = 1, one pixel wide; focus at 2.
         let scene = renderer

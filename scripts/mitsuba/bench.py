@@ -227,7 +227,7 @@ def methods(args, scene):
     """pointlens methods: (name as `bench` names it, render flags); accum's
     sample counts from --accum, else the scene's. With --ssaa, each method
     at each K, named with `-ssaaK`; with --coverage, each at each
-    coverage, named with `-area` or `-samples`."""
+    coverage, named with `-area` or `-samples` (accum by samples only)."""
     m = [("pinhole", ["--method", "pinhole"]), ("fast", ["--method", "fast"]),
          ("fast-tree", ["--method", "fast", "--fast-gather", "tree"]),
          ("rdb9", ["--method", "rdb", "--rdb-bins", "9"]),
@@ -245,7 +245,9 @@ def methods(args, scene):
     # --lod-px 0: every splat, as Mitsuba draws them.
     raster += ["--lod-px", f"{args.lod_px:g}"] if args.lod_px is not None else []
     if args.coverage:
-        m = [(f"{name}-{c}", flags + ["--coverage", c]) for c in args.coverage for name, flags in m]
+        # accum refuses area (a G-buffer per lens position): its samples only.
+        m = [(f"{name}-{c}", flags + ["--coverage", c]) for c in args.coverage for name, flags in m
+             if c == "samples" or not name.startswith("accum")]
     if not args.ssaa:
         return [(name, flags + raster) for name, flags in m]
     return [(f"{name}-ssaa{k}", flags + raster + ["--ssaa", str(k)]) for k in args.ssaa for name, flags in m]

@@ -214,7 +214,9 @@ void main() {
     uint64_t word = (uint64_t(floatBitsToUint(s.z)) << 32) | uint64_t(i);
     if (pass_stage() == 0u) {
 #ifndef SPLAT_PEEL
-        squares[i] = vec4(s.p, s.size_px, s.z);
+        if (writes_squares()) {
+            squares[i] = vec4(s.p, s.size_px, s.z);
+        }
 #endif
         if (n > LARGE_PIXELS) {
             large[atomicAdd(large_dispatch[0], 1u)] = i;

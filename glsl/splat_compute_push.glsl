@@ -21,12 +21,17 @@ layout(push_constant, std430) uniform SplatComputePush {
     float max_point_size;
     float min_point_size;
     uint count;    // splats
-    // Bits 0–15: the pass's stage; bits 16–31: the compute rasteriser's
-    // target pixels per G-buffer pixel along each axis, the cells of its
-    // rotated sample grid (splat_compute_main.glsl; 0 in the peel's cull).
+    // Bits 0–14: the pass's stage; bit 15: the compute rasteriser writes
+    // each splat's square (for the area resolve); bits 16–31: its target
+    // pixels per G-buffer pixel along each axis, the cells of its rotated
+    // sample grid (splat_compute_main.glsl; 0 in the peel's cull).
     uint stage_cells;
 } pc;
 
 uint pass_stage() {
-    return pc.stage_cells & 0xffffu;
+    return pc.stage_cells & 0x7fffu;
+}
+
+bool writes_squares() {
+    return (pc.stage_cells & 0x8000u) != 0u;
 }

@@ -489,6 +489,7 @@ impl GBuffer {
                     scale * w,
                     scale * (band + 2 * band_halo_rows(plan.bands)),
                     compute_splats,
+                    area,
                 )?)
             }
         };

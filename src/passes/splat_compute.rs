@@ -73,9 +73,12 @@ pub struct Visibility {
     /// One per target pixel (a sample).
     pub words: Buffer,
     /// Per splat index, the square the pass drew (centre and edge in
-    /// target pixels, eye depth: 4 floats), for the area resolve; a depth
-    /// peel's target has none (the peel writes none).
+    /// target pixels, eye depth: 4 floats), for the area resolve; one
+    /// unwritten square where the G-buffer resolves by its samples, none
+    /// in a depth peel's target (the peel writes none).
     squares: Option<Buffer>,
+    /// Whether the pass writes the squares (the area resolve reads them).
+    writes_squares: bool,
     large: Buffer,
     width: u32,
     height: u32,
@@ -83,16 +86,25 @@ pub struct Visibility {
 
 impl Visibility {
     /// The buffers of a first layer's `width` × `height` target for up
-    /// to `splats` splats, the squares' included.
-    pub fn new(ctx: &Arc<Context>, width: u32, height: u32, splats: u32) -> Result<Visibility> {
+    /// to `splats` splats, with their squares where `squares` (the area
+    /// resolve reads them; else the pass writes none and holds one).
+    pub fn new(
+        ctx: &Arc<Context>,
+        width: u32,
+        height: u32,
+        splats: u32,
+        squares: bool,
+    ) -> Result<Visibility> {
         let mut target = Visibility::peel(ctx, width, height, splats)?;
+        let held = if squares { splats.max(1) } else { 1 };
         target.squares = Some(Buffer::new(
             ctx,
             "raster squares",
-            SQUARE_BYTES * splats.max(1) as u64,
+            SQUARE_BYTES * held as u64,
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryLocation::GpuOnly,
         )?);
+        target.writes_squares = squares;
         Ok(target)
     }
 
@@ -108,6 +120,7 @@ impl Visibility {
         Ok(Visibility {
             words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
             squares: None,
+            writes_squares: false,
             large: Buffer::new(
                 ctx,
                 "large splats",
@@ -130,8 +143,16 @@ impl Visibility {
         self.height
     }
 
-    /// The squares of a first layer's target ([`Visibility::new`]).
+    /// The squares of a first layer's target that writes them
+    /// ([`Visibility::new`]).
     pub fn squares(&self) -> &Buffer {
+        assert!(self.writes_squares, "a target without squares");
+        self.squares_bind()
+    }
+
+    /// The buffer bound as the first layer's squares: written where
+    /// [`Visibility::writes_squares`], else one square never written.
+    fn squares_bind(&self) -> &Buffer {
         let squares = self.squares.as_ref();
         squares.expect("a first layer's target holds the squares")
     }
@@ -213,7 +234,7 @@ impl ComputeRaster {
                 &self.peel
             }
             None => {
-                binds.push(Bind::StorageBuffer(target.squares()));
+                binds.push(Bind::StorageBuffer(target.squares_bind()));
                 &self.pipeline
             }
         };
@@ -229,7 +250,9 @@ impl ComputeRaster {
             rec.fill_u32(&target.words, u32::MAX);
             rec.update_u32(&target.large, &[0, large_chunks(push.max_point_size), 1, 0]);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
-            let small = base.with_stage(0, cells);
+            let small = base
+                .with_stage(0, cells)
+                .with_squares(target.writes_squares);
             rec.dispatch(pipeline, &binds, &small, [count.div_ceil(GROUP), 1, 1]);
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::INDIRECT_READ);

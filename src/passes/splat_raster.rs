@@ -62,7 +62,8 @@ push_constants! {
     /// peel's cull): [`SplatPush`] without its jitter, with the splat
     /// count and the pass's stage (128 bytes).
     ///
-    /// `stage_cells` is the pass's stage in bits 0–15 and, for the compute
+    /// `stage_cells` is the pass's stage in bits 0–14, whether the compute
+    /// rasteriser writes the squares in bit 15 and, for the compute
     /// rasteriser, its target pixels per G-buffer pixel along each axis
     /// (the cells of its rotated sample grid) in bits 16–31:
     /// [`SplatComputePush::with_stage`].
@@ -123,11 +124,20 @@ impl SplatComputePush {
     /// cull).
     pub fn with_stage(self, stage: u32, cells: u32) -> SplatComputePush {
         assert!(
-            stage <= 0xffff && cells <= 0xffff,
+            stage <= 0x7fff && cells <= 0xffff,
             "stage {stage}, cells {cells}"
         );
         SplatComputePush {
             stage_cells: stage | cells << 16,
+            ..self
+        }
+    }
+
+    /// The same push, the compute rasteriser writing each splat's square
+    /// (for the area resolve) where `squares`.
+    pub fn with_squares(self, squares: bool) -> SplatComputePush {
+        SplatComputePush {
+            stage_cells: (self.stage_cells & !0x8000) | (u32::from(squares) << 15),
             ..self
         }
     }

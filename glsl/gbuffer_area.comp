@@ -38,11 +38,7 @@ layout(push_constant, std430) uniform AreaPush {
     vec4 background;       // linear RGB of an uncovered sample
 } pc;
 
-const uint64_t NOTHING = ~uint64_t(0);
-
-uint64_t word_at(ivec2 t) {
-    return visibility[uint(t.y) * pc.target_width + uint(t.x)];
-}
+#include "visibility_word.glsl"
 
 // The raster's squares by splat index: centre and edge (target pixels),
 // eye depth (splat_compute_main.glsl).
@@ -188,7 +184,7 @@ void main() {
             if (skip) {
                 continue;
             }
-            vec4 sq = squares[uint(word & 0xffffffffUL)];
+            vec4 sq = squares[word_splat(word)];
             vec2 a = sq.xy - 0.5 * sq.z - vec2(block);
             vec2 b = sq.xy + 0.5 * sq.z - vec2(block);
             vec4 box = vec4(a.x, b.x, a.y, b.y);
@@ -240,7 +236,7 @@ void main() {
                 uint64_t word = word_at(ivec2(x, y));
                 vec4 seen = word == NOTHING
                     ? vec4(pc.background.rgb, 0.0)
-                    : vec4(pc.color_scale * splat_color(uint(word & 0xffffffffUL)), 1.0);
+                    : vec4(pc.color_scale * splat_color(word_splat(word)), 1.0);
                 bool own = u >= 0 && u < k && v >= 0 && v < k;
                 rest_own += own ? seen : vec4(0.0);
                 own_samples += own ? 1.0 : 0.0;
@@ -284,7 +280,7 @@ void main() {
                 }
             }
             area /= per_target_px;
-            color += area * splat_color(uint(words[c] & 0xffffffffUL));
+            color += area * splat_color(word_splat(words[c]));
             covered += area;
         }
     }

@@ -36,12 +36,14 @@ layout(push_constant, std430) uniform VisPush {
     int target_end_row;  // the G-buffer row after the target's last
 } pc;
 
+#include "visibility_word.glsl"
+
 vec4 target_sample(ivec2 q) {
-    uint64_t word = visibility[uint(q.y) * pc.target_width + uint(q.x)];
-    if (word == ~uint64_t(0)) {
+    uint64_t word = word_at(q);
+    if (word == NOTHING) {
         return vec4(pc.background.rgb, 1.0 / 0.0);
     }
-    uint i = uint(word & 0xffffffffUL);
+    uint i = word_splat(word);
     uvec2 c = splat_pairs[3u * i + 2u];
     vec3 color = vec3(unpackUnorm2x16(c.x), unpackUnorm2x16(c.y).x);
     return vec4(color, uintBitsToFloat(uint(word >> 32)));
@@ -59,7 +61,7 @@ bool all_of(ivec2 lo, ivec2 hi, uint64_t first) {
     bool one = true;
     for (int y = lo.y; y < hi.y; ++y) {
         for (int x = lo.x; x < hi.x; ++x) {
-            one = one && visibility[uint(y) * pc.target_width + uint(x)] == first;
+            one = one && word_at(ivec2(x, y)) == first;
         }
     }
     return one;
@@ -77,7 +79,7 @@ void main() {
     }
     ivec2 block, lo, hi;
     area_window(p, int(pc.scale), pc.extent.x, TARGET_FIRST_ROW, pc.target_end_row, block, lo, hi);
-    if (!all_of(lo, hi, visibility[uint(block.y) * pc.target_width + uint(block.x)])) {
+    if (!all_of(lo, hi, word_at(block))) {
         mark(p);
     }
 #endif

@@ -17,7 +17,7 @@ Prints a Markdown table per scene and writes, for the first scene, the
 class map and the K = 3 error image as PNGs. Run with the venv's Python:
 
     ~/.cache/pointlens/venv-mitsuba/bin/python scripts/research/gbuffer_error.py \\
-        --pointlens PATH --export-splats PATH --work DIR [--images DIR]
+        --pointlens PATH --export-splats PATH --work DIR [--images DIR] [--size WxH]
 """
 
 import argparse
@@ -82,7 +82,8 @@ def study(args, mi, dr, scene):
     if "--aperture-radius" in flags:
         i = flags.index("--aperture-radius")
         del flags[i:i + 2]
-    size = ["--width", "640", "--height", "480"]
+    width, height = args.size.split("x")
+    size = ["--width", width, "--height", height]
     cam = json.loads(run([args.pointlens, "render", ply, "-o", d / "probe.exr", "--method", "pinhole",
                           *size, *flags, "--print-camera"]))
     # A pinhole: Mitsuba's `perspective` sensor (the printed camera has the
@@ -159,6 +160,7 @@ def main():
     p.add_argument("--work", required=True)
     p.add_argument("--repo", default=str(HERE.parent.parent))
     p.add_argument("--scenes", default="bunny,mug,autzen")
+    p.add_argument("--size", default="640x480", help="the frames' WIDTHxHEIGHT")
     p.add_argument("--images", default=None)
     args = p.parse_args()
     import mitsuba as mi

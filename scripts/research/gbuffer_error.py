@@ -168,7 +168,7 @@ def main():
     mi.set_variant("llvm_ad_rgb")
     for n, scene in enumerate(args.scenes.split(",")):
         cls, rows, pixels, estimates, area = study(args, mi, dr, scene)
-        print(f"\n### {scene} (640×480, every splat, Mitsuba {REF_SPP} spp pinhole)\n")
+        print(f"\n### {scene} ({args.size.replace('x', '×')}, every splat, Mitsuba {REF_SPP} spp pinhole)\n")
         print("pixels: " + ", ".join(f"{c} {100 * s:.1f} %" for c, s in zip(CLASSES, pixels)) + "\n")
         print("| K | PSNR | " + " | ".join(f"{c} share of the error" for c in CLASSES[:3])
               + " | PSNR with edges exact | PSNR with depth steps exact |")

@@ -31,7 +31,10 @@ fn small_cloud() -> PointCloud {
     let points: Vec<(Vec3, Vec3)> = (0..256)
         .map(|i| {
             let (x, y) = ((i % 16) as f32 / 15.0 - 0.5, (i / 16) as f32 / 15.0 - 0.5);
-            (Vec3::new(x, y, -1.5 - 0.3 * x), Vec3::new(x + 0.5, y + 0.5, 0.5))
+            (
+                Vec3::new(x, y, -1.5 - 0.3 * x),
+                Vec3::new(x + 0.5, y + 0.5, 0.5),
+            )
         })
         .collect();
     PointCloud {

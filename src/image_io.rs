@@ -783,6 +783,28 @@ fn sync_parent_dir(path: &Path) {
 /// Errors name `path`: [`Error::Io`] when the file cannot be opened or read,
 /// [`Error::Image`] when it is not a PNG/EXR or cannot be decoded.
 pub fn read_image(path: &Path) -> Result<LinearImage> {
+    Ok(read_image_format(path)?.0)
+}
+
+/// Reads a PNG or EXR file as a premultiplied linear-light image, as
+/// pointlens's EXR holds it: a PNG's straight color ([`write_png_rgba`])
+/// is multiplied by its alpha, an EXR's is taken as it is. So the PNG and
+/// the EXR of one transparent frame read alike (`pointlens compare`).
+pub fn read_image_premultiplied(path: &Path) -> Result<LinearImage> {
+    let (mut image, format) = read_image_format(path)?;
+    if format == FileFormat::Png {
+        for p in &mut image.pixels {
+            let a = p[3];
+            p[0] *= a;
+            p[1] *= a;
+            p[2] *= a;
+        }
+    }
+    Ok(image)
+}
+
+/// [`read_image`] and the file's format.
+fn read_image_format(path: &Path) -> Result<(LinearImage, FileFormat)> {
     let file = File::open(path).map_err(|source| io_err(path, source))?;
     let mut reader = ImageReader::new(BufReader::new(file))
         .with_guessed_format()
@@ -808,11 +830,14 @@ pub fn read_image(path: &Path) -> Result<LinearImage> {
     } else {
         srgb_pixels_to_linear(decoded)
     };
-    Ok(LinearImage {
-        width,
-        height,
-        pixels,
-    })
+    Ok((
+        LinearImage {
+            width,
+            height,
+            pixels,
+        },
+        format,
+    ))
 }
 
 /// sRGB-decodes the color channels of an integer image; alpha stays linear.

@@ -63,8 +63,8 @@ enum Command {
     // unknown flag `-3`).
     #[command(after_help = console::RENDER_EXAMPLES, allow_negative_numbers = true)]
     Render(Box<RenderArgs>),
-    /// Compare two images (PNG or EXR) of the same size: PSNR (dB) and max
-    /// absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
+    /// Compare two images (PNG or EXR; colour premultiplied) of the same size:
+    /// PSNR (dB) and max absolute error over sRGB R, G, B in [0, 1], SSIM on luma.
     Compare {
         a: PathBuf,
         b: PathBuf,

@@ -165,6 +165,9 @@ pub fn ssim(a: &LinearImage, b: &LinearImage) -> Result<f64> {
 /// `pointlens compare`: PSNR, SSIM and the largest absolute error of the
 /// images at `a` and `b` as `name: value` lines, and where `diff` names a
 /// file the difference as a heat map (black: none, white: the largest).
+/// Both are compared premultiplied, as an EXR holds its color: a
+/// transparent PNG's straight color is multiplied by its alpha
+/// ([`crate::image_io::read_image_premultiplied`]).
 pub fn compare_files(
     a: &std::path::Path,
     b: &std::path::Path,
@@ -174,8 +177,8 @@ pub fn compare_files(
         crate::image_io::check_output_path(d)?;
     }
     let (ia, ib) = (
-        crate::image_io::read_image(a)?,
-        crate::image_io::read_image(b)?,
+        crate::image_io::read_image_premultiplied(a)?,
+        crate::image_io::read_image_premultiplied(b)?,
     );
     let psnr = psnr(&ia, &ib)?;
     let ssim = ssim(&ia, &ib)?;

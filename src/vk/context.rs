@@ -150,8 +150,10 @@ pub struct Context {
     pub(super) push_descriptor: ash::khr::push_descriptor::Device,
     pub(super) queue: vk::Queue,
     /// Held while submitting to `queue` (Vulkan requires it externally
-    /// synchronised; the context is shared between threads).
-    queue_submit: Mutex<()>,
+    /// synchronised; the context is shared between threads). It holds the
+    /// fence of the flush that follows each frame under the validation
+    /// layer ([`Context::queue_lock`]; null without validation).
+    queue_submit: Mutex<vk::Fence>,
     pub(super) queue_family: u32,
     allocator: ManuallyDrop<Mutex<Allocator>>,
     /// The last frames' dropped images and buffers, for the next frame.
@@ -360,7 +362,7 @@ impl Context {
             debug_utils,
             push_descriptor,
             queue,
-            queue_submit: Mutex::new(()),
+            queue_submit: Mutex::new(vk::Fence::null()),
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             pool: Mutex::new(Pool::default()),
@@ -368,11 +370,33 @@ impl Context {
             validation: options.validation,
         };
         ctx.set_name(ctx.queue, "main queue");
+        if ctx.validation {
+            // SAFETY: plain object creation on this device; the context
+            // owns the fence from here on, and its Drop destroys it.
+            let fence = unsafe {
+                ctx.device
+                    .create_fence(&vk::FenceCreateInfo::default(), None)
+            }
+            .vk("vkCreateFence")?;
+            let mut ctx = ctx;
+            *ctx.queue_submit
+                .get_mut()
+                .unwrap_or_else(|p| p.into_inner()) = fence;
+            ctx.set_name(fence, "frame flush");
+            return Ok(Arc::new(ctx));
+        }
         Ok(Arc::new(ctx))
     }
 
-    /// The lock held while submitting to the queue.
-    pub(super) fn queue_lock(&self) -> MutexGuard<'_, ()> {
+    /// The lock held while submitting to the queue, with the fence of the
+    /// flush that follows a frame under the validation layer (null
+    /// without): [`super::Frame::submit_and_wait`] submits nothing with it
+    /// and waits, so that the layer's own threads have let go of the
+    /// frame's command buffer before its pool is destroyed (the layer of
+    /// Debian 12, 1.3.239, can otherwise destroy a command buffer's state
+    /// on its thread while this one records labels: the race of
+    /// `examples/label_race.rs`, docs/bench/history/heap-at-exit.md).
+    pub(super) fn queue_lock(&self) -> MutexGuard<'_, vk::Fence> {
         self.queue_submit
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
@@ -570,8 +594,14 @@ impl Drop for Context {
             let _ = self.device.device_wait_idle();
         }
         self.release_pool();
-        // SAFETY: as above; the pool is empty now.
+        let flush = *self
+            .queue_submit
+            .get_mut()
+            .unwrap_or_else(|p| p.into_inner());
+        // SAFETY: as above; the pool is empty now, and the flush fence is
+        // not in use (the device is idle; a null one is ignored).
         unsafe {
+            self.device.destroy_fence(flush, None);
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
             if let Some(m) = self.messenger.take() {

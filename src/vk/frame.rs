@@ -212,14 +212,16 @@ impl<'r> Frame<'r> {
         let cmds = [self.cmd];
         let submit = vk::SubmitInfo::default().command_buffers(&cmds);
         // SAFETY: the buffer was recorded by this frame and is submitted once;
-        // the fence is unsignalled and waited on before anything is read.
+        // the fence is unsignalled and waited on before anything is read;
+        // the flush fence is the context's, unsignalled between uses, and
+        // used only under the queue's lock.
         unsafe {
             ctx.device
                 .end_command_buffer(self.cmd)
                 .vk("vkEndCommandBuffer")?;
             // The queue is externally synchronised: one submission at a
             // time, whichever thread shares the context.
-            let _queue = ctx.queue_lock();
+            let flush = ctx.queue_lock();
             if let Some(result) = super::context::injected_fault("vkQueueSubmit") {
                 return Err(crate::error::Error::Vulkan {
                     call: "vkQueueSubmit",
@@ -232,17 +234,27 @@ impl<'r> Frame<'r> {
             ctx.device
                 .wait_for_fences(&[self.fence], true, u64::MAX)
                 .vk("vkWaitForFences")?;
-            // And the queue idle before the frame's objects are destroyed:
-            // the fence is enough by the specification, but a test process
-            // of 1,000 frames under validation once aborted on a corrupted
-            // heap (CI, lavapipe of Mesa 22.3) that 250 runs here did not
-            // reproduce, and a driver that finishes a submission on a
-            // thread of its own after signalling the fence is the
-            // suspected cause (docs/ARCHITECTURE.md, "The frame"). The
-            // queue holds nothing else: a wait on an empty queue.
-            ctx.device
-                .queue_wait_idle(ctx.queue)
-                .vk("vkQueueWaitIdle")?;
+            // Under the validation layer, a submission of nothing with the
+            // context's flush fence, waited for: the layer retires each
+            // submission on a thread of its own and lets go of its command
+            // buffers only after it has signalled the waiters, so without
+            // this the frame's pool, destroyed next, could leave the last
+            // reference to a command buffer's state on that thread, whose
+            // destructor (layer 1.3.239, Debian 12's) then erases the
+            // buffer's labels from a map this thread writes while it records
+            // the next frame, without the lock: a corrupted heap
+            // (Context::queue_lock, examples/label_race.rs). The layer
+            // retires in order, so the flush retired means the frame's
+            // submission is let go of too.
+            if *flush != vk::Fence::null() {
+                ctx.device
+                    .queue_submit(ctx.queue, &[], *flush)
+                    .vk("vkQueueSubmit")?;
+                ctx.device
+                    .wait_for_fences(&[*flush], true, u64::MAX)
+                    .vk("vkWaitForFences")?;
+                ctx.device.reset_fences(&[*flush]).vk("vkResetFences")?;
+            }
             // Injected after the real wait, so the work is done and the
             // frame's resources are free to destroy, as after a device lost
             // while waiting.

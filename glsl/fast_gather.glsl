@@ -55,7 +55,7 @@ layout(push_constant, std430) uniform Push {
     int shape_rows;
     float focus_distance;
     float shape_inner;
-    vec2 pad;
+    vec2 shape_inner_box; // ShapeRows::inner_box: half-width, half-height
     vec4 shape_box;  // the shape's bounding box: x min, x max, y min, y max
 } pc;
 
@@ -179,11 +179,15 @@ void main() {
                             // so the largest c bounds every pixel's test),
                             // or of the shape's box.
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
-                                && bound.y <= zq && !(far2 > 0.25 * bound.z * bound.z * inner2)) {
+                                && bound.y <= zq
+                                && (!(far2 > 0.25 * bound.z * bound.z * inner2)
+                                    || (pc.shaped != 0u
+                                        && all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))))) {
                             // Every pixel passes: inside the window, none
                             // behind Q, the farthest within the smallest
-                            // disk's reach (a shape's: its inner disk's,
-                            // inside every chord, turned or not).
+                            // disk's reach (a shape's: its inner disk's or
+                            // inner box's, inside every chord, turned or
+                            // not).
                             sum += sums[at];
                             weight += weights[at];
                         } else if (l > TREE_LEAF_LEVEL) {

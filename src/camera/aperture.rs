@@ -735,12 +735,7 @@ impl ShapeRows {
     pub fn inner_radius(&self) -> f32 {
         let mut inner = f32::INFINITY;
         for (y0, y1, [lo, hi]) in self.rows() {
-            // The row's point nearest the centre's row.
-            let dy = if y0 <= 0.0 && y1 >= 0.0 {
-                0.0
-            } else {
-                y0.abs().min(y1.abs())
-            };
+            let dy = row_distance(y0, y1);
             // Outside the chord: x below lo or above hi (an empty chord,
             // lo > hi, excludes the whole row).
             let dx = if lo > hi || lo > 0.0 || hi < 0.0 {
@@ -751,6 +746,58 @@ impl ShapeRows {
             inner = inner.min((dx * dx + dy * dy).sqrt());
         }
         (inner * (1.0 - 1e-5)).max(0.0)
+    }
+
+    /// The half-width and half-height of the largest-area rectangle about
+    /// the lens centre that every lens position inside, and its mirror
+    /// through the centre, passes by these chords (the rows' own test, as
+    /// [`ShapeRows::inner_radius`]) and within the unit circle, less a
+    /// float's rounding: the tree gather also takes a block whole where
+    /// all its pixels lie within it ([0, 0] where none has area).
+    pub fn inner_box(&self) -> [f32; 2] {
+        // A row's distance from the centre's row, and the half-width of
+        // the chord about the centre it holds (0 for a row that holds
+        // none, or a chord not about the centre).
+        let mut rows: Vec<(f32, f32)> = self
+            .rows()
+            .map(|(y0, y1, [lo, hi])| {
+                let about_centre = lo <= 0.0 && hi >= 0.0;
+                (
+                    row_distance(y0, y1),
+                    if about_centre { (-lo).min(hi) } else { 0.0 },
+                )
+            })
+            .collect();
+        rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // A half-height b reaches the rows nearer than b: for each next
+        // distance, the rows before it and the widest x they all hold.
+        let (mut best, mut best_area) = ([0.0f32; 2], 0.0f32);
+        let mut a = f32::INFINITY;
+        for i in 0..rows.len() {
+            a = a.min(rows[i].1);
+            let b = rows.get(i + 1).map_or(1.0, |next| next.0);
+            if i + 1 < rows.len() && rows[i + 1].0 == rows[i].0 {
+                continue;
+            }
+            // Within the circle too: the pixel test's |u| ≤ 1.
+            let a_in = a.min((1.0 - b * b).max(0.0).sqrt());
+            let [a_in, b] = [a_in, b].map(|v| (v * (1.0 - 1e-5)).max(0.0));
+            if a_in * b > best_area {
+                best_area = a_in * b;
+                best = [a_in, b];
+            }
+        }
+        best
+    }
+}
+
+/// The distance from the lens centre's row (y = 0) to the nearest point
+/// of the row [y0, y1] (0 for the row that holds it).
+fn row_distance(y0: f32, y1: f32) -> f32 {
+    if y0 <= 0.0 && y1 >= 0.0 {
+        0.0
+    } else {
+        y0.abs().min(y1.abs())
     }
 }
 
@@ -1091,6 +1138,33 @@ mod tests {
                 let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1);
                 let [lo, hi] = rows.chords[k as usize];
                 assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+            }
+        }
+    }
+
+    /// The inner box holds every lens position inside it and its mirror
+    /// by the rows' own test, reaches beyond the inner disk, and is no
+    /// larger than the shape's box.
+    #[test]
+    fn the_inner_box_is_inside_every_chord() {
+        let squeezed = Aperture {
+            ratio: 0.5,
+            ..blades(6, 0.0)
+        };
+        for aperture in [blades(6, 15.0), blades(5, 17.0), squeezed] {
+            let rows = aperture.shape_rows(512);
+            let [a, b] = rows.inner_box();
+            let inner = rows.inner_radius();
+            assert!(a * a + b * b > inner * inner, "{a}, {b} within {inner}");
+            assert!(a * a + b * b <= 1.0);
+            let n = rows.chords.len();
+            for i in 0..=200 {
+                for j in 0..=200 {
+                    let u = Vec2::new(a * (i as f32 / 100.0 - 1.0), b * (j as f32 / 100.0 - 1.0));
+                    let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1);
+                    let [lo, hi] = rows.chords[k as usize];
+                    assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+                }
             }
         }
     }

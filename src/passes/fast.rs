@@ -84,7 +84,7 @@ push_constants! {
         shape_rows: i32,
         focus_distance: f32,
         shape_inner: f32,
-        pad: [f32; 2],
+        shape_inner_box: [f32; 2],
         shape_box: [f32; 4],
     }
 }
@@ -224,6 +224,8 @@ struct ShapeTerms {
     y_max: f32,
     /// [`ShapeRows::inner_radius`].
     inner: f32,
+    /// [`ShapeRows::inner_box`].
+    inner_box: [f32; 2],
     /// [`ShapeRows::bounding_box`].
     bounding_box: [f32; 4],
 }
@@ -237,6 +239,7 @@ impl ShapeTerms {
                 y_min: s.y_min,
                 y_max: s.y_max,
                 inner: s.inner_radius(),
+                inner_box: s.inner_box(),
                 bounding_box: s.bounding_box(),
             },
             None => ShapeTerms {
@@ -245,6 +248,7 @@ impl ShapeTerms {
                 y_min: 0.0,
                 y_max: 0.0,
                 inner: 1.0,
+                inner_box: [0.0; 2],
                 bounding_box: [-1.0, 1.0, -1.0, 1.0],
             },
         }
@@ -573,7 +577,7 @@ impl FastFrame<'_> {
                     shape_rows: images.shape.rows,
                     focus_distance: camera.focus_distance,
                     shape_inner: images.shape.inner,
-                    pad: [0.0; 2],
+                    shape_inner_box: images.shape.inner_box,
                     shape_box: images.shape.bounding_box,
                 },
                 [groups(ow, 8), groups(oh, 8), 1],

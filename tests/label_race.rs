@@ -59,8 +59,8 @@ fn frames(count: u32, passes: u32) {
 
 /// Parent: builds the shim and runs the frames in three child processes
 /// under it, each of which must exit cleanly. Child: the frames, on the
-/// main thread (where the race shows most: about every other process
-/// before the flush; on a test harness's thread, rarely).
+/// main thread (where the race shows most: before the flush, 11 of 16
+/// such processes aborted; on a test harness's thread, rarely).
 fn main() {
     if std::env::var_os(CHILD).is_some() {
         frames(1_000, 64);
@@ -83,8 +83,8 @@ fn main() {
         "cc: {}",
         String::from_utf8_lossy(&cc.stderr)
     );
-    // Three processes of 1,000 frames: before the flush, about half of
-    // them aborted (so the three together 7 times in 8).
+    // Three processes of 1,000 frames: before the flush, the test failed
+    // in 1 of its 3 runs here (a child's abort ends it).
     for run in 1..=3 {
         let child = Command::new(std::env::current_exe().unwrap())
             .env(CHILD, "1")

@@ -353,7 +353,7 @@ impl Context {
         let debug_utils = ash::ext::debug_utils::Device::new(partial.instance(), &device);
         let push_descriptor = ash::khr::push_descriptor::Device::new(partial.instance(), &device);
         let (instance, messenger) = partial.take();
-        let ctx = Context {
+        let mut ctx = Context {
             _entry: entry,
             instance,
             messenger,
@@ -378,12 +378,10 @@ impl Context {
                     .create_fence(&vk::FenceCreateInfo::default(), None)
             }
             .vk("vkCreateFence")?;
-            let mut ctx = ctx;
             *ctx.queue_submit
                 .get_mut()
                 .unwrap_or_else(|p| p.into_inner()) = fence;
             ctx.set_name(fence, "frame flush");
-            return Ok(Arc::new(ctx));
         }
         Ok(Arc::new(ctx))
     }
@@ -395,7 +393,7 @@ impl Context {
     /// frame's command buffer before its pool is destroyed (the layer of
     /// Debian 12, 1.3.239, can otherwise destroy a command buffer's state
     /// on its thread while this one records labels: the race of
-    /// `examples/label_race.rs`, docs/bench/history/heap-at-exit.md).
+    /// `tests/label_race.rs`, docs/bench/history/heap-at-exit.md).
     pub(super) fn queue_lock(&self) -> MutexGuard<'_, vk::Fence> {
         self.queue_submit
             .lock()

@@ -243,7 +243,7 @@ impl<'r> Frame<'r> {
             // destructor (layer 1.3.239, Debian 12's) then erases the
             // buffer's labels from a map this thread writes while it records
             // the next frame, without the lock: a corrupted heap
-            // (Context::queue_lock, examples/label_race.rs). The layer
+            // (Context::queue_lock, tests/label_race.rs). The layer
             // retires in order, so the flush retired means the frame's
             // submission is let go of too.
             if *flush != vk::Fence::null() {

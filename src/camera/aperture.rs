@@ -735,14 +735,7 @@ impl ShapeRows {
     pub fn inner_radius(&self) -> f32 {
         let mut inner = f32::INFINITY;
         for (y0, y1, [lo, hi]) in self.rows() {
-            let dy = row_distance(y0, y1);
-            // Outside the chord: x below lo or above hi (an empty chord,
-            // lo > hi, excludes the whole row).
-            let dx = if lo > hi || lo > 0.0 || hi < 0.0 {
-                0.0
-            } else {
-                (-lo).min(hi)
-            };
+            let (dx, dy) = (row_half_width(lo, hi), row_distance(y0, y1));
             inner = inner.min((dx * dx + dy * dy).sqrt());
         }
         (inner * (1.0 - 1e-5)).max(0.0)
@@ -755,18 +748,9 @@ impl ShapeRows {
     /// float's rounding: the tree gather also takes a block whole where
     /// all its pixels lie within it ([0, 0] where none has area).
     pub fn inner_box(&self) -> [f32; 2] {
-        // A row's distance from the centre's row, and the half-width of
-        // the chord about the centre it holds (0 for a row that holds
-        // none, or a chord not about the centre).
         let mut rows: Vec<(f32, f32)> = self
             .rows()
-            .map(|(y0, y1, [lo, hi])| {
-                let about_centre = lo <= 0.0 && hi >= 0.0;
-                (
-                    row_distance(y0, y1),
-                    if about_centre { (-lo).min(hi) } else { 0.0 },
-                )
-            })
+            .map(|(y0, y1, [lo, hi])| (row_distance(y0, y1), row_half_width(lo, hi)))
             .collect();
         rows.sort_by(|a, b| a.0.total_cmp(&b.0));
         // A half-height b reaches the rows nearer than b: for each next
@@ -788,6 +772,17 @@ impl ShapeRows {
             }
         }
         best
+    }
+}
+
+/// The half-width of the chord [lo, hi] about x = 0: how far from the
+/// centre's column a row's test holds both ways (0 where the chord is
+/// empty, lo > hi, or does not hold x = 0).
+fn row_half_width(lo: f32, hi: f32) -> f32 {
+    if lo > hi || lo > 0.0 || hi < 0.0 {
+        0.0
+    } else {
+        (-lo).min(hi)
     }
 }
 
@@ -1103,6 +1098,15 @@ mod tests {
         }
     }
 
+    /// Lens position u passes the rows' own test (glsl/aperture.glsl's
+    /// `shape_row_index`: the row of u.y, u.x within its chord).
+    fn assert_rows_pass(rows: &ShapeRows, u: Vec2) {
+        let n = rows.chords.len() as i64;
+        let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n - 1);
+        let [lo, hi] = rows.chords[k as usize];
+        assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+    }
+
     /// The inner radius is the shapes' (the regular polygons' cos(π/N); a
     /// hexagon squeezed to half its height, its slanted sides from
     /// (cos 30°, ¼) to (0, ½): cos 30° / 2 over |(¼, cos 30°)|), and every
@@ -1128,23 +1132,19 @@ mod tests {
                 inner <= expected && inner > expected - 0.01,
                 "{inner} against {expected}"
             );
-            let n = rows.chords.len();
             for i in 0..20_000 {
                 let (a, r) = (
                     i as f32 * 2.399_963,
                     inner * ((i % 997) as f32 / 996.0).sqrt(),
                 );
-                let u = r * Vec2::new(a.cos(), a.sin());
-                let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1);
-                let [lo, hi] = rows.chords[k as usize];
-                assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+                assert_rows_pass(&rows, r * Vec2::new(a.cos(), a.sin()));
             }
         }
     }
 
     /// The inner box holds every lens position inside it and its mirror
-    /// by the rows' own test, reaches beyond the inner disk, and is no
-    /// larger than the shape's box.
+    /// by the rows' own test, reaches beyond the inner disk, and lies
+    /// within the unit circle.
     #[test]
     fn the_inner_box_is_inside_every_chord() {
         let squeezed = Aperture {
@@ -1157,13 +1157,10 @@ mod tests {
             let inner = rows.inner_radius();
             assert!(a * a + b * b > inner * inner, "{a}, {b} within {inner}");
             assert!(a * a + b * b <= 1.0);
-            let n = rows.chords.len();
             for i in 0..=200 {
                 for j in 0..=200 {
                     let u = Vec2::new(a * (i as f32 / 100.0 - 1.0), b * (j as f32 / 100.0 - 1.0));
-                    let k = (((u.y + 1.0) * 0.5 * n as f32).floor() as i64).clamp(0, n as i64 - 1);
-                    let [lo, hi] = rows.chords[k as usize];
-                    assert!(u.x >= lo && u.x <= hi, "{u} outside row {k}: {lo}..{hi}");
+                    assert_rows_pass(&rows, u);
                 }
             }
         }

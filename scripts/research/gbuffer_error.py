@@ -148,6 +148,15 @@ def study(args, mi, dr, scene):
     return cls, rows, pixels, estimates, area
 
 
+def frame_size(text):
+    """`--size`: WIDTHxHEIGHT, two positive integers (argparse's one-line
+    error otherwise)."""
+    parts = text.split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) > 0 for p in parts):
+        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT (e.g. 1920x1080)")
+    return text
+
+
 def png(mi, path, rgb):
     mi.Bitmap(np.ascontiguousarray(rgb.astype(np.float32))).convert(
         mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True).write(str(path))
@@ -160,7 +169,7 @@ def main():
     p.add_argument("--work", required=True)
     p.add_argument("--repo", default=str(HERE.parent.parent))
     p.add_argument("--scenes", default="bunny,mug,autzen")
-    p.add_argument("--size", default="640x480", help="the frames' WIDTHxHEIGHT")
+    p.add_argument("--size", default="640x480", type=frame_size, help="the frames' WIDTHxHEIGHT")
     p.add_argument("--images", default=None)
     args = p.parse_args()
     import mitsuba as mi

@@ -3,6 +3,12 @@
 // Aperture::cat_eye_passes); tests/aperture.rs holds each method that
 // follows it to the analytic image.
 
+// Whether this pipeline carries the code of shaped apertures and of the
+// cat's eye (a specialization constant, id 0: src/passes/mod.rs,
+// ApertureVariants): the round pipeline of a pass is made without it, for
+// the frames of the round aperture, which never run it.
+layout(constant_id = 0) const bool APERTURE_CODE = true;
+
 // The second circle's centre, in lens positions, for pixel p of a frame of
 // size `frame`: −2S·d, d = (p + ½ − frame/2) / |frame/2|.
 vec2 cat_eye_centre(ivec2 p, ivec2 frame, float cat_eye) {

@@ -59,6 +59,12 @@ layout(push_constant, std430) uniform Push {
     vec4 shape_box;  // the shape's bounding box: x min, x max, y min, y max
 } pc;
 
+// Whether the frame's aperture is shaped: never in the round pipeline
+// (APERTURE_CODE, aperture.glsl), whose shape code is compiled away.
+bool shaped() {
+    return APERTURE_CODE && pc.shaped != 0u;
+}
+
 // Whether a block of offsets [v0, v1] from Q, of diameters up to c and
 // depths zs (min, max), can reach Q through the shape at all: its box
 // meets the shape's bounding box scaled to c/2 (v = −(s·c/2)·u, s the
@@ -120,7 +126,7 @@ void main() {
         }
         for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
             for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
-                if (pc.shaped != 0u) {
+                if (shaped()) {
                     if (!shape_reaches(ivec2(dx, dy), cw.x, 1.0 / 0.0)) {
                         continue;
                     }
@@ -142,7 +148,7 @@ void main() {
     // The largest blocks no wider than the radius: at most 6 per axis
     // cover the window.
     int top = r >= TREE_MIN_RADIUS ? min(findMSB(r), pc.levels) : 0;
-    float inner2 = pc.shaped != 0u ? pc.shape_inner * pc.shape_inner : 1.0;
+    float inner2 = shaped() ? pc.shape_inner * pc.shape_inner : 1.0;
     if (top > 0) {
         ivec2 b_lo = lo >> top, b_hi = hi >> top;
         for (int by = b_lo.y; by <= b_hi.y; ++by) {
@@ -173,7 +179,7 @@ void main() {
                         float near2 = float(near.x * near.x + near.y * near.y);
                         float far2 = float(far.x * far.x + far.y * far.y);
                         if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
-                                || (pc.shaped != 0u && !shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy))) {
+                                || (shaped() && !shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy))) {
                             // No pixel passes: every one is behind Q, or out
                             // of its own disk's reach (0.25 c² grows with c,
                             // so the largest c bounds every pixel's test),
@@ -181,7 +187,7 @@ void main() {
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
                                 && bound.y <= zq
                                 && (!(far2 > 0.25 * bound.z * bound.z * inner2)
-                                    || (pc.shaped != 0u
+                                    || (shaped()
                                         && all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))))) {
                             // Every pixel passes: inside the window, none
                             // behind Q, the farthest within the smallest
@@ -210,7 +216,7 @@ void main() {
                                     ivec2 d = p - q;
                                     vec2 cw = imageLoad(coc_weight, p).xy;
                                     float zp = imageLoad(gbuffer_eye, p).z;
-                                    bool reaches = pc.shaped != 0u
+                                    bool reaches = shaped()
                                         ? shape_reaches(d, cw.x, zp)
                                         : !(float(d.x * d.x + d.y * d.y) > 0.25 * cw.x * cw.x);
                                     if (reaches && !(zp > zq)) {
@@ -246,7 +252,7 @@ void main() {
         for (int dx = lo.x - q.x; dx <= hi.x - q.x; ++dx) {
             ivec2 p = q + ivec2(dx, dy);
             vec2 cw = imageLoad(coc_weight, p).xy;
-            if (pc.shaped != 0u) {
+            if (shaped()) {
                 float zp = imageLoad(gbuffer_eye, p).z;
                 if (!shape_reaches(ivec2(dx, dy), cw.x, zp) || zp > zq) {
                     continue;

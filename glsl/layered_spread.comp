@@ -270,7 +270,7 @@ bool spread_fragment(out ivec4 box) {
     float reach = max(r, 0.5);
     box = ivec4(max(int(floor(centre - reach)), 0),
                 min(int(floor(centre + reach)) + 1, pc.extent.x - 1), y_lo, y_hi);
-    if (pc.shaped != 0u) {
+    if (APERTURE_CODE && pc.shaped != 0u) {
         // A shaped aperture: its chords instead of the disk's rows.
         bool front = c_signed < 0.0;
         vec3 cat = cat_circle(p, r, front);

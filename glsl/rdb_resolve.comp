@@ -26,7 +26,7 @@ void main() {
     float half_cell = lens_cell_half_width(float(pc.bins * pc.bins));
     for (int b = 0; b < pc.bins * pc.bins; ++b) {
         uint source = imageLoad(rdb_source, ivec3(t, b)).x;
-        float w = pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
+        float w = !APERTURE_CODE || pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
         if (source != 0xFFFFFFFFu && w > 0.0) {
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));
             sum += w * imageLoad(gbuffer_color, p);

@@ -30,7 +30,7 @@ void main() {
     float half_cell = lens_cell_half_width(float(pc.bins * pc.bins));
     for (int b = 0; b < n2; ++b) {
         uint64_t word = bins64[first + uint(b)];
-        float w = pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
+        float w = !APERTURE_CODE || pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
         if (bin_filled(word, pc.step) && w > 0.0) {
             uint source = bin_source(word);
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));

@@ -464,6 +464,14 @@ impl Renderer {
                 .is_none()
     }
 
+    /// Whether the frames of the round aperture take the pipelines made
+    /// without the aperture's code (the default, true) or the general
+    /// ones ([`crate::passes::ApertureVariants`]): the same images, byte
+    /// for byte, as `tests/aperture.rs` checks.
+    pub fn set_round_pipelines(&mut self, enabled: bool) {
+        self.methods.set_round_pipelines(enabled);
+    }
+
     /// Eye-dome lighting of the G-buffer's first layer before the
     /// depth-of-field method (`--edl`; None: off). `accum` refuses it: it
     /// averages a G-buffer per lens position and has no one image to shade.

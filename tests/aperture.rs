@@ -658,3 +658,77 @@ fn render_cli(
     common::assert_runs(&args);
     pointlens::image_io::read_image(&out).unwrap()
 }
+
+/// The frames of the round aperture take pipelines made without the
+/// aperture's code (`ApertureVariants`, the specialization constant
+/// `APERTURE_CODE`): every method that has them renders the bunny through
+/// a round lens byte for byte as through its general pipelines, and a
+/// shaped frame (which always takes the general ones) differs from the
+/// round one, so the comparison sees the frames' blur.
+#[test]
+fn round_pipelines_render_the_round_frames_of_the_general_ones() {
+    use pointlens::options::{FastGather, FastOptions, LayeredOptions, RdbAtomics, RdbOptions};
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let bunny = pointlens::input::ply::load_ply(&common::root().join("data/bunny_colored.ply"))
+            .unwrap();
+        let scene = renderer.upload(&bunny, SplatSize::Spacing).unwrap();
+        let (lo, hi) = bunny.bounds();
+        let centre = (lo + hi) / 2.0;
+        let round = Camera {
+            eye: centre + Vec3::new(0.05, 0.02, 0.22),
+            target: centre,
+            aperture_radius: 0.03,
+            focus_distance: 0.2,
+            ..common::camera(160, 120)
+        };
+        let fast = |gather| {
+            Method::Fast(FastOptions {
+                gather,
+                ..FastOptions::PAPER
+            })
+        };
+        let rdb = |atomics| {
+            Method::Rdb(RdbOptions {
+                atomics,
+                ..RdbOptions::default()
+            })
+        };
+        let methods = [
+            ("fast tree", fast(FastGather::Tree)),
+            ("fast pixels", fast(FastGather::Pixels)),
+            ("rdb 64", rdb(RdbAtomics::Int64)),
+            ("rdb 32", rdb(RdbAtomics::Int32)),
+            ("layered", Method::Layered(LayeredOptions::default())),
+        ];
+        let bits = |image: &LinearImage| -> Vec<u32> {
+            image.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+        };
+        let mut differ = Vec::new();
+        for (name, method) in methods {
+            let render = |renderer: &Renderer, camera: Camera| {
+                let options = common::options(camera, method);
+                bits(&renderer.render(&scene, &options).unwrap().image)
+            };
+            let specialized = render(&renderer, round);
+            renderer.set_round_pipelines(false);
+            let general = render(&renderer, round);
+            renderer.set_round_pipelines(true);
+            if specialized != general {
+                differ.push(name);
+            }
+            let shaped = render(
+                &renderer,
+                Camera {
+                    aperture: blades(6, 0.0),
+                    ..round
+                },
+            );
+            assert!(shaped != general, "{name}: 6 blades render the round frame");
+        }
+        assert!(
+            differ.is_empty(),
+            "the round pipelines' frames differ: {differ:?}"
+        );
+    });
+}

@@ -13,7 +13,9 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{
+    check_square_loop, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView,
+};
 use crate::camera::ShapeRows;
 use crate::error::{Error, Result};
 use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
@@ -102,23 +104,29 @@ pub struct Fast {
     coc: ComputePipeline<CocPush>,
     tile_max: ComputePipeline<TileMaxPush>,
     tile_dilate: ComputePipeline<DilatePush>,
-    gather: ComputePipeline<GatherPush>,
+    gather: ApertureVariants<GatherPush>,
     tree: ComputePipeline<TreePush>,
-    gather_tree: ComputePipeline<GatherPush>,
+    gather_tree: ApertureVariants<GatherPush>,
     /// `--fast-gather fields`.
     fields: super::fields::Fields,
 }
 
 impl Fast {
+    /// [`super::Methods::set_round_pipelines`] for both gathers.
+    pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
+        self.gather.any_only = !enabled;
+        self.gather_tree.any_only = !enabled;
+    }
+
     pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {
             coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
             tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
-            gather: ComputePipeline::new(ctx, "fast_gather", GATHER, &[I, I, I, I, I, B])?,
+            gather: ApertureVariants::new(ctx, "fast_gather", GATHER, &[I, I, I, I, I, B])?,
             tree: ComputePipeline::new(ctx, "fast_tree", TREE, &[I, I, I, B, B, B])?,
-            gather_tree: ComputePipeline::new(
+            gather_tree: ApertureVariants::new(
                 ctx,
                 "fast_gather_tree",
                 GATHER_TREE,
@@ -546,6 +554,7 @@ impl FastFrame<'_> {
                 Bind::StorageImage(&images.tile_radius),
                 Bind::StorageImage(&images.result),
             ];
+            let camera = &view.camera;
             let pipeline = match &images.tree {
                 Some(tree) => {
                     rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
@@ -554,12 +563,11 @@ impl FastFrame<'_> {
                         Bind::StorageBuffer(&tree.weights),
                         Bind::StorageBuffer(&tree.bounds),
                     ]);
-                    &p.gather_tree
+                    p.gather_tree.for_aperture(&camera.aperture)
                 }
-                None => &p.gather,
+                None => p.gather.for_aperture(&camera.aperture),
             };
             binds.push(Bind::StorageBuffer(&images.shape_chords));
-            let camera = &view.camera;
             rec.dispatch(
                 pipeline,
                 &binds,

@@ -28,7 +28,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{spread_disk, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView};
 use crate::camera::{Camera, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{check_layers, LayeredOptions};
@@ -92,11 +92,18 @@ push_constants! {
 pub struct Layered {
     tiles: ComputePipeline<LayeredPush>,
     prepare: ComputePipeline<LayeredPush>,
-    spread: Option<ComputePipeline<LayeredPush>>,
+    spread: Option<ApertureVariants<LayeredPush>>,
     composite: Option<ComputePipeline<LayeredPush>>,
 }
 
 impl Layered {
+    /// [`super::Methods::set_round_pipelines`] for the spread.
+    pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
+        if let Some(spread) = &mut self.spread {
+            spread.any_only = !enabled;
+        }
+    }
+
     pub fn new(ctx: &Arc<Context>) -> Result<Layered> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         // The spreading sums in 64-bit integers: without 64-bit buffer
@@ -111,7 +118,7 @@ impl Layered {
                 &[I, I, I, I, I, I, B, B, B, B],
             )?,
             spread: match int64 {
-                true => Some(ComputePipeline::new(
+                true => Some(ApertureVariants::new(
                     ctx,
                     "layered_spread",
                     SPREAD,
@@ -223,7 +230,7 @@ impl Layered {
         Ok(Box::new(LayeredFrame {
             gaussian_layers,
             pipelines: self,
-            spread,
+            spread: spread.for_aperture(&view.camera.aperture),
             composite,
             options,
             slices,

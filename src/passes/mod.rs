@@ -17,6 +17,59 @@ use crate::error::{Error, Result};
 use crate::options::Method;
 use crate::vk::{Context, Frame, Image};
 
+/// The specialization constant `APERTURE_CODE` of `glsl/aperture.glsl`:
+/// whether a pipeline carries the code of shaped apertures and of the
+/// cat's eye.
+pub const APERTURE_CODE_ID: u32 = 0;
+
+/// A pass's pipeline in two forms made from one shader: one with the code
+/// of shaped apertures and of the cat's eye, for any frame, and one
+/// without it (`APERTURE_CODE` false), for the frames of the round
+/// aperture, which never run that code. Compiled away, the code no longer
+/// slows the round path (on llvmpipe the round spread of `layered` takes
+/// about 15 % less; docs/decisions/aperture-shape.md), and the round
+/// frames are the same byte for byte.
+pub struct ApertureVariants<P: crate::vk::PushConstants> {
+    any: crate::vk::ComputePipeline<P>,
+    round: crate::vk::ComputePipeline<P>,
+    /// Every frame takes `any` (`Methods::set_round_pipelines`).
+    any_only: bool,
+}
+
+impl<P: crate::vk::PushConstants> ApertureVariants<P> {
+    pub fn new(
+        ctx: &Arc<Context>,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[crate::vk::Binding],
+    ) -> Result<ApertureVariants<P>> {
+        Ok(ApertureVariants {
+            any: crate::vk::ComputePipeline::new(ctx, name, spirv, bindings)?,
+            round: crate::vk::ComputePipeline::specialized(
+                ctx,
+                &format!("{name} (round)"),
+                spirv,
+                bindings,
+                &[(APERTURE_CODE_ID, 0)],
+            )?,
+            any_only: false,
+        })
+    }
+
+    /// The pipeline for a frame through `aperture`: the round one where it
+    /// is the round aperture (no shape, image or cat's eye: the one rule).
+    pub fn for_aperture(
+        &self,
+        aperture: &crate::camera::Aperture,
+    ) -> &crate::vk::ComputePipeline<P> {
+        if aperture.is_round() && !self.any_only {
+            &self.round
+        } else {
+            &self.any
+        }
+    }
+}
+
 /// Rows of a shaped aperture's chord table (`Aperture::shape_rows`): a
 /// row per pixel of a CoC up to 512 px across.
 pub const SHAPE_ROWS: u32 = 512;
@@ -363,6 +416,15 @@ impl Methods {
             rdb: rdb::Rdb::new(ctx)?,
             layered: layered::Layered::new(ctx)?,
         })
+    }
+
+    /// Whether the frames of the round aperture take the pipelines made
+    /// without the aperture's code ([`ApertureVariants`]; the default,
+    /// true), or the general ones, as the test that they agree renders.
+    pub fn set_round_pipelines(&mut self, enabled: bool) {
+        self.fast.set_round_pipelines(enabled);
+        self.rdb.set_round_pipelines(enabled);
+        self.layered.set_round_pipelines(enabled);
     }
 
     /// The implementation of `method` with its options.

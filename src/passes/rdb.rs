@@ -16,7 +16,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{
+    check_square_loop, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView,
+};
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
 use crate::push_constants;
@@ -64,7 +66,7 @@ push_constants! {
 /// The pipelines of the method, and the 64-bit bins kept between frames.
 pub struct Rdb {
     scatter: ComputePipeline<ScatterPush>,
-    resolve: ComputePipeline<ResolvePush>,
+    resolve: ApertureVariants<ResolvePush>,
     /// The 64-bit form, on devices with 64-bit buffer atomics.
     packed: Option<Packed>,
 }
@@ -72,7 +74,7 @@ pub struct Rdb {
 /// The 64-bit form: its pipelines and its bins.
 struct Packed {
     scatter: ComputePipeline<ScatterPush>,
-    resolve: ComputePipeline<ResolvePush>,
+    resolve: ApertureVariants<ResolvePush>,
     /// Made by the first frame that needs them (or a bigger one), then kept;
     /// a frame holds the lock from `prepare` until it is dropped, after its
     /// submission completed.
@@ -283,6 +285,14 @@ impl<'m> RdbImages<'m> {
 }
 
 impl Rdb {
+    /// [`super::Methods::set_round_pipelines`] for both forms' resolves.
+    pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
+        self.resolve.any_only = !enabled;
+        if let Some(packed) = &mut self.packed {
+            packed.resolve.any_only = !enabled;
+        }
+    }
+
     pub fn new(ctx: &Arc<Context>) -> Result<Rdb> {
         let img = Binding::StorageImage;
         Ok(Rdb {
@@ -292,7 +302,7 @@ impl Rdb {
                 SCATTER,
                 &[img, img, img, Binding::StorageBuffer],
             )?,
-            resolve: ComputePipeline::new(
+            resolve: ApertureVariants::new(
                 ctx,
                 "rdb_resolve",
                 RESOLVE,
@@ -306,7 +316,7 @@ impl Rdb {
                         SCATTER64,
                         &[img, Binding::StorageBuffer, Binding::StorageBuffer],
                     )?,
-                    resolve: ComputePipeline::new(
+                    resolve: ApertureVariants::new(
                         ctx,
                         "rdb_resolve64",
                         RESOLVE64,
@@ -571,7 +581,7 @@ impl RdbFrame<'_> {
             rec.barriers(&self.resolve_barriers(input, first));
             let push = self.resolve_push(input, scan, tag);
             rec.dispatch(
-                &p.resolve,
+                p.resolve.for_aperture(&input.view.camera.aperture),
                 &[
                     Bind::StorageImage(input.color),
                     Bind::StorageBuffer(buffer),
@@ -654,7 +664,7 @@ impl RdbFrame<'_> {
             list.extend(self.resolve_barriers(input, first));
             rec.barriers(&list);
             rec.dispatch(
-                &p.resolve,
+                p.resolve.for_aperture(&input.view.camera.aperture),
                 &[
                     Bind::StorageImage(input.color),
                     Bind::StorageImage(source),

@@ -307,6 +307,19 @@ impl<P: PushConstants> ComputePipeline<P> {
         spirv: &[u8],
         bindings: &[Binding],
     ) -> Result<ComputePipeline<P>> {
+        Self::specialized(ctx, name, spirv, bindings, &[])
+    }
+
+    /// As [`ComputePipeline::new`], with the shader's specialization
+    /// constants `constants` (constant id, value: a 32-bit `uint`, `int`
+    /// or `bool` in GLSL) set; the others keep their defaults.
+    pub fn specialized(
+        ctx: &Arc<Context>,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[Binding],
+        constants: &[(u32, u32)],
+    ) -> Result<ComputePipeline<P>> {
         check_push_layout::<P>(name, spirv)?;
         let types: Vec<vk::DescriptorType> = bindings.iter().map(|b| b.descriptor_type()).collect();
         let mut layout = Layout::new(
@@ -318,10 +331,26 @@ impl<P: PushConstants> ComputePipeline<P> {
             std::mem::size_of::<P>() as u32,
         )?;
         let module = shader_module(ctx, name, spirv)?;
-        let stage = vk::PipelineShaderStageCreateInfo::default()
+        let entries: Vec<vk::SpecializationMapEntry> = constants
+            .iter()
+            .enumerate()
+            .map(|(i, &(id, _))| vk::SpecializationMapEntry {
+                constant_id: id,
+                offset: 4 * i as u32,
+                size: 4,
+            })
+            .collect();
+        let values: Vec<u32> = constants.iter().map(|&(_, v)| v).collect();
+        let specialization = vk::SpecializationInfo::default()
+            .map_entries(&entries)
+            .data(bytemuck::cast_slice(&values));
+        let mut stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module.raw)
             .name(c"main");
+        if !constants.is_empty() {
+            stage = stage.specialization_info(&specialization);
+        }
         let info = vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout.layout);

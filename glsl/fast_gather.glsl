@@ -29,13 +29,7 @@ layout(binding = 4, rgba16f) uniform writeonly image2D result;
 layout(binding = 5, std430) readonly buffer Sums { vec4 sums[]; };
 layout(binding = 6, std430) readonly buffer Weights { float weights[]; };
 layout(binding = 7, std430) readonly buffer Bounds { vec4 bounds[]; };
-#define SHAPE_BINDING 8
-#else
-#define SHAPE_BINDING 5
 #endif
-// A shaped aperture's chords (pc.shaped; Aperture::shape_rows), after the
-// tree's buffers where there are some.
-layout(binding = SHAPE_BINDING, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
 #include "aperture.glsl"
 
 layout(push_constant, std430) uniform Push {
@@ -45,19 +39,57 @@ layout(push_constant, std430) uniform Push {
     int tile;
     int levels;     // levels of the block tree (TREE; 0: none)
     ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
-    // A shaped aperture: a tap reaches Q through the shape's chords
-    // instead of the disk; the tree takes a block whole where its pixels
-    // lie within the disk of radius shape_inner (ShapeRows::inner_radius)
-    // that every chord holds, and leaves it where they lie outside the
-    // shape's bounding box, scaled by the block's largest c and turned
-    // for the pixels in front of the focus.
+    // A shaped aperture: a tap reaches Q where its lens position passes
+    // the shape (blades_pass) instead of the disk; the tree takes a block
+    // whole where its pixels lie within the disk of radius shape_inner
+    // (ShapeRows::inner_radius) or the box (ShapeRows::inner_box) that
+    // the shape holds, and leaves it where they lie outside the shape's
+    // bounding box, scaled by the block's largest c and turned for the
+    // pixels in front of the focus.
     uint shaped;
-    int shape_rows;
     float focus_distance;
-    float shape_inner;
     vec2 shape_inner_box; // ShapeRows::inner_box: half-width, half-height
-    vec4 shape_box;  // the shape's bounding box: x min, x max, y min, y max
+    float shape_inner;
+    float blade_cos;      // cos(π/N) of N blades
+    vec4 shape_box;       // the shape's bounding box: x min, x max, y min, y max
+    vec4 base_from_lens;  // Aperture::base_from_lens, row by row
+    float curvature;      // of the blades
 } pc;
+
+// The blade count of the frame's shaped aperture (0: none, the squeezed
+// circle): the pipeline of a shaped frame is made for its count (a
+// specialization constant, id 1; src/passes/fast.rs, Fast::gather_for).
+layout(constant_id = 1) const int BLADES = 0;
+
+// The blades' middle directions turned back to lens positions: u·n_k is
+// (M·u)·d_k (Aperture::blade_middle; set once per invocation in main).
+vec2 blade_normals[BLADES > 0 ? BLADES : 1];
+
+void set_blade_normals() {
+    for (int k = 0; k < BLADES; ++k) {
+        float phi = 1.5707964 + (float(k) + 0.5) * (6.2831855 / float(BLADES));
+        vec2 d = vec2(cos(phi), -sin(phi));
+        vec4 m = pc.base_from_lens;
+        blade_normals[k] = vec2(m.x * d.x + m.z * d.y, m.y * d.x + m.w * d.y);
+    }
+}
+
+// Whether lens position u passes the shape of BLADES blades (0: the
+// squeezed circle): Aperture::blades_pass.
+bool blades_pass(vec2 u) {
+    vec4 m = pc.base_from_lens;
+    vec2 w = vec2(m.x * u.x + m.y * u.y, m.z * u.x + m.w * u.y);
+    float r2 = dot(w, w);
+    if (BLADES == 0) {
+        return r2 <= 1.0;
+    }
+    float most = -1.0;
+    for (int k = 0; k < BLADES; ++k) {
+        most = max(most, dot(u, blade_normals[k]));
+    }
+    float r = sqrt(r2);
+    return r2 <= 1.0 && most * (r - pc.curvature) <= (1.0 - pc.curvature) * pc.blade_cos * r;
+}
 
 // Whether the frame's aperture is shaped: never in the round pipeline
 // (APERTURE_CODE, aperture.glsl), whose shape code is compiled away.
@@ -99,11 +131,11 @@ bool shape_reaches(ivec2 v, float c, float z) {
     if (dot(u, u) > 1.0) {
         return false;
     }
-    vec2 chord = shape_chords[shape_row_index(u.y, pc.shape_rows)];
-    return (u.x >= chord.x && u.x <= chord.y) || v == ivec2(0);
+    return blades_pass(u) || v == ivec2(0);
 }
 
 void main() {
+    set_blade_normals();
     ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(gl_GlobalInvocationID.xy, uvec2(pc.size)))) {
         return;

@@ -525,6 +525,49 @@ impl Aperture {
         }
     }
 
+    /// [`Aperture::base_of`] as a matrix M, row by row (m00, m01, m10,
+    /// m11): w = M·u, the squeeze undone, then the turn (to float
+    /// rounding; tested). For `fast`'s tap test in GLSL.
+    pub fn base_from_lens(&self) -> [f32; 4] {
+        let (sx, sy) = if self.ratio >= 1.0 {
+            (self.ratio, 1.0)
+        } else {
+            (1.0, 1.0 / self.ratio)
+        };
+        let (sin, cos) = self.rotation_deg.to_radians().sin_cos();
+        [cos * sx, -sin * sy, sin * sx, cos * sy]
+    }
+
+    /// Whether lens position u passes a shape of blades, curvature,
+    /// squeeze and turn (not an image; the cat's eye apart): T(u) > 0 of
+    /// [`Aperture::transmission`] written without angles, as the tap test
+    /// of `fast`'s gathers makes it (`glsl/fast_gather.glsl`,
+    /// `blades_pass`, mirrors it). With w = M·u, |w| ≤ 1 and, with
+    /// blades, |w| ≤ ρ(φ): as m = max over the blades' middle directions
+    /// d_k of w·d_k is |w|·cos δ, that is m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w|.
+    pub fn blades_pass(&self, u: Vec2) -> bool {
+        let m = self.base_from_lens();
+        let w = Vec2::new(m[0] * u.x + m[1] * u.y, m[2] * u.x + m[3] * u.y);
+        let r2 = w.length_squared();
+        if self.blades == 0 || r2 > 1.0 {
+            return r2 <= 1.0;
+        }
+        let most = (0..self.blades)
+            .map(|k| w.dot(self.blade_middle(k)))
+            .fold(-1.0f32, f32::max);
+        let r = r2.sqrt();
+        let c = self.curvature;
+        most * (r - c) <= (1.0 - c) * (std::f32::consts::PI / self.blades as f32).cos() * r
+    }
+
+    /// The middle direction of blade k in the base shape: screen angle
+    /// π/2 + (k + ½)·2π/N, where δ of [`Aperture::blade_radius`] is 0.
+    pub fn blade_middle(&self, k: u32) -> Vec2 {
+        let sector = std::f32::consts::TAU / self.blades as f32;
+        let phi = std::f32::consts::FRAC_PI_2 + (k as f32 + 0.5) * sector;
+        Vec2::new(phi.cos(), -phi.sin())
+    }
+
     /// The blades' boundary radius ρ at screen angle φ (radians) of the
     /// base shape: (1 − C)·cos(π/N)/cos δ + C.
     pub fn blade_radius(&self, phi: f32) -> f32 {
@@ -1041,6 +1084,62 @@ mod tests {
             rotation_deg,
             ..Aperture::ROUND
         }
+    }
+
+    /// The tap test without angles agrees with T(u) > 0 away from the
+    /// boundary (where their roundings may differ), and the matrix with
+    /// `base_of`, for blades straight and curved, turned and squeezed.
+    #[test]
+    fn blades_pass_where_the_transmission_is() {
+        let shapes = [
+            blades(3, 0.0),
+            blades(5, 36.0),
+            Aperture {
+                curvature: 0.4,
+                ..blades(6, 15.0)
+            },
+            Aperture {
+                ratio: 2.0,
+                ..blades(7, 10.0)
+            },
+            Aperture {
+                ratio: 0.5,
+                curvature: 1.0,
+                ..blades(16, 0.0)
+            },
+            Aperture {
+                ratio: 1.7,
+                ..Aperture::ROUND
+            },
+        ];
+        let (mut checked, mut inside) = (0, 0);
+        for a in shapes {
+            for i in 0..201 {
+                for j in 0..201 {
+                    let u = Vec2::new(i as f32 / 100.0 - 1.0, j as f32 / 100.0 - 1.0);
+                    let m = a.base_from_lens();
+                    let w = Vec2::new(m[0] * u.x + m[1] * u.y, m[2] * u.x + m[3] * u.y);
+                    assert!((w - a.base_of(u)).length() < 1e-6, "{a:?} at {u}");
+                    let r = w.length();
+                    let rho = if a.blades == 0 {
+                        1.0
+                    } else {
+                        a.blade_radius((-w.y).atan2(w.x)).min(1.0)
+                    };
+                    if (r - rho).abs() < 1e-4 {
+                        continue;
+                    }
+                    let passes = a.transmission(u) > 0.0;
+                    assert_eq!(a.blades_pass(u), passes, "{a:?} at {u}");
+                    checked += 1;
+                    inside += usize::from(passes);
+                }
+            }
+        }
+        assert!(
+            inside > checked / 4 && inside < checked,
+            "{inside} of {checked} inside"
+        );
     }
 
     #[test]

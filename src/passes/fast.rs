@@ -8,7 +8,7 @@
 //! gather, pixel by pixel or by blocks: the same contributors,
 //! docs/ARCHITECTURE.md).
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -16,7 +16,7 @@ use gpu_allocator::MemoryLocation;
 use super::{
     check_square_loop, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView,
 };
-use crate::camera::ShapeRows;
+use crate::camera::{Aperture, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
 use crate::push_constants;
@@ -83,11 +83,13 @@ push_constants! {
         levels: i32,
         padded: [i32; 2],
         shaped: u32,
-        shape_rows: i32,
         focus_distance: f32,
-        shape_inner: f32,
         shape_inner_box: [f32; 2],
+        shape_inner: f32,
+        blade_cos: f32,
         shape_box: [f32; 4],
+        base_from_lens: [f32; 4],
+        curvature: f32,
     }
 }
 
@@ -107,6 +109,11 @@ pub struct Fast {
     gather: ApertureVariants<GatherPush>,
     tree: ComputePipeline<TreePush>,
     gather_tree: ApertureVariants<GatherPush>,
+    /// The gathers made for one blade count N each (`BLADES` of
+    /// `glsl/fast_gather.glsl`; at N, 3 to 16), as a shaped frame first
+    /// needs them: pixels, then tree. Those of `gather` and `gather_tree`
+    /// are made for none: the round frames' and the squeezed circle's.
+    blade_gathers: [[OnceLock<ComputePipeline<GatherPush>>; 17]; 2],
     /// `--fast-gather fields`.
     fields: super::fields::Fields,
 }
@@ -124,18 +131,74 @@ impl Fast {
             coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
             tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
-            gather: ApertureVariants::new(ctx, "fast_gather", GATHER, &[I, I, I, I, I, B])?,
+            gather: ApertureVariants::new(ctx, "fast_gather", GATHER, GATHER_BINDINGS)?,
             tree: ComputePipeline::new(ctx, "fast_tree", TREE, &[I, I, I, B, B, B])?,
             gather_tree: ApertureVariants::new(
                 ctx,
                 "fast_gather_tree",
                 GATHER_TREE,
-                &[I, I, I, I, I, B, B, B, B],
+                GATHER_TREE_BINDINGS,
             )?,
             fields: super::fields::Fields::new(ctx)?,
+            blade_gathers: Default::default(),
         })
     }
+
+    /// The gather of a frame through `aperture`, by the tree where `tree`:
+    /// without blades, `gather`'s or `gather_tree`'s (the round pipeline
+    /// for the round aperture); with N blades, the one made for N (made
+    /// now if no frame has needed it yet). `fast` renders no image or
+    /// cat's eye (`camera::APERTURE_FEATURES`).
+    fn gather_for(
+        &self,
+        ctx: &Arc<Context>,
+        aperture: &Aperture,
+        tree: bool,
+    ) -> Result<&ComputePipeline<GatherPush>> {
+        let variants = if tree {
+            &self.gather_tree
+        } else {
+            &self.gather
+        };
+        if aperture.blades == 0 {
+            return Ok(variants.for_aperture(aperture));
+        }
+        let slot = &self.blade_gathers[usize::from(tree)][aperture.blades as usize];
+        if let Some(pipeline) = slot.get() {
+            return Ok(pipeline);
+        }
+        let (name, spirv, bindings) = match tree {
+            true => ("fast_gather_tree", GATHER_TREE, GATHER_TREE_BINDINGS),
+            false => ("fast_gather", GATHER, GATHER_BINDINGS),
+        };
+        let pipeline = ComputePipeline::specialized(
+            ctx,
+            &format!("{name} ({} blades)", aperture.blades),
+            spirv,
+            bindings,
+            &[(BLADES_ID, aperture.blades)],
+        )?;
+        Ok(slot.get_or_init(|| pipeline))
+    }
 }
+
+/// The specialization constant `BLADES` of `glsl/fast_gather.glsl`.
+const BLADES_ID: u32 = 1;
+
+/// What the gathers bind: the G-buffer's color and eye, the CoCs and
+/// weights, the tiles' radii and the result; the tree's sums, weights and
+/// bounds after them.
+const GATHER_BINDINGS: &[Binding] = &[Binding::StorageImage; 5];
+const GATHER_TREE_BINDINGS: &[Binding] = &[
+    Binding::StorageImage,
+    Binding::StorageImage,
+    Binding::StorageImage,
+    Binding::StorageImage,
+    Binding::StorageImage,
+    Binding::StorageBuffer,
+    Binding::StorageBuffer,
+    Binding::StorageBuffer,
+];
 
 /// The levels of the block tree for gather radii up to `max_radius_px` in a
 /// `width`×`height` G-buffer: the gather's largest blocks are no wider than
@@ -216,9 +279,14 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
                 view,
             )?));
         }
+        let images = FastImages::new(ctx, view, self.options)?;
+        let gather =
+            self.pipelines
+                .gather_for(ctx, &view.camera.aperture, images.tree.is_some())?;
         Ok(Box::new(FastFrame {
             method: self,
-            images: FastImages::new(ctx, view, self.options)?,
+            images,
+            gather,
         }))
     }
 }
@@ -369,6 +437,8 @@ impl FastImages {
 struct FastFrame<'m> {
     method: &'m Configured<'m, Fast, FastOptions>,
     images: FastImages,
+    /// The gather for the frame's aperture ([`Fast::gather_for`]).
+    gather: &'m ComputePipeline<GatherPush>,
 }
 
 impl FastFrame<'_> {
@@ -531,7 +601,6 @@ impl FastFrame<'_> {
     /// Pass `fast.gather`: each output pixel's gather, through the tree
     /// where there is one.
     fn record_gather<'r>(&'r self, frame: &mut Frame<'r>, input: &DofInput<'r>, extent: [i32; 2]) {
-        let p = self.method.pipelines;
         let images = &self.images;
         let view = &input.view;
         let [w, h] = extent;
@@ -555,21 +624,17 @@ impl FastFrame<'_> {
                 Bind::StorageImage(&images.result),
             ];
             let camera = &view.camera;
-            let pipeline = match &images.tree {
-                Some(tree) => {
-                    rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
-                    binds.extend([
-                        Bind::StorageBuffer(&tree.sums),
-                        Bind::StorageBuffer(&tree.weights),
-                        Bind::StorageBuffer(&tree.bounds),
-                    ]);
-                    p.gather_tree.for_aperture(&camera.aperture)
-                }
-                None => p.gather.for_aperture(&camera.aperture),
-            };
-            binds.push(Bind::StorageBuffer(&images.shape_chords));
+            if let Some(tree) = &images.tree {
+                rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
+                binds.extend([
+                    Bind::StorageBuffer(&tree.sums),
+                    Bind::StorageBuffer(&tree.weights),
+                    Bind::StorageBuffer(&tree.bounds),
+                ]);
+            }
+            let aperture = &camera.aperture;
             rec.dispatch(
-                pipeline,
+                self.gather,
                 &binds,
                 &GatherPush {
                     extent: [w, h],
@@ -582,11 +647,16 @@ impl FastFrame<'_> {
                         .as_ref()
                         .map_or([w, h], |t| t.padded.map(|v| v as i32)),
                     shaped: images.shape.shaped,
-                    shape_rows: images.shape.rows,
                     focus_distance: camera.focus_distance,
-                    shape_inner: images.shape.inner,
                     shape_inner_box: images.shape.inner_box,
+                    shape_inner: images.shape.inner,
+                    blade_cos: match aperture.blades {
+                        0 => 1.0,
+                        n => (std::f32::consts::PI / n as f32).cos(),
+                    },
                     shape_box: images.shape.bounding_box,
+                    base_from_lens: aperture.base_from_lens(),
+                    curvature: aperture.curvature,
                 },
                 [groups(ow, 8), groups(oh, 8), 1],
             );

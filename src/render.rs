@@ -464,12 +464,15 @@ impl Renderer {
                 .is_none()
     }
 
-    /// Whether the frames of the round aperture take the pipelines made
-    /// without the aperture's code (the default, true) or the general
-    /// ones ([`crate::passes::ApertureVariants`]): the same images, byte
-    /// for byte, as `tests/aperture.rs` checks.
-    pub fn set_round_pipelines(&mut self, enabled: bool) {
+    /// Whether frames take the pipelines made without code they do not
+    /// run (the default, true): the round aperture's
+    /// ([`crate::passes::ApertureVariants`]) and the output's without a
+    /// veil; false renders every frame with the general pipelines. The
+    /// same images, byte for byte, as `tests/aperture.rs` and
+    /// `tests/output.rs` check.
+    pub fn set_specialized_pipelines(&mut self, enabled: bool) {
         self.methods.set_round_pipelines(enabled);
+        self.output.set_unveiled(enabled);
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the

@@ -711,9 +711,9 @@ fn round_pipelines_render_the_round_frames_of_the_general_ones() {
                 bits(&renderer.render(&scene, &options).unwrap().image)
             };
             let specialized = render(&renderer, round);
-            renderer.set_round_pipelines(false);
+            renderer.set_specialized_pipelines(false);
             let general = render(&renderer, round);
-            renderer.set_round_pipelines(true);
+            renderer.set_specialized_pipelines(true);
             if specialized != general {
                 differ.push(name);
             }

@@ -70,6 +70,42 @@ fn device_output_equals_the_host_conversion() {
     });
 }
 
+/// The bunny's frame of 83×61 by `method` over a bright background.
+fn bunny_options(cloud: &pointlens::cloud::PointCloud, method: Method) -> RenderOptions {
+    RenderOptions {
+        camera: BenchModel::Bunny.camera(cloud, 83, 61).unwrap(),
+        method,
+        ssaa: 2,
+        samples_per_pass: None,
+        background: Vec3::new(0.9, 0.35, 0.02),
+        lod: pointlens::options::Lod::default(),
+    }
+}
+
+/// A frame in both formats: the bits of its floats and its sRGB bytes.
+fn both_formats(
+    renderer: &Renderer,
+    scene: &pointlens::render::Scene,
+    options: &RenderOptions,
+) -> (Vec<u32>, Srgb8Image) {
+    let linear = renderer.render(scene, options).unwrap().image;
+    let bits = linear
+        .pixels
+        .iter()
+        .flatten()
+        .map(|v| v.to_bits())
+        .collect();
+    (bits, renderer.render_srgb8(scene, options).unwrap().image)
+}
+
+/// The two renders of a frame in both formats are the same bytes, and not
+/// a frame of the background alone.
+fn assert_same_frames(a: &(Vec<u32>, Srgb8Image), b: &(Vec<u32>, Srgb8Image), what: &str) {
+    assert_eq!(a.0, b.0, "{what}: linear");
+    assert_eq!(a.1, b.1, "{what}: sRGB");
+    assert!(a.1.rgb.chunks(3).any(|p| p != &a.1.rgb[..3]), "{what}");
+}
+
 /// The output pass writing a device-local buffer that a copy moves to the
 /// host (the path of a discrete GPU) gives the bytes of the direct path
 /// (lavapipe's), for both formats, a frame in bands of tiles included.
@@ -77,25 +113,15 @@ fn device_output_equals_the_host_conversion() {
 fn staged_output_equals_the_direct_output() {
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
-        let model = BenchModel::Bunny;
-        let cloud = model.load(&root().join("data"), 0).unwrap();
+        let cloud = BenchModel::Bunny.load(&root().join("data"), 0).unwrap();
         let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
         for (method, tile_px) in [
             (Method::Pinhole, None),
             (Method::rdb(9, RdbMode::Centre), None),
             (Method::accum(3), Some(40)),
         ] {
-            let options = RenderOptions {
-                camera: model.camera(&cloud, 83, 61).unwrap(),
-                method,
-                ssaa: 2,
-                samples_per_pass: None,
-                background: Vec3::new(0.9, 0.35, 0.02),
-                lod: pointlens::options::Lod::default(),
-            };
+            let options = bunny_options(&cloud, method);
             renderer.set_tile_px(tile_px);
-            let mut linear = Vec::new();
-            let mut srgb = Vec::new();
             // Between the two, frames over another background go through
             // the pooled host buffers: a staged frame whose copy did not
             // land would read those, not the direct frame's bytes.
@@ -103,34 +129,35 @@ fn staged_output_equals_the_direct_output() {
                 background: Vec3::new(0.1, 0.8, 0.5),
                 ..options
             };
-            for staged in [false, true] {
-                if staged {
-                    renderer.set_staged_output(Some(false));
-                    renderer.render(&scene, &poison).unwrap();
-                    renderer.render_srgb8(&scene, &poison).unwrap();
-                }
-                renderer.set_staged_output(Some(staged));
-                linear.push(renderer.render(&scene, &options).unwrap().image);
-                srgb.push(renderer.render_srgb8(&scene, &options).unwrap().image);
-            }
-            let what = format!("{method:?}, tiles {tile_px:?}");
-            let bits = |i: &pointlens::image_io::LinearImage| {
-                i.pixels
-                    .iter()
-                    .flatten()
-                    .map(|v| v.to_bits())
-                    .collect::<Vec<_>>()
-            };
-            assert_eq!(bits(&linear[0]), bits(&linear[1]), "{what}: linear");
-            assert_eq!(srgb[0], srgb[1], "{what}: sRGB");
-            // Not a frame of the background alone.
-            assert!(
-                srgb[0]
-                    .rgb
-                    .chunks(3)
-                    .any(|p| p != srgb[0].rgb[..3].to_vec()),
-                "{what}"
-            );
+            renderer.set_staged_output(Some(false));
+            let direct = both_formats(&renderer, &scene, &options);
+            both_formats(&renderer, &scene, &poison);
+            renderer.set_staged_output(Some(true));
+            let staged = both_formats(&renderer, &scene, &options);
+            assert_same_frames(&direct, &staged, &format!("{method:?}, tiles {tile_px:?}"));
+        }
+    });
+}
+
+/// The output pipeline made without the veil's code (`VEIL_CODE`, for the
+/// frames without a veil) writes the general pipeline's bytes, in both
+/// formats, for a pinhole and a layered frame.
+#[test]
+fn the_unveiled_output_writes_the_general_outputs_bytes() {
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let cloud = BenchModel::Bunny.load(&root().join("data"), 0).unwrap();
+        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+        for method in [
+            Method::Pinhole,
+            Method::Layered(pointlens::options::LayeredOptions::default()),
+        ] {
+            let options = bunny_options(&cloud, method);
+            renderer.set_specialized_pipelines(true);
+            let specialized = both_formats(&renderer, &scene, &options);
+            renderer.set_specialized_pipelines(false);
+            let general = both_formats(&renderer, &scene, &options);
+            assert_same_frames(&specialized, &general, &format!("{method:?}"));
         }
     });
 }

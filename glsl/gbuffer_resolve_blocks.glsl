@@ -16,6 +16,13 @@
 #include "gbuffer_fold.glsl"
 #include "gbuffer_lens_weight.glsl"
 
+// Whether the pass holds every sample of its pixels (sample_index 0,
+// sample_count K²) and weighs them alike (no cat's eye): a specialization
+// constant, id 3 (src/passes/gbuffer_resolve.rs, ResolvePipelines), for
+// the pipeline of such passes (every compute raster's but accum's), made
+// without the code of the others.
+layout(constant_id = 3) const bool WHOLE_PASS = false;
+
 // The G-buffer row of the target's row 0: the band's first row, unless
 // the including shader's target starts elsewhere (a compute raster's
 // band with a row of its neighbours above it).
@@ -30,9 +37,9 @@ void resolve_blocks() {
     }
     ivec2 block = (p - ivec2(0, TARGET_FIRST_ROW)) * int(pc.scale);
     uint n = pc.scale * pc.scale;
-    float w = lens_weight(p);
+    float w = WHOLE_PASS ? 1.0 : lens_weight(p);
     Fold f;
-    if (pc.sample_index != 0u) {
+    if (!WHOLE_PASS && pc.sample_index != 0u) {
         f = Fold(imageLoad(color_sum, p), imageLoad(gbuffer_eye, p));
     }
     for (uint s = 0u; s < n; s++) {
@@ -40,13 +47,13 @@ void resolve_blocks() {
         ivec2 q = block + ivec2(cell % pc.scale, cell / pc.scale);
         vec4 t = scaled(target_sample(q), pc.color_scale);
         float index = float(pc.sample_index + s);
-        if (pc.sample_index == 0u && s == 0u) {
+        if ((WHOLE_PASS || pc.sample_index == 0u) && s == 0u) {
             f = fold_first(t, index, w);
         } else {
             fold_next(f, t, index, w);
         }
     }
-    if (pc.sample_index + n == pc.sample_count) {
+    if (WHOLE_PASS || pc.sample_index + n == pc.sample_count) {
         imageStore(gbuffer_color, p, fold_color(f));
         imageStore(gbuffer_eye, p, fold_eye(f));
     } else {

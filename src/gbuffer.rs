@@ -186,6 +186,13 @@ pub enum PeelPlan {
 }
 
 impl GBufferPasses {
+    /// Whether the resolves of passes that hold every sample of their
+    /// pixels take the pipelines made for them (the default, true):
+    /// [`crate::render::Renderer::set_specialized_pipelines`].
+    pub fn set_whole_passes(&mut self, enabled: bool) {
+        self.resolve.set_whole_passes(enabled);
+    }
+
     /// The passes drawing splats of `shape`.
     pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<GBufferPasses> {
         let supported = ctx.info.gbuffer_sample_counts.as_raw();

@@ -408,6 +408,9 @@ pub struct Renderer {
     /// Whether the output pass writes a device-local buffer copied to the
     /// host's (None: where the host's buffer is not device-local).
     staged_output: Option<bool>,
+    /// Whether frames take the pipelines made without code they do not
+    /// run ([`Renderer::set_specialized_pipelines`]).
+    specialized_pipelines: bool,
 }
 
 impl Renderer {
@@ -427,6 +430,7 @@ impl Renderer {
             edl_pass: Edl::new(ctx)?,
             tile_px: None,
             staged_output: None,
+            specialized_pipelines: true,
         })
     }
 
@@ -443,6 +447,7 @@ impl Renderer {
             ));
         }
         self.gbuffer = GBufferPasses::new(&self.ctx, shape)?;
+        self.gbuffer.set_whole_passes(self.specialized_pipelines);
         self.splat_shape = shape;
         Ok(())
     }
@@ -466,12 +471,15 @@ impl Renderer {
 
     /// Whether frames take the pipelines made without code they do not
     /// run (the default, true): the round aperture's
-    /// ([`crate::passes::ApertureVariants`]) and the output's without a
-    /// veil; false renders every frame with the general pipelines. The
-    /// same images, byte for byte, as `tests/aperture.rs` and
-    /// `tests/output.rs` check.
+    /// ([`crate::passes::ApertureVariants`]), the G-buffer resolve's of a
+    /// pass that holds every sample, and the output's without a veil;
+    /// false renders every frame with the general pipelines. The same
+    /// images, byte for byte, as `tests/aperture.rs` and `tests/output.rs`
+    /// check.
     pub fn set_specialized_pipelines(&mut self, enabled: bool) {
+        self.specialized_pipelines = enabled;
         self.methods.set_round_pipelines(enabled);
+        self.gbuffer.set_whole_passes(enabled);
         self.output.set_unveiled(enabled);
     }
 

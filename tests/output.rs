@@ -139,25 +139,34 @@ fn staged_output_equals_the_direct_output() {
     });
 }
 
-/// The output pipeline made without the veil's code (`VEIL_CODE`, for the
-/// frames without a veil) writes the general pipeline's bytes, in both
-/// formats, for a pinhole and a layered frame.
+/// The pipelines made without code a frame does not run write the general
+/// pipelines' bytes, in both formats: the output's without the veil's
+/// (`VEIL_CODE`) and the G-buffer resolves' of a pass that holds every
+/// sample (`WHOLE_PASS`: the compute raster's, by area and by samples, the
+/// sprites' upscaled plan), for a pinhole and a layered frame.
 #[test]
-fn the_unveiled_output_writes_the_general_outputs_bytes() {
+fn the_specialized_pipelines_write_the_general_ones_bytes() {
+    use pointlens::options::{Coverage, LayeredOptions, Raster};
     with_gpu(|ctx| {
         let mut renderer = Renderer::new(ctx).unwrap();
         let cloud = BenchModel::Bunny.load(&root().join("data"), 0).unwrap();
         let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
-        for method in [
-            Method::Pinhole,
-            Method::Layered(pointlens::options::LayeredOptions::default()),
+        for (raster, coverage) in [
+            (Raster::Compute, Coverage::Area),
+            (Raster::Compute, Coverage::Samples),
+            (Raster::Sprites, Coverage::Samples),
         ] {
-            let options = bunny_options(&cloud, method);
-            renderer.set_specialized_pipelines(true);
-            let specialized = both_formats(&renderer, &scene, &options);
-            renderer.set_specialized_pipelines(false);
-            let general = both_formats(&renderer, &scene, &options);
-            assert_same_frames(&specialized, &general, &format!("{method:?}"));
+            renderer.set_raster(raster);
+            renderer.set_coverage(Some(coverage));
+            for method in [Method::Pinhole, Method::Layered(LayeredOptions::default())] {
+                let options = bunny_options(&cloud, method);
+                renderer.set_specialized_pipelines(true);
+                let specialized = both_formats(&renderer, &scene, &options);
+                renderer.set_specialized_pipelines(false);
+                let general = both_formats(&renderer, &scene, &options);
+                let what = format!("{raster:?} {coverage:?} {method:?}");
+                assert_same_frames(&specialized, &general, &what);
+            }
         }
     });
 }

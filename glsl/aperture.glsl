@@ -5,7 +5,7 @@
 
 // Whether this pipeline carries the code of shaped apertures and of the
 // cat's eye (a specialization constant, id 0: src/passes/mod.rs,
-// ApertureVariants): the round pipeline of a pass is made without it, for
+// Specialized::round): the round pipeline of a pass is made without it, for
 // the frames of the round aperture, which never run it.
 layout(constant_id = 0) const bool APERTURE_CODE = true;
 

@@ -18,7 +18,7 @@
 
 // Whether the pass holds every sample of its pixels (sample_index 0,
 // sample_count K²) and weighs them alike (no cat's eye): a specialization
-// constant, id 3 (src/passes/gbuffer_resolve.rs, ResolvePipelines), for
+// constant, id 3 (src/passes/gbuffer_resolve.rs, resolve_pair), for
 // the pipeline of such passes (every compute raster's but accum's), made
 // without the code of the others.
 layout(constant_id = 3) const bool WHOLE_PASS = false;

@@ -471,7 +471,7 @@ impl Renderer {
 
     /// Whether frames take the pipelines made without code they do not
     /// run (the default, true): the round aperture's
-    /// ([`crate::passes::ApertureVariants`]), the G-buffer resolve's of a
+    /// ([`crate::passes::Specialized`]), the G-buffer resolve's of a
     /// pass that holds every sample, and the output's without a veil;
     /// false renders every frame with the general pipelines. The same
     /// images, byte for byte, as `tests/aperture.rs` and `tests/output.rs`

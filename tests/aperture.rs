@@ -660,7 +660,7 @@ fn render_cli(
 }
 
 /// The frames of the round aperture take pipelines made without the
-/// aperture's code (`ApertureVariants`, the specialization constant
+/// aperture's code (`Specialized::round`, the specialization constant
 /// `APERTURE_CODE`): every method that has them renders the bunny through
 /// a round lens byte for byte as through its general pipelines, and a
 /// shaped frame (which always takes the general ones) differs from the

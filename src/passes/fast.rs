@@ -13,9 +13,7 @@ use std::sync::{Arc, OnceLock};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{
-    check_square_loop, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView,
-};
+use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
 use crate::camera::{Aperture, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{FastGather, FastOptions, FastWeights, GatherWindow};
@@ -106,9 +104,9 @@ pub struct Fast {
     coc: ComputePipeline<CocPush>,
     tile_max: ComputePipeline<TileMaxPush>,
     tile_dilate: ComputePipeline<DilatePush>,
-    gather: ApertureVariants<GatherPush>,
+    gather: Specialized<GatherPush>,
     tree: ComputePipeline<TreePush>,
-    gather_tree: ApertureVariants<GatherPush>,
+    gather_tree: Specialized<GatherPush>,
     /// The gathers made for one blade count N each (`BLADES` of
     /// `glsl/fast_gather.glsl`; at N, 3 to 16), as a shaped frame first
     /// needs them: pixels, then tree. Those of `gather` and `gather_tree`
@@ -121,8 +119,8 @@ pub struct Fast {
 impl Fast {
     /// [`super::Methods::set_round_pipelines`] for both gathers.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
-        self.gather.any_only = !enabled;
-        self.gather_tree.any_only = !enabled;
+        self.gather.set_enabled(enabled);
+        self.gather_tree.set_enabled(enabled);
     }
 
     pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
@@ -131,9 +129,9 @@ impl Fast {
             coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
             tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
-            gather: ApertureVariants::new(ctx, "fast_gather", GATHER, GATHER_BINDINGS)?,
+            gather: Specialized::round(ctx, "fast_gather", GATHER, GATHER_BINDINGS)?,
             tree: ComputePipeline::new(ctx, "fast_tree", TREE, &[I, I, I, B, B, B])?,
-            gather_tree: ApertureVariants::new(
+            gather_tree: Specialized::round(
                 ctx,
                 "fast_gather_tree",
                 GATHER_TREE,

@@ -14,6 +14,7 @@ use glam::Vec2;
 
 use super::gbuffer_area::Marked;
 use super::splat_compute::Visibility;
+use super::Specialized;
 use crate::error::Result;
 use crate::push_constants;
 use crate::vk::{
@@ -84,61 +85,32 @@ static VIS_MARKS_SPIRV: &[u8] = include_bytes!(concat!(
 static MS_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/gbuffer_resolve_ms.comp.spv"));
 
 pub struct GBufferResolve {
-    pipeline: ResolvePipelines<Push>,
+    /// Each one-sample-target resolve in two forms: the general one and
+    /// one for a whole pass ([`ResolvePass::is_whole`]; `WHOLE_PASS`), the
+    /// first and only pass of a G-buffer without accum's cat's eye, which
+    /// is every compute raster's but accum's (a 1080p frame's resolve
+    /// about 30 % shorter on llvmpipe).
+    pipeline: Specialized<Push>,
     /// For the compute rasteriser's visibility words (on devices with
     /// 64-bit buffer atomics): plain, and marking the pixels that
     /// resolve by area.
-    visibility: Option<(ResolvePipelines<VisPush>, ResolvePipelines<VisPush>)>,
+    visibility: Option<(Specialized<VisPush>, Specialized<VisPush>)>,
     /// For multisampled passes, on devices that have them.
     multisampled: Option<ComputePipeline<MsPush>>,
-    /// Every pass takes the general pipelines
-    /// ([`GBufferResolve::set_whole_passes`]).
-    general_only: bool,
 }
 
 /// The specialization constant `WHOLE_PASS` of
 /// `glsl/gbuffer_resolve_blocks.glsl`.
 const WHOLE_PASS_ID: u32 = 3;
 
-/// A one-sample-target resolve's two pipelines from one shader: the
-/// general one, and one made for a pass that holds every sample of its
-/// pixels and weighs them alike (`WHOLE_PASS`): the first and only pass of
-/// a G-buffer without accum's cat's eye, which is every compute raster's
-/// but accum's. Without the code of the other passes it folds the same
-/// samples alike (a 1080p frame's resolve about 30 % shorter on llvmpipe).
-struct ResolvePipelines<P: crate::vk::PushConstants> {
-    general: ComputePipeline<P>,
-    whole: ComputePipeline<P>,
-}
-
-impl<P: crate::vk::PushConstants> ResolvePipelines<P> {
-    fn new(
-        ctx: &Arc<Context>,
-        name: &str,
-        spirv: &[u8],
-        bindings: &[Binding],
-    ) -> Result<ResolvePipelines<P>> {
-        Ok(ResolvePipelines {
-            general: ComputePipeline::new(ctx, name, spirv, bindings)?,
-            whole: ComputePipeline::specialized(
-                ctx,
-                &format!("{name} (whole pass)"),
-                spirv,
-                bindings,
-                &[(WHOLE_PASS_ID, 1)],
-            )?,
-        })
-    }
-
-    /// The pipeline for `pass`: the whole pass's where it holds every
-    /// sample (from the first, K² of K²) and weighs them alike, unless
-    /// `general_only`.
-    fn for_pass(&self, pass: &ResolvePass, general_only: bool) -> &ComputePipeline<P> {
-        match pass.is_whole() && !general_only {
-            true => &self.whole,
-            false => &self.general,
-        }
-    }
+/// The general resolve of `spirv` and its whole pass's.
+fn resolve_pair<P: crate::vk::PushConstants>(
+    ctx: &Arc<Context>,
+    name: &str,
+    spirv: &[u8],
+    bindings: &[Binding],
+) -> Result<Specialized<P>> {
+    Specialized::new(ctx, name, spirv, bindings, "whole pass", (WHOLE_PASS_ID, 1))
 }
 
 /// Which samples of the G-buffer one resolve folds.
@@ -272,11 +244,11 @@ impl GBufferResolve {
         let buffer = Binding::StorageBuffer;
         let vis_bindings = [buffer, image, image, image, buffer];
         Ok(GBufferResolve {
-            pipeline: ResolvePipelines::new(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
+            pipeline: resolve_pair(ctx, "gbuffer_resolve", SPIRV, &bindings)?,
             visibility: match ctx.info.buffer_int64_atomics {
                 true => Some((
-                    ResolvePipelines::new(ctx, "gbuffer_resolve_vis", VIS_SPIRV, &vis_bindings)?,
-                    ResolvePipelines::new(
+                    resolve_pair(ctx, "gbuffer_resolve_vis", VIS_SPIRV, &vis_bindings)?,
+                    resolve_pair(
                         ctx,
                         "gbuffer_resolve_vis_marks",
                         VIS_MARKS_SPIRV,
@@ -294,7 +266,6 @@ impl GBufferResolve {
                 )?),
                 false => None,
             },
-            general_only: false,
         })
     }
 
@@ -302,7 +273,11 @@ impl GBufferResolve {
     /// pipelines made for them (the default, true) or the general ones,
     /// as the test that they agree renders.
     pub fn set_whole_passes(&mut self, enabled: bool) {
-        self.general_only = !enabled;
+        self.pipeline.set_enabled(enabled);
+        if let Some((plain, marks)) = &mut self.visibility {
+            plain.set_enabled(enabled);
+            marks.set_enabled(enabled);
+        }
     }
 
     /// Records, as pass `name`, the fold of the samples of one raster pass
@@ -433,7 +408,7 @@ impl GBufferResolve {
                     }
                     None => plain,
                 };
-                let pipeline = pipeline.for_pass(pass, self.general_only);
+                let pipeline = pipeline.pick(pass.is_whole());
                 rec.dispatch(pipeline, &binds, &push, size);
                 return;
             }
@@ -464,7 +439,7 @@ impl GBufferResolve {
                 half_cell,
                 color_scale: pass.color_scale,
             };
-            let pipeline = self.pipeline.for_pass(pass, self.general_only);
+            let pipeline = self.pipeline.pick(pass.is_whole());
             rec.dispatch(pipeline, &binds, &push, size);
         } else {
             let pipeline = self

@@ -28,7 +28,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{spread_disk, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView};
+use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
 use crate::camera::{Camera, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{check_layers, LayeredOptions};
@@ -92,7 +92,7 @@ push_constants! {
 pub struct Layered {
     tiles: ComputePipeline<LayeredPush>,
     prepare: ComputePipeline<LayeredPush>,
-    spread: Option<ApertureVariants<LayeredPush>>,
+    spread: Option<Specialized<LayeredPush>>,
     composite: Option<ComputePipeline<LayeredPush>>,
 }
 
@@ -100,7 +100,7 @@ impl Layered {
     /// [`super::Methods::set_round_pipelines`] for the spread.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
         if let Some(spread) = &mut self.spread {
-            spread.any_only = !enabled;
+            spread.set_enabled(enabled);
         }
     }
 
@@ -118,7 +118,7 @@ impl Layered {
                 &[I, I, I, I, I, I, B, B, B, B],
             )?,
             spread: match int64 {
-                true => Some(ApertureVariants::new(
+                true => Some(Specialized::round(
                     ctx,
                     "layered_spread",
                     SPREAD,

@@ -22,52 +22,81 @@ use crate::vk::{Context, Frame, Image};
 /// cat's eye.
 pub const APERTURE_CODE_ID: u32 = 0;
 
-/// A pass's pipeline in two forms made from one shader: one with the code
-/// of shaped apertures and of the cat's eye, for any frame, and one
-/// without it (`APERTURE_CODE` false), for the frames of the round
-/// aperture, which never run that code. Compiled away, the code no longer
-/// slows the round path (on llvmpipe `fast`'s round gathers take about
-/// half the time, `layered`'s spread a fifth to a third less;
-/// docs/decisions/aperture-shape.md), and the round frames are the same
-/// byte for byte.
-pub struct ApertureVariants<P: crate::vk::PushConstants> {
-    any: crate::vk::ComputePipeline<P>,
-    round: crate::vk::ComputePipeline<P>,
-    /// Every frame takes `any` (`Methods::set_round_pipelines`).
-    any_only: bool,
+/// A pass's pipeline in two forms made from one shader: the general one,
+/// and one made with a specialization constant that compiles away code
+/// some frames never run (docs/decisions/specialized-pipelines.md): the
+/// round aperture's ([`Specialized::round`]), a resolve's of a pass
+/// that holds every sample, the output's without a veil. A frame takes the
+/// special form where its own facts say the code would not run, so its
+/// images are the general form's byte for byte.
+pub struct Specialized<P: crate::vk::PushConstants> {
+    general: crate::vk::ComputePipeline<P>,
+    special: crate::vk::ComputePipeline<P>,
+    /// Every frame takes `general` ([`Specialized::set_enabled`]).
+    general_only: bool,
 }
 
-impl<P: crate::vk::PushConstants> ApertureVariants<P> {
+impl<P: crate::vk::PushConstants> Specialized<P> {
+    /// The two forms of `spirv`, the special one (named `name (form)`)
+    /// made with specialization constant `constant` (id, value).
     pub fn new(
         ctx: &Arc<Context>,
         name: &str,
         spirv: &[u8],
         bindings: &[crate::vk::Binding],
-    ) -> Result<ApertureVariants<P>> {
-        Ok(ApertureVariants {
-            any: crate::vk::ComputePipeline::new(ctx, name, spirv, bindings)?,
-            round: crate::vk::ComputePipeline::specialized(
+        form: &str,
+        constant: (u32, u32),
+    ) -> Result<Specialized<P>> {
+        Ok(Specialized {
+            general: crate::vk::ComputePipeline::new(ctx, name, spirv, bindings)?,
+            special: crate::vk::ComputePipeline::specialized(
                 ctx,
-                &format!("{name} (round)"),
+                &format!("{name} ({form})"),
                 spirv,
                 bindings,
-                &[(APERTURE_CODE_ID, 0)],
+                &[constant],
             )?,
-            any_only: false,
+            general_only: false,
         })
     }
 
-    /// The pipeline for a frame through `aperture`: the round one where it
-    /// is the round aperture (no shape, image or cat's eye: the one rule).
+    /// The pipeline of a frame: the special form where `special` (the
+    /// frame never runs the code it leaves out) and the form is enabled.
+    pub fn pick(&self, special: bool) -> &crate::vk::ComputePipeline<P> {
+        match special && !self.general_only {
+            true => &self.special,
+            false => &self.general,
+        }
+    }
+
+    /// Whether frames may take the special form (the default, true), or
+    /// every frame the general one, as the tests that they agree render
+    /// (`Renderer::set_specialized_pipelines`).
+    pub fn set_enabled(&mut self, enabled: bool) {
+        self.general_only = !enabled;
+    }
+
+    /// The general form and the one without the code of shaped apertures
+    /// and of the cat's eye (`APERTURE_CODE` false): on llvmpipe `fast`'s
+    /// round gathers take about half the time, `layered`'s spread a fifth
+    /// to a third less (docs/decisions/aperture-shape.md).
+    pub fn round(
+        ctx: &Arc<Context>,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[crate::vk::Binding],
+    ) -> Result<Specialized<P>> {
+        Self::new(ctx, name, spirv, bindings, "round", (APERTURE_CODE_ID, 0))
+    }
+
+    /// The pipeline for a frame through `aperture`, of a pair made by
+    /// [`Specialized::round`]: the round one where it is the round
+    /// aperture (no shape, image or cat's eye: the one rule).
     pub fn for_aperture(
         &self,
         aperture: &crate::camera::Aperture,
     ) -> &crate::vk::ComputePipeline<P> {
-        if aperture.is_round() && !self.any_only {
-            &self.round
-        } else {
-            &self.any
-        }
+        self.pick(aperture.is_round())
     }
 }
 
@@ -420,7 +449,7 @@ impl Methods {
     }
 
     /// Whether the frames of the round aperture take the pipelines made
-    /// without the aperture's code ([`ApertureVariants`]; the default,
+    /// without the aperture's code ([`Specialized::round`]; the default,
     /// true), or the general ones, as the test that they agree renders.
     pub fn set_round_pipelines(&mut self, enabled: bool) {
         self.fast.set_round_pipelines(enabled);

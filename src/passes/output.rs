@@ -7,11 +7,11 @@ use std::sync::Arc;
 
 use ash::vk;
 
-use super::FrameView;
+use super::{FrameView, Specialized};
 use crate::error::Result;
 use crate::image_io::{f16_to_f32, linear_to_srgb8};
 use crate::push_constants;
-use crate::vk::{Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
+use crate::vk::{Access, Bind, Binding, Buffer, Context, Frame, Image};
 
 static SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/output_convert.comp.spv"));
 
@@ -60,13 +60,10 @@ const VEIL_CODE_ID: u32 = 2;
 
 /// The pipelines and the sRGB table, made once per renderer.
 pub struct OutputConvert {
-    pipeline: ComputePipeline<Push>,
-    /// The pipeline made without the veil's code (`VEIL_CODE` false), for
-    /// the frames without a veil: the same pixels, in 0.6 of the time on
-    /// llvmpipe.
-    unveiled: ComputePipeline<Push>,
-    /// Every frame takes `pipeline` ([`OutputConvert::set_unveiled`]).
-    veiled_only: bool,
+    /// The general pipeline and the one made without the veil's code
+    /// (`VEIL_CODE` false), for the frames without a veil: the same
+    /// pixels, in 0.6 of the time on llvmpipe.
+    pipeline: Specialized<Push>,
     /// `linear_to_srgb8(f16_to_f32(h))` for every half-float bit pattern h,
     /// four codes per word.
     srgb8_lut: Buffer,
@@ -90,15 +87,14 @@ impl OutputConvert {
             Binding::StorageBuffer,
         ];
         Ok(OutputConvert {
-            pipeline: ComputePipeline::new(ctx, "output_convert", SPIRV, &bindings)?,
-            unveiled: ComputePipeline::specialized(
+            pipeline: Specialized::new(
                 ctx,
-                "output_convert (no veil)",
+                "output_convert",
                 SPIRV,
                 &bindings,
-                &[(VEIL_CODE_ID, 0)],
+                "no veil",
+                (VEIL_CODE_ID, 0),
             )?,
-            veiled_only: false,
             srgb8_lut,
         })
     }
@@ -107,7 +103,7 @@ impl OutputConvert {
     /// its code (the default, true) or the general one, as the test that
     /// they agree renders.
     pub fn set_unveiled(&mut self, enabled: bool) {
-        self.veiled_only = !enabled;
+        self.pipeline.set_enabled(enabled);
     }
 
     /// Records, as pass `output`, the conversion of the output part of
@@ -148,12 +144,8 @@ impl OutputConvert {
         assert!(written.size() >= out.size(), "staging buffer too small");
         frame.pass("output", |rec| {
             rec.barriers(&[(result, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ)]);
-            let pipeline = match veil.1 == 0 && !self.veiled_only {
-                true => &self.unveiled,
-                false => &self.pipeline,
-            };
             rec.dispatch(
-                pipeline,
+                self.pipeline.pick(veil.1 == 0),
                 &[
                     Bind::StorageImage(result),
                     Bind::StorageBuffer(&self.srgb8_lut),

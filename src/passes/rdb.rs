@@ -16,9 +16,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::{
-    check_square_loop, ApertureVariants, Configured, DofFrame, DofInput, DofMethod, FrameView,
-};
+use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
 use crate::push_constants;
@@ -66,7 +64,7 @@ push_constants! {
 /// The pipelines of the method, and the 64-bit bins kept between frames.
 pub struct Rdb {
     scatter: ComputePipeline<ScatterPush>,
-    resolve: ApertureVariants<ResolvePush>,
+    resolve: Specialized<ResolvePush>,
     /// The 64-bit form, on devices with 64-bit buffer atomics.
     packed: Option<Packed>,
 }
@@ -74,7 +72,7 @@ pub struct Rdb {
 /// The 64-bit form: its pipelines and its bins.
 struct Packed {
     scatter: ComputePipeline<ScatterPush>,
-    resolve: ApertureVariants<ResolvePush>,
+    resolve: Specialized<ResolvePush>,
     /// Made by the first frame that needs them (or a bigger one), then kept;
     /// a frame holds the lock from `prepare` until it is dropped, after its
     /// submission completed.
@@ -287,9 +285,9 @@ impl<'m> RdbImages<'m> {
 impl Rdb {
     /// [`super::Methods::set_round_pipelines`] for both forms' resolves.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
-        self.resolve.any_only = !enabled;
+        self.resolve.set_enabled(enabled);
         if let Some(packed) = &mut self.packed {
-            packed.resolve.any_only = !enabled;
+            packed.resolve.set_enabled(enabled);
         }
     }
 
@@ -302,7 +300,7 @@ impl Rdb {
                 SCATTER,
                 &[img, img, img, Binding::StorageBuffer],
             )?,
-            resolve: ApertureVariants::new(
+            resolve: Specialized::round(
                 ctx,
                 "rdb_resolve",
                 RESOLVE,
@@ -316,7 +314,7 @@ impl Rdb {
                         SCATTER64,
                         &[img, Binding::StorageBuffer, Binding::StorageBuffer],
                     )?,
-                    resolve: ApertureVariants::new(
+                    resolve: Specialized::round(
                         ctx,
                         "rdb_resolve64",
                         RESOLVE64,

@@ -546,8 +546,7 @@ impl Aperture {
     /// blades, |w| ≤ ρ(φ): as m = max over the blades' middle directions
     /// d_k of w·d_k is |w|·cos δ, that is m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w|.
     pub fn blades_pass(&self, u: Vec2) -> bool {
-        let m = self.base_from_lens();
-        let w = Vec2::new(m[0] * u.x + m[1] * u.y, m[2] * u.x + m[3] * u.y);
+        let w = self.base_by_matrix(u);
         let r2 = w.length_squared();
         if self.blades == 0 || r2 > 1.0 {
             return r2 <= 1.0;
@@ -557,7 +556,22 @@ impl Aperture {
             .fold(-1.0f32, f32::max);
         let r = r2.sqrt();
         let c = self.curvature;
-        most * (r - c) <= (1.0 - c) * (std::f32::consts::PI / self.blades as f32).cos() * r
+        most * (r - c) <= (1.0 - c) * self.blade_cos() * r
+    }
+
+    /// M·u of [`Aperture::base_from_lens`], as the GLSL tap test forms it.
+    fn base_by_matrix(&self, u: Vec2) -> Vec2 {
+        let m = self.base_from_lens();
+        Vec2::new(m[0] * u.x + m[1] * u.y, m[2] * u.x + m[3] * u.y)
+    }
+
+    /// cos(π/N) of N blades: the blades' inner radius without curvature
+    /// (1 without blades).
+    pub fn blade_cos(&self) -> f32 {
+        match self.blades {
+            0 => 1.0,
+            n => (std::f32::consts::PI / n as f32).cos(),
+        }
     }
 
     /// The middle direction of blade k in the base shape: screen angle
@@ -574,7 +588,7 @@ impl Aperture {
         let n = self.blades as f32;
         let sector = std::f32::consts::TAU / n;
         let delta = (phi - std::f32::consts::FRAC_PI_2).rem_euclid(sector) - sector / 2.0;
-        (1.0 - self.curvature) * (std::f32::consts::PI / n).cos() / delta.cos() + self.curvature
+        (1.0 - self.curvature) * self.blade_cos() / delta.cos() + self.curvature
     }
 
     /// The transmission T(u) ∈ [0, 1] at lens position u (pixel axes).
@@ -1117,8 +1131,7 @@ mod tests {
             for i in 0..201 {
                 for j in 0..201 {
                     let u = Vec2::new(i as f32 / 100.0 - 1.0, j as f32 / 100.0 - 1.0);
-                    let m = a.base_from_lens();
-                    let w = Vec2::new(m[0] * u.x + m[1] * u.y, m[2] * u.x + m[3] * u.y);
+                    let w = a.base_by_matrix(u);
                     assert!((w - a.base_of(u)).length() < 1e-6, "{a:?} at {u}");
                     let r = w.length();
                     let rho = if a.blades == 0 {

@@ -648,10 +648,7 @@ impl FastFrame<'_> {
                     focus_distance: camera.focus_distance,
                     shape_inner_box: images.shape.inner_box,
                     shape_inner: images.shape.inner,
-                    blade_cos: match aperture.blades {
-                        0 => 1.0,
-                        n => (std::f32::consts::PI / n as f32).cos(),
-                    },
+                    blade_cos: aperture.blade_cos(),
                     shape_box: images.shape.bounding_box,
                     base_from_lens: aperture.base_from_lens(),
                     curvature: aperture.curvature,

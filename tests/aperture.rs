@@ -701,14 +701,11 @@ fn round_pipelines_render_the_round_frames_of_the_general_ones() {
             ("rdb 32", rdb(RdbAtomics::Int32)),
             ("layered", Method::Layered(LayeredOptions::default())),
         ];
-        let bits = |image: &LinearImage| -> Vec<u32> {
-            image.pixels.iter().flatten().map(|v| v.to_bits()).collect()
-        };
         let mut differ = Vec::new();
         for (name, method) in methods {
             let render = |renderer: &Renderer, camera: Camera| {
                 let options = common::options(camera, method);
-                bits(&renderer.render(&scene, &options).unwrap().image)
+                common::image_bits(&renderer.render(&scene, &options).unwrap().image)
             };
             let specialized = render(&renderer, round);
             renderer.set_specialized_pipelines(false);

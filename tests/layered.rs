@@ -381,10 +381,10 @@ fn without_blur_layered_is_the_pinhole_image_and_runs_repeat_bitwise() {
         let cam = occlusion_camera();
         let a = render(&renderer, &scene, cam, Method::layered(4));
         let b = render(&renderer, &scene, cam, Method::layered(4));
-        let bits = |i: &LinearImage| -> Vec<u32> {
-            i.pixels.iter().flatten().map(|v| v.to_bits()).collect()
-        };
-        assert!(bits(&a) == bits(&b), "two runs differ");
+        assert!(
+            common::image_bits(&a) == common::image_bits(&b),
+            "two runs differ"
+        );
     });
 }
 

@@ -89,13 +89,10 @@ fn both_formats(
     options: &RenderOptions,
 ) -> (Vec<u32>, Srgb8Image) {
     let linear = renderer.render(scene, options).unwrap().image;
-    let bits = linear
-        .pixels
-        .iter()
-        .flatten()
-        .map(|v| v.to_bits())
-        .collect();
-    (bits, renderer.render_srgb8(scene, options).unwrap().image)
+    (
+        common::image_bits(&linear),
+        renderer.render_srgb8(scene, options).unwrap().image,
+    )
 }
 
 /// The two renders of a frame in both formats are the same bytes, and not

@@ -277,6 +277,12 @@ pub fn options(camera: Camera, method: Method) -> RenderOptions {
     }
 }
 
+/// The bits of every channel of every pixel: for images that must be the
+/// same byte for byte (-0.0 apart from 0.0, one NaN apart from another).
+pub fn image_bits(image: &LinearImage) -> Vec<u32> {
+    image.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
 /// Pixels that differ at all, of the total.
 pub fn differing(
     a: &pointlens::image_io::LinearImage,

@@ -374,6 +374,10 @@ pub struct Cell {
     /// reports written before it).
     #[serde(default)]
     pub host_ms: Option<Stats>,
+    /// The part of the host share spent copying the pixels out of the
+    /// readback buffer (None in reports written before it).
+    #[serde(default)]
+    pub readback_ms: Option<Stats>,
     /// The cell's first frame's wall (its first warm-up frame: the cell's
     /// allocations and first use), apart from the steady frames above.
     #[serde(default)]
@@ -533,6 +537,9 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                             .iter()
                             .map(|t| (t.wall_ms - t.gpu_total_ms()).max(0.0))
                             .collect::<Vec<_>>(),
+                    )),
+                    readback_ms: Some(Stats::of(
+                        &timings.iter().map(|t| t.readback_ms).collect::<Vec<_>>(),
                     )),
                     first_frame_wall_ms: Some(first_wall_ms),
                     passes: pass_stats(&timings),

@@ -845,6 +845,7 @@ impl Renderer {
             timings: FrameTimings {
                 passes: Vec::new(),
                 wall_ms: view_ms,
+                readback_ms: 0.0,
             },
             guard: view.frame.guard,
             samples_per_pass: plan.samples_per_pixel_per_pass(),
@@ -1061,7 +1062,8 @@ impl Renderer {
 
         let copying = Instant::now();
         let (image, host_gbuffer) = readback.read()?;
-        timings.wall_ms += copying.elapsed().as_secs_f64() * 1e3;
+        timings.readback_ms = copying.elapsed().as_secs_f64() * 1e3;
+        timings.wall_ms += timings.readback_ms;
         Ok(WindowResult {
             image,
             timings,

@@ -119,6 +119,11 @@ pub struct FrameReport {
     pub lod: LodReport,
     pub gpu_total_ms: f64,
     pub frame_wall_ms: f64,
+    /// The part of the frame's wall spent copying its pixels from the
+    /// readback buffer to the host's image (0 in reports written before
+    /// it was measured).
+    #[serde(default)]
+    pub readback_ms: f64,
     pub upload: Upload,
     /// Reading the cloud file.
     pub load_ms: f64,
@@ -157,6 +162,7 @@ impl FrameReport {
             lod: LodReport::default(),
             gpu_total_ms: frame.gpu_total_ms(),
             frame_wall_ms: frame.wall_ms,
+            readback_ms: frame.readback_ms,
             upload,
             load_ms: 0.0,
             encode_ms: 0.0,
@@ -256,17 +262,19 @@ impl FrameReport {
         (self.frame_wall_ms - self.gpu_total_ms).max(0.0)
     }
 
-    /// The `--timings` line of [`FrameReport::host_ms`], with its share of
-    /// the frame.
+    /// The `--timings` lines of [`FrameReport::host_ms`], with its share of
+    /// the frame, and of the readback's copy within it.
     fn host_line(&self) -> String {
         let share = match self.frame_wall_ms > 0.0 {
             true => 100.0 * self.host_ms() / self.frame_wall_ms,
             false => 0.0,
         };
         format!(
-            "{:<20} {:>10.3}   ({share:.0} % of the frame wall)\n",
+            "{:<20} {:>10.3}   ({share:.0} % of the frame wall)\n{:<20} {:>10.3}   (of the host share)\n",
             "host (wall - gpu)",
-            self.host_ms()
+            self.host_ms(),
+            "readback copy",
+            self.readback_ms
         )
     }
 

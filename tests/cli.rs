@@ -53,13 +53,19 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
         "output",
         "frame wall",
         "host (wall - gpu)",
+        "readback copy",
     ] {
         assert!(err.contains(pass), "timings lack {pass}: {err}");
     }
     let t: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert!(t["passes"].as_array().unwrap().len() >= 3);
-    assert!(t["frame_wall_ms"].as_f64().unwrap() > 0.0);
+    let wall_ms = t["frame_wall_ms"].as_f64().unwrap();
+    assert!(wall_ms > 0.0);
+    // The readback's copy is measured, and within the frame's host share.
+    let readback_ms = t["readback_ms"].as_f64().unwrap();
+    let host_ms = wall_ms - t["gpu_total_ms"].as_f64().unwrap();
+    assert!(readback_ms > 0.0 && readback_ms <= host_ms, "{readback_ms} of {host_ms}");
 
     let exr_s = exr.display().to_string();
     let mut args = vec!["render", &bunny, "-o", &exr_s];

@@ -28,6 +28,9 @@ pub struct FrameTimings {
     /// From the start of command recording to the results being readable
     /// on the host, milliseconds.
     pub wall_ms: f64,
+    /// The part of `wall_ms` spent copying the output pixels from the
+    /// readback buffer into the host's image, milliseconds.
+    pub readback_ms: f64,
 }
 
 impl FrameTimings {
@@ -42,6 +45,7 @@ impl FrameTimings {
             add_pass(&mut self.passes, &p.name, p.gpu_ms, p.count);
         }
         self.wall_ms += other.wall_ms;
+        self.readback_ms += other.readback_ms;
     }
 }
 
@@ -305,7 +309,11 @@ impl<'r> Frame<'r> {
                 add_pass(&mut passes, name, ms, 1);
             }
         }
-        Ok(FrameTimings { passes, wall_ms })
+        Ok(FrameTimings {
+            passes,
+            wall_ms,
+            readback_ms: 0.0,
+        })
     }
 }
 

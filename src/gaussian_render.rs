@@ -253,6 +253,17 @@ impl GaussianRenderer {
         })
     }
 
+    /// `layered`'s passes with more than one cut of their work in the form
+    /// of `sizes` instead of the device's own
+    /// ([`crate::passes::kernel_sizes::KernelSizes::for_device`]), as the
+    /// test that the forms agree renders.
+    pub fn set_kernel_sizes(
+        &mut self,
+        sizes: crate::passes::kernel_sizes::KernelSizes,
+    ) -> Result<()> {
+        self.layered.set_kernel_sizes(&self.ctx, sizes)
+    }
+
     /// Puts the SH of at most `limit` Gaussians in the first of the two
     /// SH buffers (where the device's binding range does not already): to
     /// test the split on small scenes.

@@ -483,6 +483,17 @@ impl Renderer {
         self.output.set_unveiled(enabled);
     }
 
+    /// The passes with more than one cut of their work in the form of
+    /// `sizes` instead of the device's own
+    /// ([`crate::passes::kernel_sizes::KernelSizes::for_device`]): the
+    /// same images, as the test that says so renders.
+    pub fn set_kernel_sizes(
+        &mut self,
+        sizes: crate::passes::kernel_sizes::KernelSizes,
+    ) -> Result<()> {
+        self.methods.set_kernel_sizes(&self.ctx, sizes)
+    }
+
     /// Eye-dome lighting of the G-buffer's first layer before the
     /// depth-of-field method (`--edl`; None: off). `accum` refuses it: it
     /// averages a G-buffer per lens position and has no one image to shade.

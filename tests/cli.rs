@@ -65,7 +65,10 @@ fn render_writes_png_and_linear_exr_with_timings_and_no_validation_message() {
     // The readback's copy is measured, and within the frame's host share.
     let readback_ms = t["readback_ms"].as_f64().unwrap();
     let host_ms = wall_ms - t["gpu_total_ms"].as_f64().unwrap();
-    assert!(readback_ms > 0.0 && readback_ms <= host_ms, "{readback_ms} of {host_ms}");
+    assert!(
+        readback_ms > 0.0 && readback_ms <= host_ms,
+        "{readback_ms} of {host_ms}"
+    );
 
     let exr_s = exr.display().to_string();
     let mut args = vec!["render", &bunny, "-o", &exr_s];

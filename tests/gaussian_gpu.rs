@@ -646,3 +646,38 @@ fn a_tile_list_longer_than_llvmpipes_loop_limit_blends_whole() {
         assert!(p > 55.0, "layers: {p} dB from the pinhole image");
     });
 }
+
+/// The composite's rows shared by a workgroup write the bytes of a row
+/// per invocation on Gaussian layers too (`passes::kernel_sizes`; the
+/// points' test is in tests/layered.rs): the random scene through a lens,
+/// in workgroups of 8 (several steps along each row) and 64.
+#[test]
+fn layered_gaussians_the_same_with_rows_shared() {
+    use pointlens::passes::kernel_sizes::KernelSizes;
+    common::with_gpu(|ctx| {
+        let mut renderer = GaussianRenderer::new(ctx).unwrap();
+        let scene = random_scene(3000, 9);
+        let mut camera = camera(96, 72);
+        camera.aperture_radius = 0.3;
+        let gpu = renderer.upload(&scene).unwrap();
+        let alone = renderer
+            .render_layered(&gpu, &camera, Vec3::ZERO)
+            .unwrap()
+            .image;
+        let first = alone.pixels[0];
+        assert!(alone.pixels.iter().any(|p| *p != first), "one colour");
+        for row_threads in [8, 64] {
+            renderer
+                .set_kernel_sizes(KernelSizes { row_threads })
+                .unwrap();
+            let shared = renderer
+                .render_layered(&gpu, &camera, Vec3::ZERO)
+                .unwrap()
+                .image;
+            assert!(
+                common::image_bits(&shared) == common::image_bits(&alone),
+                "rows shared by {row_threads} differ"
+            );
+        }
+    });
+}

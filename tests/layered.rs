@@ -480,3 +480,53 @@ fn culling_the_peel_s_splats_changes_no_layered_image() {
         }
     });
 }
+
+/// The composite's two cuts of a row (`passes::kernel_sizes`): a
+/// workgroup sharing each row, its invocations' sums scanned and carried
+/// from step to step along the row, writes the bytes of an invocation per
+/// row, the form a CPU device takes. The sums are integers
+/// (`glsl/layered_fixed.glsl`), so no order of them rounds differently.
+/// Workgroups of 8 and 24 take a 168-column row (the frame and its guard)
+/// in several steps, 64 in one; the frame has middle slices, whose rows
+/// sum only the columns their spread touched.
+#[test]
+fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
+    use pointlens::passes::kernel_sizes::KernelSizes;
+    with_gpu(|ctx| {
+        assert_eq!(KernelSizes::for_device(&ctx.info), KernelSizes::ALONE);
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let cloud = BenchModel::Bunny
+            .load(&common::root().join("data"), 0)
+            .unwrap();
+        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+        for method in [Method::layered(1), Method::layered(2)] {
+            let mut camera = BenchModel::Bunny.camera(&cloud, 150, 61).unwrap();
+            camera.aperture_radius *= 4.0;
+            let options = options(camera, method);
+            renderer.set_kernel_sizes(KernelSizes::ALONE).unwrap();
+            let alone = renderer.render(&scene, &options).unwrap();
+            let slices = alone
+                .counts
+                .iter()
+                .find(|(name, _)| name == "layered.slices")
+                .map(|&(_, n)| n);
+            assert!(slices > Some(2), "{method:?}: {slices:?} slices");
+            let alone_bits = common::image_bits(&alone.image);
+            let first = alone.image.pixels[0];
+            assert!(
+                alone.image.pixels.iter().any(|p| *p != first),
+                "{method:?}: one colour"
+            );
+            for row_threads in [8, 24, 64] {
+                renderer
+                    .set_kernel_sizes(KernelSizes { row_threads })
+                    .unwrap();
+                let shared = renderer.render(&scene, &options).unwrap().image;
+                assert!(
+                    common::image_bits(&shared) == alone_bits,
+                    "{method:?}: rows shared by {row_threads} differ"
+                );
+            }
+        }
+    });
+}

@@ -28,6 +28,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+use super::kernel_sizes::KernelSizes;
 use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
 use crate::camera::{Camera, ShapeRows};
 use crate::error::{Error, Result};
@@ -93,10 +94,39 @@ pub struct Layered {
     tiles: ComputePipeline<LayeredPush>,
     prepare: ComputePipeline<LayeredPush>,
     spread: Option<Specialized<LayeredPush>>,
+    /// In the form `sizes` chooses.
     composite: Option<ComputePipeline<LayeredPush>>,
+    sizes: KernelSizes,
+}
+
+/// The composite in the form of `sizes` (None without 64-bit atomics).
+fn composite_pipeline(
+    ctx: &Arc<Context>,
+    sizes: KernelSizes,
+) -> Result<Option<ComputePipeline<LayeredPush>>> {
+    use Binding::{StorageBuffer as B, StorageImage as I};
+    match ctx.info.buffer_int64_atomics {
+        true => Ok(Some(ComputePipeline::specialized(
+            ctx,
+            "layered_composite",
+            COMPOSITE,
+            &[B, I, I, B],
+            &sizes.composite_constants(),
+        )?)),
+        false => Ok(None),
+    }
 }
 
 impl Layered {
+    /// The composite in the form of `sizes` in place of the device's own
+    /// ([`KernelSizes::for_device`]), as the test that the forms agree
+    /// renders.
+    pub fn set_kernel_sizes(&mut self, ctx: &Arc<Context>, sizes: KernelSizes) -> Result<()> {
+        self.composite = composite_pipeline(ctx, sizes)?;
+        self.sizes = sizes;
+        Ok(())
+    }
+
     /// [`super::Methods::set_round_pipelines`] for the spread.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
         if let Some(spread) = &mut self.spread {
@@ -126,15 +156,8 @@ impl Layered {
                 )?),
                 false => None,
             },
-            composite: match int64 {
-                true => Some(ComputePipeline::new(
-                    ctx,
-                    "layered_composite",
-                    COMPOSITE,
-                    &[B, I, I, B],
-                )?),
-                false => None,
-            },
+            composite: composite_pipeline(ctx, KernelSizes::for_device(&ctx.info))?,
+            sizes: KernelSizes::for_device(&ctx.info),
         })
     }
 }
@@ -608,7 +631,13 @@ impl LayeredFrame<'_> {
                             Bind::StorageBuffer(&images.row_spans),
                         ],
                         &push,
-                        [groups(images.band_rows.min(h - band_y0), 64), 1, 1],
+                        [
+                            self.pipelines
+                                .sizes
+                                .composite_groups(images.band_rows.min(h - band_y0)),
+                            1,
+                            1,
+                        ],
                     );
                 });
             }

@@ -173,6 +173,7 @@ pub mod fast;
 pub mod fields;
 pub mod gbuffer_area;
 pub mod gbuffer_resolve;
+pub mod kernel_sizes;
 pub mod layered;
 pub mod output;
 pub mod peel_cull;
@@ -455,6 +456,17 @@ impl Methods {
         self.fast.set_round_pipelines(enabled);
         self.rdb.set_round_pipelines(enabled);
         self.layered.set_round_pipelines(enabled);
+    }
+
+    /// The passes that have more than one cut of their work
+    /// ([`kernel_sizes`]) in the form of `sizes`, in place of the
+    /// device's own, as the test that the forms agree renders.
+    pub fn set_kernel_sizes(
+        &mut self,
+        ctx: &Arc<Context>,
+        sizes: kernel_sizes::KernelSizes,
+    ) -> Result<()> {
+        self.layered.set_kernel_sizes(ctx, sizes)
     }
 
     /// The implementation of `method` with its options.

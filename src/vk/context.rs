@@ -102,6 +102,11 @@ pub struct DeviceInfo {
     pub sample_rate_shading: bool,
     /// The largest storage-buffer binding, bytes.
     pub max_storage_buffer_range: u64,
+    /// Invocations of a subgroup (8 on lavapipe, 32 on NVIDIA, 32 or 64 on
+    /// AMD).
+    pub subgroup_size: u32,
+    /// The most invocations of a compute workgroup.
+    pub max_compute_workgroup_invocations: u32,
 }
 
 /// The loop iterations a shader invocation runs on llvmpipe, all its loops
@@ -855,11 +860,13 @@ fn pick_device(
     for (index, pd) in (0u32..).zip(devices) {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
         let mut maintenance3 = vk::PhysicalDeviceMaintenance3Properties::default();
+        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
         let mut props2 = vk::PhysicalDeviceProperties2::default()
             .push_next(&mut driver)
-            .push_next(&mut maintenance3);
+            .push_next(&mut maintenance3)
+            .push_next(&mut subgroup);
         // SAFETY: `pd` comes from this instance; `props2` chains only
-        // `driver` and `maintenance3`, both core in Vulkan 1.1.
+        // `driver`, `maintenance3` and `subgroup`, all core in Vulkan 1.1.
         unsafe { instance.get_physical_device_properties2(pd, &mut props2) };
         let props = props2.properties;
         let name = props
@@ -926,6 +933,8 @@ fn pick_device(
             buffer_int64_atomics,
             sample_rate_shading,
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
+            subgroup_size: subgroup.subgroup_size,
+            max_compute_workgroup_invocations: props.limits.max_compute_work_group_invocations,
         };
         candidates.push((pd, family as u32, info));
     }

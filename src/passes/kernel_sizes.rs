@@ -1,0 +1,124 @@
+//! How the passes whose best shape of work differs between a CPU and a GPU
+//! cut it, chosen once from the device's properties
+//! (docs/decisions/kernel-sizes.md). Each form of a pass gives the same
+//! bits; the choice moves only its time.
+
+use ash::vk::PhysicalDeviceType;
+
+use crate::vk::DeviceInfo;
+
+/// The specialization constant of `glsl/layered_composite.comp` that sets
+/// its workgroup's size (`local_size_x_id`).
+pub const COMPOSITE_GROUP_ID: u32 = 4;
+/// Its constant `SHARED_ROWS`: whether a workgroup shares one row.
+pub const COMPOSITE_SHARED_ROWS_ID: u32 = 5;
+/// The composite's workgroup in the form of a row per invocation: rows.
+pub const ROWS_PER_GROUP: u32 = 64;
+
+/// The cut of each pass that has more than one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct KernelSizes {
+    /// Invocations that share one row of `layered.composite`'s prefix
+    /// sums: 1, each invocation a row of its own (64 rows a workgroup);
+    /// else a workgroup of this many takes a row.
+    pub row_threads: u32,
+}
+
+impl KernelSizes {
+    /// Every pass in the form of lanes that each take a whole row or
+    /// item: a CPU device's choice.
+    pub const ALONE: KernelSizes = KernelSizes { row_threads: 1 };
+
+    /// The sizes for `device`. A CPU device runs a workgroup's invocations
+    /// in a few SIMD lanes on each of a few cores, so a frame's rows, one
+    /// per invocation, already fill it, and a row shared by a workgroup
+    /// only adds its barriers. A GPU runs tens of thousands of invocations
+    /// at once, which a frame's thousand rows would leave all but idle
+    /// (`layered.composite`, a thread per row: 3.7 ms of `layered2`'s
+    /// 8.6 ms at 1080p on an H200): there a row takes eight subgroups,
+    /// between 64 and 256 invocations and within the device's limit.
+    pub fn for_device(device: &DeviceInfo) -> KernelSizes {
+        KernelSizes::for_limits(
+            device.device_type,
+            device.subgroup_size,
+            device.max_compute_workgroup_invocations,
+        )
+    }
+
+    /// [`KernelSizes::for_device`] from the device's type, subgroup size
+    /// and most invocations of a workgroup.
+    fn for_limits(
+        device_type: PhysicalDeviceType,
+        subgroup_size: u32,
+        max_invocations: u32,
+    ) -> KernelSizes {
+        match device_type {
+            PhysicalDeviceType::CPU => KernelSizes::ALONE,
+            _ => KernelSizes {
+                row_threads: (subgroup_size.max(1) * 8)
+                    .clamp(64, 256)
+                    .min(max_invocations.max(1)),
+            },
+        }
+    }
+
+    /// The composite's specialization constants (id, value).
+    pub fn composite_constants(&self) -> [(u32, u32); 2] {
+        match self.row_threads {
+            0 | 1 => [
+                (COMPOSITE_GROUP_ID, ROWS_PER_GROUP),
+                (COMPOSITE_SHARED_ROWS_ID, 0),
+            ],
+            n => [(COMPOSITE_GROUP_ID, n), (COMPOSITE_SHARED_ROWS_ID, 1)],
+        }
+    }
+
+    /// The composite's workgroups for `rows` rows.
+    pub fn composite_groups(&self, rows: u32) -> u32 {
+        match self.row_threads {
+            0 | 1 => rows.div_ceil(ROWS_PER_GROUP),
+            _ => rows,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_cpu_keeps_rows_alone_and_a_gpu_shares_them_by_its_subgroups() {
+        let sizes = |t, subgroup, most| KernelSizes::for_limits(t, subgroup, most).row_threads;
+        // lavapipe: a row per invocation, 64 rows a workgroup.
+        assert_eq!(sizes(PhysicalDeviceType::CPU, 8, 1024), 1);
+        assert_eq!(KernelSizes::ALONE.composite_groups(1080), 17);
+        assert_eq!(
+            KernelSizes::ALONE.composite_constants(),
+            [(COMPOSITE_GROUP_ID, 64), (COMPOSITE_SHARED_ROWS_ID, 0)]
+        );
+        // NVIDIA (32), AMD (64), Intel (16), a GPU of 8-wide subgroups.
+        assert_eq!(sizes(PhysicalDeviceType::DISCRETE_GPU, 32, 1024), 256);
+        assert_eq!(sizes(PhysicalDeviceType::DISCRETE_GPU, 64, 1024), 256);
+        assert_eq!(sizes(PhysicalDeviceType::INTEGRATED_GPU, 16, 1024), 128);
+        assert_eq!(sizes(PhysicalDeviceType::INTEGRATED_GPU, 8, 1024), 64);
+        // Never past the device's workgroup.
+        assert_eq!(sizes(PhysicalDeviceType::DISCRETE_GPU, 64, 128), 128);
+        let nvidia = KernelSizes { row_threads: 256 };
+        assert_eq!(nvidia.composite_groups(1080), 1080);
+        assert_eq!(
+            nvidia.composite_constants(),
+            [(COMPOSITE_GROUP_ID, 256), (COMPOSITE_SHARED_ROWS_ID, 1)]
+        );
+    }
+
+    #[test]
+    fn the_constants_are_the_shader_s() {
+        let glsl = include_str!("../../glsl/layered_composite.comp");
+        assert!(glsl.contains(&format!(
+            "layout(local_size_x = {ROWS_PER_GROUP}, local_size_x_id = {COMPOSITE_GROUP_ID}) in;"
+        )));
+        assert!(glsl.contains(&format!(
+            "layout(constant_id = {COMPOSITE_SHARED_ROWS_ID}) const bool SHARED_ROWS = false;"
+        )));
+    }
+}

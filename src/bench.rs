@@ -287,6 +287,11 @@ impl Stats {
             max: v[n - 1],
         }
     }
+
+    /// Of `value` over a non-empty series of frames.
+    pub fn over(frames: &[FrameTimings], value: impl Fn(&FrameTimings) -> f64) -> Stats {
+        Stats::of(&frames.iter().map(value).collect::<Vec<_>>())
+    }
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -526,21 +531,12 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     lod,
                     runs: options.runs,
                     warmup: options.warmup,
-                    frame_wall_ms: Stats::of(
-                        &timings.iter().map(|t| t.wall_ms).collect::<Vec<_>>(),
-                    ),
-                    gpu_total_ms: Stats::of(
-                        &timings.iter().map(|t| t.gpu_total_ms()).collect::<Vec<_>>(),
-                    ),
-                    host_ms: Some(Stats::of(
-                        &timings
-                            .iter()
-                            .map(|t| (t.wall_ms - t.gpu_total_ms()).max(0.0))
-                            .collect::<Vec<_>>(),
-                    )),
-                    readback_ms: Some(Stats::of(
-                        &timings.iter().map(|t| t.readback_ms).collect::<Vec<_>>(),
-                    )),
+                    frame_wall_ms: Stats::over(&timings, |t| t.wall_ms),
+                    gpu_total_ms: Stats::over(&timings, FrameTimings::gpu_total_ms),
+                    host_ms: Some(Stats::over(&timings, |t| {
+                        (t.wall_ms - t.gpu_total_ms()).max(0.0)
+                    })),
+                    readback_ms: Some(Stats::over(&timings, |t| t.readback_ms)),
                     first_frame_wall_ms: Some(first_wall_ms),
                     passes: pass_stats(&timings),
                     upload,

@@ -1,5 +1,8 @@
 // The 64-bit bins of the ray distribution buffer (src/passes/rdb.rs,
-// `PackedBins`): one word per (tile pixel, bin), pixel-major, holding
+// `PackedBins`): one word per (tile pixel, bin), in the layout BIN_MAJOR
+// sets (src/passes/kernel_sizes.rs): a pixel's bins side by side (a CPU
+// device), or a plane of the tile's pixels per bin (a GPU: neighbouring
+// invocations offer to and read neighbouring words); each word holding
 //   tag (5 bits) | depth bits (31) | source index (28).
 // An atomicMin keeps the smallest depth and, at that depth, the smallest
 // source: what the two 32-bit passes keep. A word is filled in this use of
@@ -19,4 +22,13 @@ bool bin_filled(uint64_t word, uint tag) {
 
 uint bin_source(uint64_t word) {
     return uint(word & 0xFFFFFFFul);
+}
+
+layout(constant_id = 6) const bool BIN_MAJOR = false;
+
+// The word of bin `bin` (of `bins` a pixel) of tile pixel `t` in a tile of
+// `size` pixels.
+uint bin_index(int bin, int bins, ivec2 t, ivec2 size) {
+    uint pixel = uint(t.y * size.x + t.x);
+    return BIN_MAJOR ? uint(bin) * uint(size.x * size.y) + pixel : pixel * uint(bins) + uint(bin);
 }

@@ -22,14 +22,13 @@ void main() {
     }
     ivec2 q = pc.tile_origin + t;
     int n2 = pc.bins * pc.bins;
-    uint first = uint((t.y * pc.tile_size.x + t.x) * n2);
     vec4 sum = vec4(0.0);
     float n = 0.0;
     vec2 cat = cat_eye_centre(pc.window_origin + q, pc.frame_size, pc.cat_eye);
     // A bin stands for one of N² cells of the lens.
     float half_cell = lens_cell_half_width(float(pc.bins * pc.bins));
     for (int b = 0; b < n2; ++b) {
-        uint64_t word = bins64[first + uint(b)];
+        uint64_t word = bins64[bin_index(b, n2, t, pc.tile_size)];
         float w = !APERTURE_CODE || pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
         if (bin_filled(word, pc.step) && w > 0.0) {
             uint source = bin_source(word);

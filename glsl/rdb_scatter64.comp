@@ -20,7 +20,7 @@ void offer(ivec2 q, int bin, uint depth_bits, uint source) {
     if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, pc.tile_size))) {
         return;
     }
-    uint at = uint((t.y * pc.tile_size.x + t.x) * pc.bins * pc.bins + bin);
+    uint at = bin_index(bin, pc.bins * pc.bins, t, pc.tile_size);
     atomicMin(bins64[at], bin_word(pc.step, depth_bits, source));
 }
 

@@ -668,7 +668,10 @@ fn layered_gaussians_the_same_with_rows_shared() {
         assert!(alone.pixels.iter().any(|p| *p != first), "one colour");
         for row_threads in [8, 64] {
             renderer
-                .set_kernel_sizes(KernelSizes { row_threads })
+                .set_kernel_sizes(KernelSizes {
+                    row_threads,
+                    ..KernelSizes::ALONE
+                })
                 .unwrap();
             let shared = renderer
                 .render_layered(&gpu, &camera, Vec3::ZERO)

@@ -519,7 +519,10 @@ fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
             );
             for row_threads in [8, 24, 64] {
                 renderer
-                    .set_kernel_sizes(KernelSizes { row_threads })
+                    .set_kernel_sizes(KernelSizes {
+                        row_threads,
+                        ..KernelSizes::ALONE
+                    })
                     .unwrap();
                 let shared = renderer.render(&scene, &options).unwrap().image;
                 assert!(

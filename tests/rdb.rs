@@ -508,3 +508,70 @@ fn pairs_mode_past_the_devices_loop_limit_is_refused_in_one_line() {
         assert!(centre.pixels.iter().any(|p| p[3] > 0.5));
     });
 }
+
+/// The 64-bit bins in either layout (`passes::kernel_sizes`: a pixel's
+/// bins side by side, lavapipe's; a plane per bin, a GPU's) give the same
+/// bits: the same words meet the same atomicMin. Centre and pairs modes,
+/// a frame in tiles of unequal sizes (each tile's planes are its own
+/// size), the cat's eye's weighted resolve, and the round pipelines left
+/// as they were.
+#[test]
+fn both_layouts_of_the_64_bit_bins_give_the_same_bits() {
+    use pointlens::passes::kernel_sizes::KernelSizes;
+    with_gpu(|ctx| {
+        assert!(!KernelSizes::for_device(&ctx.info).rdb_bin_major);
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let scan = load_ply(&root().join("data/pcl_table_scene_mug_rgb.ply")).unwrap();
+        let scene = renderer.upload(&scan, SplatSize::Spacing).unwrap();
+        let mut cat_eye = mug_camera(61, 45);
+        cat_eye.aperture.cat_eye = 1.0;
+        for (bins, mode, budget, cam) in [
+            (9, RdbMode::Centre, None, mug_camera(61, 45)),
+            (5, RdbMode::Pairs, None, mug_camera(61, 45)),
+            (9, RdbMode::Centre, Some(100_000), mug_camera(61, 45)),
+            (5, RdbMode::Centre, None, cat_eye),
+        ] {
+            let o = options(
+                cam,
+                Method::Rdb(RdbOptions {
+                    bins,
+                    mode,
+                    memory_bytes: budget,
+                    atomics: RdbAtomics::Int64,
+                }),
+            );
+            let mut frames = Vec::new();
+            for bin_major in [false, true] {
+                renderer
+                    .set_kernel_sizes(KernelSizes {
+                        rdb_bin_major: bin_major,
+                        ..KernelSizes::ALONE
+                    })
+                    .unwrap();
+                frames.push(renderer.render(&scene, &o).unwrap());
+            }
+            let what = format!(
+                "{bins}×{bins} {mode:?} budget {budget:?} cat's eye {}",
+                cam.aperture.cat_eye
+            );
+            let tiles = frames[0]
+                .timings
+                .passes
+                .iter()
+                .find(|p| p.name == "rdb.resolve")
+                .map_or(0, |p| p.count);
+            if budget.is_some() {
+                assert!(tiles > 2, "{what}: {tiles} tiles");
+            }
+            assert!(
+                common::image_bits(&frames[0].image) == common::image_bits(&frames[1].image),
+                "{what}: the layouts differ"
+            );
+            let first = frames[0].image.pixels[0];
+            assert!(
+                frames[0].image.pixels.iter().any(|p| *p != first),
+                "{what}: one colour"
+            );
+        }
+    });
+}

@@ -14,6 +14,9 @@ pub const COMPOSITE_GROUP_ID: u32 = 4;
 pub const COMPOSITE_SHARED_ROWS_ID: u32 = 5;
 /// The composite's workgroup in the form of a row per invocation: rows.
 pub const ROWS_PER_GROUP: u32 = 64;
+/// The constant `BIN_MAJOR` of `glsl/rdb_bins64.glsl`: the layout of the
+/// RDB's 64-bit bins.
+pub const RDB_BIN_MAJOR_ID: u32 = 6;
 
 /// The cut of each pass that has more than one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -22,12 +25,20 @@ pub struct KernelSizes {
     /// sums: 1, each invocation a row of its own (64 rows a workgroup);
     /// else a workgroup of this many takes a row.
     pub row_threads: u32,
+    /// The RDB's 64-bit bins a plane of the tile's pixels per bin (a GPU:
+    /// neighbouring invocations offer to and read neighbouring words),
+    /// else a pixel's bins side by side (a CPU: one invocation's bins in
+    /// a few cache lines).
+    pub rdb_bin_major: bool,
 }
 
 impl KernelSizes {
     /// Every pass in the form of lanes that each take a whole row or
     /// item: a CPU device's choice.
-    pub const ALONE: KernelSizes = KernelSizes { row_threads: 1 };
+    pub const ALONE: KernelSizes = KernelSizes {
+        row_threads: 1,
+        rdb_bin_major: false,
+    };
 
     /// The sizes for `device`. A CPU device runs a workgroup's invocations
     /// in a few SIMD lanes on each of a few cores, so a frame's rows, one
@@ -36,7 +47,10 @@ impl KernelSizes {
     /// at once, which a frame's thousand rows would leave all but idle
     /// (`layered.composite`, a thread per row: 3.7 ms of `layered2`'s
     /// 8.6 ms at 1080p on an H200): there a row takes eight subgroups,
-    /// between 64 and 256 invocations and within the device's limit.
+    /// between 64 and 256 invocations and within the device's limit. The
+    /// RDB's bins are laid out pixel by pixel for a CPU's caches (bin by
+    /// bin costs lavapipe 1.5× in its scatter), bin by bin for a GPU's
+    /// coalesced atomics (`rdb.scatter`: 6.4 of `rdb9`'s 10.2 ms there).
     pub fn for_device(device: &DeviceInfo) -> KernelSizes {
         KernelSizes::for_limits(
             device.device_type,
@@ -58,6 +72,7 @@ impl KernelSizes {
                 row_threads: (subgroup_size.max(1) * 8)
                     .clamp(64, 256)
                     .min(max_invocations.max(1)),
+                rdb_bin_major: true,
             },
         }
     }
@@ -71,6 +86,11 @@ impl KernelSizes {
             ],
             n => [(COMPOSITE_GROUP_ID, n), (COMPOSITE_SHARED_ROWS_ID, 1)],
         }
+    }
+
+    /// The RDB's 64-bit passes' specialization constants (id, value).
+    pub fn rdb_constants(&self) -> [(u32, u32); 1] {
+        [(RDB_BIN_MAJOR_ID, self.rdb_bin_major as u32)]
     }
 
     /// The composite's workgroups for `rows` rows.
@@ -103,7 +123,12 @@ mod tests {
         assert_eq!(sizes(PhysicalDeviceType::INTEGRATED_GPU, 8, 1024), 64);
         // Never past the device's workgroup.
         assert_eq!(sizes(PhysicalDeviceType::DISCRETE_GPU, 64, 128), 128);
-        let nvidia = KernelSizes { row_threads: 256 };
+        assert!(!KernelSizes::for_limits(PhysicalDeviceType::CPU, 8, 1024).rdb_bin_major);
+        assert!(KernelSizes::for_limits(PhysicalDeviceType::DISCRETE_GPU, 32, 1024).rdb_bin_major);
+        let nvidia = KernelSizes {
+            row_threads: 256,
+            rdb_bin_major: true,
+        };
         assert_eq!(nvidia.composite_groups(1080), 1080);
         assert_eq!(
             nvidia.composite_constants(),
@@ -119,6 +144,10 @@ mod tests {
         )));
         assert!(glsl.contains(&format!(
             "layout(constant_id = {COMPOSITE_SHARED_ROWS_ID}) const bool SHARED_ROWS = false;"
+        )));
+        let bins = include_str!("../../glsl/rdb_bins64.glsl");
+        assert!(bins.contains(&format!(
+            "layout(constant_id = {RDB_BIN_MAJOR_ID}) const bool BIN_MAJOR = false;"
         )));
     }
 }

@@ -47,14 +47,29 @@ impl<P: crate::vk::PushConstants> Specialized<P> {
         form: &str,
         constant: (u32, u32),
     ) -> Result<Specialized<P>> {
+        Self::with_base(ctx, name, spirv, bindings, &[], form, constant)
+    }
+
+    /// As [`Specialized::new`], both forms made with the constants `base`
+    /// (id, value) too: a cut of the pass's work ([`kernel_sizes`]).
+    pub fn with_base(
+        ctx: &Arc<Context>,
+        name: &str,
+        spirv: &[u8],
+        bindings: &[crate::vk::Binding],
+        base: &[(u32, u32)],
+        form: &str,
+        constant: (u32, u32),
+    ) -> Result<Specialized<P>> {
+        let special: Vec<(u32, u32)> = base.iter().copied().chain([constant]).collect();
         Ok(Specialized {
-            general: crate::vk::ComputePipeline::new(ctx, name, spirv, bindings)?,
+            general: crate::vk::ComputePipeline::specialized(ctx, name, spirv, bindings, base)?,
             special: crate::vk::ComputePipeline::specialized(
                 ctx,
                 &format!("{name} ({form})"),
                 spirv,
                 bindings,
-                &[constant],
+                &special,
             )?,
             general_only: false,
         })
@@ -74,6 +89,11 @@ impl<P: crate::vk::PushConstants> Specialized<P> {
     /// (`Renderer::set_specialized_pipelines`).
     pub fn set_enabled(&mut self, enabled: bool) {
         self.general_only = !enabled;
+    }
+
+    /// Whether frames may take the special form ([`Specialized::set_enabled`]).
+    pub fn is_enabled(&self) -> bool {
+        !self.general_only
     }
 
     /// The general form and the one without the code of shaped apertures
@@ -466,7 +486,8 @@ impl Methods {
         ctx: &Arc<Context>,
         sizes: kernel_sizes::KernelSizes,
     ) -> Result<()> {
-        self.layered.set_kernel_sizes(ctx, sizes)
+        self.layered.set_kernel_sizes(ctx, sizes)?;
+        self.rdb.set_kernel_sizes(ctx, sizes)
     }
 
     /// The implementation of `method` with its options.

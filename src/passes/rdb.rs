@@ -16,6 +16,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+use super::kernel_sizes::KernelSizes;
 use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
@@ -77,6 +78,27 @@ struct Packed {
     /// a frame holds the lock from `prepare` until it is dropped, after its
     /// submission completed.
     bins: Mutex<Option<PackedBins>>,
+}
+
+/// The 64-bit form's scatter and resolve in the bins' layout of `sizes`.
+fn packed_pipelines(
+    ctx: &Arc<Context>,
+    sizes: KernelSizes,
+) -> Result<(ComputePipeline<ScatterPush>, Specialized<ResolvePush>)> {
+    let (img, buf) = (Binding::StorageImage, Binding::StorageBuffer);
+    let layout = sizes.rdb_constants();
+    Ok((
+        ComputePipeline::specialized(ctx, "rdb_scatter64", SCATTER64, &[img, buf, buf], &layout)?,
+        Specialized::with_base(
+            ctx,
+            "rdb_resolve64",
+            RESOLVE64,
+            &[img, buf, img, buf],
+            &layout,
+            "round",
+            (super::APERTURE_CODE_ID, 0),
+        )?,
+    ))
 }
 
 /// The tag of a word that no use filled (the buffer's fill value's).
@@ -307,24 +329,34 @@ impl Rdb {
                 &[img, img, img, Binding::StorageBuffer],
             )?,
             packed: match ctx.info.buffer_int64_atomics {
-                true => Some(Packed {
-                    scatter: ComputePipeline::new(
-                        ctx,
-                        "rdb_scatter64",
-                        SCATTER64,
-                        &[img, Binding::StorageBuffer, Binding::StorageBuffer],
-                    )?,
-                    resolve: Specialized::round(
-                        ctx,
-                        "rdb_resolve64",
-                        RESOLVE64,
-                        &[img, Binding::StorageBuffer, img, Binding::StorageBuffer],
-                    )?,
-                    bins: Mutex::new(None),
-                }),
+                true => {
+                    let (scatter, resolve) =
+                        packed_pipelines(ctx, KernelSizes::for_device(&ctx.info))?;
+                    Some(Packed {
+                        scatter,
+                        resolve,
+                        bins: Mutex::new(None),
+                    })
+                }
                 false => None,
             },
         })
+    }
+
+    /// The 64-bit form's passes in the layout of `sizes` instead of the
+    /// device's own, as the test that the layouts agree renders; the
+    /// round pipelines stay as [`Rdb::set_round_pipelines`] left them.
+    pub(super) fn set_kernel_sizes(
+        &mut self,
+        ctx: &Arc<Context>,
+        sizes: KernelSizes,
+    ) -> Result<()> {
+        if let Some(packed) = &mut self.packed {
+            let enabled = packed.resolve.is_enabled();
+            (packed.scatter, packed.resolve) = packed_pipelines(ctx, sizes)?;
+            packed.resolve.set_enabled(enabled);
+        }
+        Ok(())
     }
 
     /// The 64-bit form if `atomics` asks for it (or allows it) and the

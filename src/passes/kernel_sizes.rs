@@ -68,12 +68,18 @@ impl KernelSizes {
     ) -> KernelSizes {
         match device_type {
             PhysicalDeviceType::CPU => KernelSizes::ALONE,
-            _ => KernelSizes {
-                row_threads: (subgroup_size.max(1) * 8)
-                    .clamp(64, 256)
-                    .min(max_invocations.max(1)),
-                rdb_bin_major: true,
-            },
+            _ => KernelSizes::for_gpu(subgroup_size, max_invocations),
+        }
+    }
+
+    /// A GPU's cut for a device of this subgroup size and most invocations
+    /// of a workgroup (on a CPU device too, to measure it there).
+    pub fn for_gpu(subgroup_size: u32, max_invocations: u32) -> KernelSizes {
+        KernelSizes {
+            row_threads: (subgroup_size.max(1) * 8)
+                .clamp(64, 256)
+                .min(max_invocations.max(1)),
+            rdb_bin_major: true,
         }
     }
 

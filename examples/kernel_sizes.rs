@@ -1,0 +1,119 @@
+//! Measures the passes that have a GPU's and a CPU's cut of their work
+//! (`passes::kernel_sizes`, docs/decisions/kernel-sizes.md) both ways on
+//! one device, alternating in every round: `layered.composite` (a row per
+//! workgroup or per invocation) and the RDB's `rdb.scatter` and
+//! `rdb.resolve` (64-bit bins a plane per bin, or a pixel's side by side).
+//! Prints each pass's median GPU time per cut, and fails unless both cuts
+//! gave the same bits in every frame (`scripts/gpu-check` runs it on a lent
+//! GPU; here on lavapipe it says what the GPU's cut would cost a CPU).
+//!
+//!     cargo run --release --example kernel_sizes -- [WIDTH HEIGHT POINTS ROUNDS]
+
+use glam::Vec3;
+use pointlens::bench::BenchModel;
+use pointlens::options::Method;
+use pointlens::passes::kernel_sizes::KernelSizes;
+use pointlens::render::{RenderOptions, Renderer, SplatSize};
+use pointlens::vk::{Context, ContextOptions};
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("kernel_sizes: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, default: &str| args.get(i).cloned().unwrap_or(default.into());
+    let width: u32 = arg(0, "1920").parse()?;
+    let height: u32 = arg(1, "1080").parse()?;
+    let points: usize = arg(2, "1000000").parse()?;
+    let rounds: usize = arg(3, "5").parse()?;
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
+    let cloud = BenchModel::Synthetic.load(&data, points)?;
+    let ctx = Context::new(&ContextOptions::from_env(false, None))?;
+    let mut renderer = Renderer::new(&ctx)?;
+    let scene = renderer.upload(&cloud, SplatSize::Spacing)?;
+    let gpu = KernelSizes::for_gpu(
+        ctx.info.subgroup_size,
+        ctx.info.max_compute_workgroup_invocations,
+    );
+    let cuts = [("gpu", gpu), ("cpu", KernelSizes::ALONE)];
+    let own = match KernelSizes::for_device(&ctx.info) == gpu {
+        true => "gpu",
+        false => "cpu",
+    };
+    println!(
+        "{} · {width}x{height} · {points} synthetic points · {rounds} rounds · the device's own cut: {own} · gpu: {gpu:?}",
+        ctx.info.describe()
+    );
+    for (method, passes) in [
+        ("layered2", &["layered.composite"][..]),
+        ("rdb9", &["rdb.scatter", "rdb.resolve"][..]),
+    ] {
+        let options = RenderOptions {
+            camera: BenchModel::Synthetic.camera(&cloud, width, height)?,
+            method: Method::parse_short(method).map_err(anyhow::Error::msg)?,
+            ssaa: 3,
+            samples_per_pass: None,
+            background: Vec3::ZERO,
+            lod: Default::default(),
+        };
+        // [cut][pass]: GPU ms per round; [cut]: GPU total per round.
+        let mut times = vec![vec![Vec::new(); passes.len()]; cuts.len()];
+        let mut totals = vec![Vec::new(); cuts.len()];
+        for round in 0..=rounds {
+            let mut bits = Vec::new();
+            for (c, (_, sizes)) in cuts.iter().enumerate() {
+                renderer.set_kernel_sizes(*sizes)?;
+                let frame = renderer.render(&scene, &options)?;
+                bits.push(
+                    frame
+                        .image
+                        .pixels
+                        .iter()
+                        .flatten()
+                        .map(|v| v.to_bits())
+                        .collect::<Vec<_>>(),
+                );
+                // Round 0 warms both cuts' pipelines and allocations.
+                if round == 0 {
+                    continue;
+                }
+                for (p, name) in passes.iter().enumerate() {
+                    let ms = frame
+                        .timings
+                        .passes
+                        .iter()
+                        .filter(|t| t.name == *name)
+                        .map(|t| t.gpu_ms)
+                        .sum();
+                    times[c][p].push(ms);
+                }
+                totals[c].push(frame.timings.gpu_total_ms());
+            }
+            anyhow::ensure!(
+                bits[0] == bits[1],
+                "{method}: the two cuts differ in round {round}"
+            );
+        }
+        for (c, (cut, _)) in cuts.iter().enumerate() {
+            let mut line = format!(
+                "{method} {cut:>6}: GPU total {:8.3} ms",
+                median(&mut totals[c])
+            );
+            for (p, name) in passes.iter().enumerate() {
+                line += &format!("  {name} {:8.3}", median(&mut times[c][p]));
+            }
+            println!("{line}");
+        }
+        println!("{method}: both cuts gave the same bits in every frame");
+    }
+    Ok(())
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}

@@ -156,7 +156,7 @@ def parse_args(argv):
                    help="pointlens aperture flags, one string (e.g. \"--aperture-blades 6\"): to "
                         "--print-camera and every method's render; Mitsuba samples the same shape")
     p.add_argument("--warm-cold", action="store_true",
-                   help="also time pointlens warm (the steady frames of an 8-frame sequence of one "
+                   help="also time pointlens warm (the steady frames of a 12-frame sequence of one "
                         "camera) and cold (a whole one-frame process), against Mitsuba's steady and "
                         "first (JIT) renders, and print both ratios")
     try:
@@ -312,18 +312,19 @@ class Bench:
         t = json.loads(tj.read_text())
         steady = None
         if self.args.warm_cold:
-            # The same camera eight times in one process: frames 5-8 are
+            # The same camera twelve times in one process: frames 9-12 are
             # steady: pipelines and scene warm, and the host's image
-            # buffers reused (on lavapipe a 1080p EXR frame's readback copy
-            # took 15-18 ms in the first two frames and 4 ms after).
+            # buffers reused (on an H200's host a 1080p EXR frame's
+            # readback copy took 22-29 ms in the first six frames and
+            # 9-12 ms after, with one thread).
             tw = out_exr.with_suffix(".warm.json")
             pattern = out_exr.with_name(out_exr.stem + "_warm_%d.exr")
             self.pointlens("render", str(self.repo / SCENES[scene]["file"]), "-o", str(pattern),
                            "--camera", str(camera), "--splat-shape", self.args.splat_shape, *flags,
-                           *self.device_flags(), "--frames", "8", "--orbit", "0",
+                           *self.device_flags(), "--frames", "12", "--orbit", "0",
                            "--timings-json", str(tw), what=f"pointlens warm ({scene}, {name})")
             frames = json.loads(tw.read_text())
-            steady = statistics.median(f["frame_wall_ms"] for f in frames[4:])
+            steady = statistics.median(f["frame_wall_ms"] for f in frames[8:])
         return {
             "steady_ms": steady,
             "frame_wall_ms": t["frame_wall_ms"],

@@ -58,62 +58,74 @@ fn with_background_coc(mut camera: Camera, coc_px: f32) -> Camera {
 fn the_passes_equal_the_cpu_reference_at_every_band_level() {
     // Background CoCs of 12 to 300 px, focused on the scene's centre or
     // nearer, and a frame whose points' CoCs reach 300 px: the bands to
-    // their open top level (radii of 128 px and more, asserted below).
+    // their open top level (radii of 128 px and more, asserted below). In
+    // both cuts of the bands (`passes::kernel_sizes`): an invocation per
+    // texel (lavapipe's), and a GPU's workgroup per texel of the coarse
+    // levels, whose float sums add in another order.
+    use pointlens::passes::kernel_sizes::KernelSizes;
     with_gpu(|ctx| {
-        let renderer = Renderer::new(ctx).unwrap();
+        let mut renderer = Renderer::new(ctx).unwrap();
+        let gpu_cut = KernelSizes::for_gpu(
+            ctx.info.subgroup_size,
+            ctx.info.max_compute_workgroup_invocations,
+        );
+        assert!(gpu_cut.bands_shared_level.is_some());
         // The band levels the surfaces of the frames reach (0: full
         // resolution).
         let mut levels = std::collections::BTreeSet::new();
-        for (name, scene, camera, depths) in scenes(&renderer) {
-            // The last frame: 320×240, focused at twice the distance, the
-            // points' largest CoC 300 px (under the 320 px past which a
-            // point in front of the focus would leave the G-buffer for
-            // the veil, which the reference does not draw).
-            let mut top = camera;
-            (top.width, top.height) = (320, 240);
-            top.focus_distance *= 2.0;
-            top.aperture_radius *= 300.0 / top.max_coc_px(depths.0, depths.1);
-            let frames = [
-                with_background_coc(camera, 12.0),
-                Camera {
-                    focus_distance: 0.8 * camera.focus_distance,
-                    ..with_background_coc(camera, 48.0)
-                },
-                with_background_coc(camera, 300.0),
-                top,
-            ];
-            for cam in frames {
-                let coc = cam.coc_px(f32::INFINITY).round();
-                let focus_scale = cam.focus_distance / camera.focus_distance;
-                let (gpu, gbuffer) = renderer
-                    .render_with_gbuffer(&scene, &options(cam, FIELDS))
-                    .unwrap();
-                let cpu = pointlens::fields::reference(&gbuffer, &cam);
-                levels.extend(
-                    gbuffer.eye.iter().filter(|e| e[2].is_finite()).map(|e| {
+        let scenes = scenes(&renderer);
+        for (cut, sizes) in [("alone", KernelSizes::ALONE), ("shared", gpu_cut)] {
+            renderer.set_kernel_sizes(sizes).unwrap();
+            for (name, scene, camera, depths) in &scenes {
+                let (camera, depths) = (*camera, *depths);
+                // The last frame: 320×240, focused at twice the distance, the
+                // points' largest CoC 300 px (under the 320 px past which a
+                // point in front of the focus would leave the G-buffer for
+                // the veil, which the reference does not draw).
+                let mut top = camera;
+                (top.width, top.height) = (320, 240);
+                top.focus_distance *= 2.0;
+                top.aperture_radius *= 300.0 / top.max_coc_px(depths.0, depths.1);
+                let frames = [
+                    with_background_coc(camera, 12.0),
+                    Camera {
+                        focus_distance: 0.8 * camera.focus_distance,
+                        ..with_background_coc(camera, 48.0)
+                    },
+                    with_background_coc(camera, 300.0),
+                    top,
+                ];
+                for cam in frames {
+                    let coc = cam.coc_px(f32::INFINITY).round();
+                    let focus_scale = cam.focus_distance / camera.focus_distance;
+                    let (gpu, gbuffer) = renderer
+                        .render_with_gbuffer(scene, &options(cam, FIELDS))
+                        .unwrap();
+                    let cpu = pointlens::fields::reference(&gbuffer, &cam);
+                    levels.extend(gbuffer.eye.iter().filter(|e| e[2].is_finite()).map(|e| {
                         pointlens::fields::band_level(0.5 * cam.coc_px(e[2])).unwrap_or(0)
-                    }),
-                );
-                // The GPU sums in float32 in the reference's order of
-                // terms, but its results pass through rgba16f (a step of
-                // 2^-11 relative) and its sqrt, log2 and divisions may
-                // differ from the CPU's in the last bit: 4e-3 relative, or
-                // 1e-3 absolute for values near 0.
-                let worst = gpu
-                    .image
-                    .pixels
-                    .iter()
-                    .zip(&cpu.pixels)
-                    .flat_map(|(a, b)| {
-                        (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.25))
-                    })
-                    .fold(0.0f32, f32::max);
-                let db = psnr(&cpu, &gpu.image).unwrap();
-                eprintln!("{name}, background CoC {coc} px, focus ×{focus_scale}: worst {worst:.2e}, {db:.1} dB");
-                assert!(
+                    }));
+                    // The GPU sums in float32 in the reference's order of
+                    // terms, but its results pass through rgba16f (a step of
+                    // 2^-11 relative) and its sqrt, log2 and divisions may
+                    // differ from the CPU's in the last bit: 4e-3 relative, or
+                    // 1e-3 absolute for values near 0.
+                    let worst = gpu
+                        .image
+                        .pixels
+                        .iter()
+                        .zip(&cpu.pixels)
+                        .flat_map(|(a, b)| {
+                            (0..4).map(move |c| (a[c] - b[c]).abs() / b[c].abs().max(0.25))
+                        })
+                        .fold(0.0f32, f32::max);
+                    let db = psnr(&cpu, &gpu.image).unwrap();
+                    eprintln!("{cut}: {name}, background CoC {coc} px, focus ×{focus_scale}: worst {worst:.2e}, {db:.1} dB");
+                    assert!(
                     worst < 4e-3,
-                    "{name}, CoC {coc}: the passes differ from the reference by {worst:.2e}"
+                    "{cut}: {name}, CoC {coc}: the passes differ from the reference by {worst:.2e}"
                 );
+                }
             }
         }
         assert_eq!(

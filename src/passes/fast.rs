@@ -123,6 +123,15 @@ impl Fast {
         self.gather_tree.set_enabled(enabled);
     }
 
+    /// [`super::Methods::set_kernel_sizes`] for the two-field gather.
+    pub(super) fn set_kernel_sizes(
+        &mut self,
+        ctx: &Arc<Context>,
+        sizes: super::kernel_sizes::KernelSizes,
+    ) -> Result<()> {
+        self.fields.set_kernel_sizes(ctx, sizes)
+    }
+
     pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {

@@ -10,6 +10,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+use super::kernel_sizes::KernelSizes;
 use super::{DofFrame, DofInput, FrameView, Window};
 use crate::error::{Error, Result};
 use crate::fields::{tables, LEVELS};
@@ -40,6 +41,9 @@ push_constants! {
 pub struct Fields {
     far: ComputePipeline<FieldsPush>,
     bands: ComputePipeline<FieldsPush>,
+    /// The bands' coarse levels a workgroup per texel, from this level
+    /// ([`KernelSizes::bands_shared_level`]).
+    bands_shared: Option<(u32, ComputePipeline<FieldsPush>)>,
     spread: ComputePipeline<FieldsPush>,
     resolve: ComputePipeline<FieldsPush>,
     tables: Buffer,
@@ -51,6 +55,7 @@ impl Fields {
         Ok(Fields {
             far: ComputePipeline::new(ctx, "fields_far", FAR, &[I, I, B, B])?,
             bands: ComputePipeline::new(ctx, "fields_bands", BANDS, &[I, I, B])?,
+            bands_shared: bands_shared(ctx, KernelSizes::for_device(&ctx.info))?,
             spread: ComputePipeline::new(ctx, "fields_spread", SPREAD, &[B, B])?,
             resolve: ComputePipeline::new(ctx, "fields_resolve", RESOLVE, &[I, I, B, B, B, B, I])?,
             tables: Buffer::with_bytes(
@@ -61,6 +66,35 @@ impl Fields {
             )?,
         })
     }
+}
+
+impl Fields {
+    /// The bands in the cut of `sizes` instead of the device's own, as
+    /// the test that the cuts agree renders.
+    pub fn set_kernel_sizes(&mut self, ctx: &Arc<Context>, sizes: KernelSizes) -> Result<()> {
+        self.bands_shared = bands_shared(ctx, sizes)?;
+        Ok(())
+    }
+}
+
+/// The bands' pipeline for shared texels and its first level, where
+/// `sizes` shares any.
+fn bands_shared(
+    ctx: &Arc<Context>,
+    sizes: KernelSizes,
+) -> Result<Option<(u32, ComputePipeline<FieldsPush>)>> {
+    use Binding::{StorageBuffer as B, StorageImage as I};
+    let Some(level) = sizes.bands_shared_level else {
+        return Ok(None);
+    };
+    let pipeline = ComputePipeline::specialized(
+        ctx,
+        "fields_bands (shared)",
+        BANDS,
+        &[I, I, B],
+        &KernelSizes::bands_shared_constants(),
+    )?;
+    Ok(Some((level.clamp(1, LEVELS), pipeline)))
 }
 
 /// Texels of levels `from..=to` of a `w`×`h` G-buffer (level l: 2^l px a
@@ -190,16 +224,28 @@ impl DofFrame for FieldsFrame<'_> {
             }
         });
         frame.pass("fast.fields_bands", |rec| {
-            rec.dispatch(
-                &p.bands,
-                &[
-                    Bind::StorageImage(input.color),
-                    Bind::StorageImage(input.eye),
-                    Bind::StorageBuffer(&self.band_sources),
-                ],
-                &push(1),
-                [groups(tw.div_ceil(2), 8), groups(th.div_ceil(2), 8), LEVELS],
-            );
+            let binds = [
+                Bind::StorageImage(input.color),
+                Bind::StorageImage(input.eye),
+                Bind::StorageBuffer(&self.band_sources),
+            ];
+            // Levels 1 to `alone` an invocation per texel, the rest (a
+            // GPU's) a workgroup per texel: their own parts of the buffer.
+            let alone = p.bands_shared.as_ref().map_or(LEVELS, |(from, _)| from - 1);
+            if alone > 0 {
+                let texels = |n: u32| groups(n.div_ceil(2), 8);
+                rec.dispatch(&p.bands, &binds, &push(1), [texels(tw), texels(th), alone]);
+            }
+            if let Some((from, shared)) = &p.bands_shared {
+                rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_WRITE);
+                let texels = |n: u32| n.div_ceil(1 << from);
+                rec.dispatch(
+                    shared,
+                    &binds,
+                    &push(*from),
+                    [texels(tw), texels(th), LEVELS - from + 1],
+                );
+            }
         });
         frame.pass("fast.fields_spread", |rec| {
             rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);

@@ -17,6 +17,14 @@ pub const ROWS_PER_GROUP: u32 = 64;
 /// The constant `BIN_MAJOR` of `glsl/rdb_bins64.glsl`: the layout of the
 /// RDB's 64-bit bins.
 pub const RDB_BIN_MAJOR_ID: u32 = 6;
+/// The constant `BANDS_SHARED` of `glsl/fields_bands.comp`: a workgroup
+/// per texel; ids 8 and 9 set its workgroup's size.
+pub const BANDS_SHARED_ID: u32 = 7;
+/// The workgroup of a shared band texel (a power of two).
+pub const BANDS_GROUP: u32 = 64;
+/// The first band level a GPU's cut shares: texels of 8×8 pixels, one a
+/// workgroup's invocation.
+pub const BANDS_SHARED_LEVEL: u32 = 3;
 
 /// The cut of each pass that has more than one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,6 +38,11 @@ pub struct KernelSizes {
     /// else a pixel's bins side by side (a CPU: one invocation's bins in
     /// a few cache lines).
     pub rdb_bin_major: bool,
+    /// The first level of the two-field gather's bands whose texels a
+    /// workgroup each sums (`fast.fields_bands`; None: an invocation per
+    /// texel at every level). The shared sums add in another order: the
+    /// images differ in their floats' last bits.
+    pub bands_shared_level: Option<u32>,
 }
 
 impl KernelSizes {
@@ -38,6 +51,7 @@ impl KernelSizes {
     pub const ALONE: KernelSizes = KernelSizes {
         row_threads: 1,
         rdb_bin_major: false,
+        bands_shared_level: None,
     };
 
     /// The sizes for `device`. A CPU device runs a workgroup's invocations
@@ -51,6 +65,9 @@ impl KernelSizes {
     /// RDB's bins are laid out pixel by pixel for a CPU's caches (bin by
     /// bin costs lavapipe 1.5× in its scatter), bin by bin for a GPU's
     /// coalesced atomics (`rdb.scatter`: 6.4 of `rdb9`'s 10.2 ms there).
+    /// The two-field gather's coarse band texels (8×8 to 64×64 pixels)
+    /// take a workgroup each on a GPU (`fast.fields_bands`: 3.1-3.8 of
+    /// `fast`'s 7.1-8.7 ms there).
     pub fn for_device(device: &DeviceInfo) -> KernelSizes {
         KernelSizes::for_limits(
             device.device_type,
@@ -80,6 +97,7 @@ impl KernelSizes {
                 .clamp(64, 256)
                 .min(max_invocations.max(1)),
             rdb_bin_major: true,
+            bands_shared_level: Some(BANDS_SHARED_LEVEL),
         }
     }
 
@@ -97,6 +115,16 @@ impl KernelSizes {
     /// The RDB's 64-bit passes' specialization constants (id, value).
     pub fn rdb_constants(&self) -> [(u32, u32); 1] {
         [(RDB_BIN_MAJOR_ID, self.rdb_bin_major as u32)]
+    }
+
+    /// The specialization constants (id, value) of the bands' pipeline
+    /// for shared texels.
+    pub fn bands_shared_constants() -> [(u32, u32); 3] {
+        [
+            (BANDS_SHARED_ID, 1),
+            (BANDS_SHARED_ID + 1, BANDS_GROUP),
+            (BANDS_SHARED_ID + 2, 1),
+        ]
     }
 
     /// The composite's workgroups for `rows` rows.
@@ -134,7 +162,9 @@ mod tests {
         let nvidia = KernelSizes {
             row_threads: 256,
             rdb_bin_major: true,
+            bands_shared_level: Some(3),
         };
+        assert_eq!(KernelSizes::for_gpu(32, 1024), nvidia);
         assert_eq!(nvidia.composite_groups(1080), 1080);
         assert_eq!(
             nvidia.composite_constants(),
@@ -150,6 +180,15 @@ mod tests {
         )));
         assert!(glsl.contains(&format!(
             "layout(constant_id = {COMPOSITE_SHARED_ROWS_ID}) const bool SHARED_ROWS = false;"
+        )));
+        let bands = include_str!("../../glsl/fields_bands.comp");
+        assert!(bands.contains(&format!(
+            "layout(constant_id = {BANDS_SHARED_ID}) const bool BANDS_SHARED = false;"
+        )));
+        assert!(bands.contains(&format!(
+            "local_size_x_id = {}, local_size_y_id = {}) in;",
+            BANDS_SHARED_ID + 1,
+            BANDS_SHARED_ID + 2
         )));
         let bins = include_str!("../../glsl/rdb_bins64.glsl");
         assert!(bins.contains(&format!(

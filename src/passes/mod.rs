@@ -487,7 +487,8 @@ impl Methods {
         sizes: kernel_sizes::KernelSizes,
     ) -> Result<()> {
         self.layered.set_kernel_sizes(ctx, sizes)?;
-        self.rdb.set_kernel_sizes(ctx, sizes)
+        self.rdb.set_kernel_sizes(ctx, sizes)?;
+        self.fast.set_kernel_sizes(ctx, sizes)
     }
 
     /// The implementation of `method` with its options.

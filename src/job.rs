@@ -476,8 +476,13 @@ impl RenderJob {
             );
             return Ok(Outcome::default());
         }
+        let t_device = Instant::now();
         let ctx = Context::new(device)?;
-        log::info!("device: {}", ctx.info.describe());
+        log::info!(
+            "device: {} (opened in {:.0} ms)",
+            ctx.info.describe(),
+            t_device.elapsed().as_secs_f64() * 1e3
+        );
         let on_device = host.upload(&ctx, scene)?;
         events(JobEvent::Planned {
             frames: plan.frames.len(),

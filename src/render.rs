@@ -491,7 +491,7 @@ impl Renderer {
         &mut self,
         sizes: crate::passes::kernel_sizes::KernelSizes,
     ) -> Result<()> {
-        self.methods.set_kernel_sizes(&self.ctx, sizes)
+        self.methods.set_kernel_sizes(sizes)
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the
@@ -821,9 +821,11 @@ impl Renderer {
         self.check_frame(scene, options)?;
         // What the frame before last left and the last one did not take is
         // freed; the rest is this frame's to take (`vk::pool`).
+        // The method's pipelines, made on the first frame that asks for
+        // them, before the frame's time starts.
+        let method = self.methods.get(&options.method)?;
         self.ctx.next_frame();
         let started = Instant::now();
-        let method = self.methods.get(&options.method);
         let (splats, lod_report, view) =
             self.raster_view(scene, &options.camera, options.lod, method.as_ref())?;
         let view_ms = started.elapsed().as_secs_f64() * 1e3;

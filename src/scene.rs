@@ -356,7 +356,12 @@ impl HostScene {
             let gpu = renderer.upload(&scene)?;
             return Ok(DeviceScene::Gaussians { renderer, gpu });
         }
+        let t_pipelines = std::time::Instant::now();
         let mut renderer = Renderer::new(ctx)?;
+        log::info!(
+            "renderer's pipelines made in {:.0} ms (a method's when a frame first asks)",
+            t_pipelines.elapsed().as_secs_f64() * 1e3
+        );
         renderer.set_raster(spec.raster.unwrap_or_default());
         renderer.set_edl(spec.edl);
         renderer.set_tile_px(spec.tile_px);

@@ -452,63 +452,141 @@ pub struct Configured<'p, P, O> {
     pub options: O,
 }
 
-/// The registry of methods: their pipelines, made once per renderer, and
-/// the one dispatch from a [`Method`] to its implementation.
+/// The registry of methods: their pipelines, made when a frame first asks
+/// for the method (a one-frame process makes only its own: the three
+/// methods' took lavapipe 91 ms, of 0.29 s for a small frame), and the one
+/// dispatch from a [`Method`] to its implementation.
 pub struct Methods {
-    fast: fast::Fast,
-    rdb: rdb::Rdb,
-    layered: layered::Layered,
+    ctx: Arc<Context>,
+    fast: std::sync::OnceLock<fast::Fast>,
+    rdb: std::sync::OnceLock<rdb::Rdb>,
+    layered: std::sync::OnceLock<layered::Layered>,
+    /// [`Methods::set_round_pipelines`], for pipelines made later too.
+    round_pipelines: bool,
+    /// [`Methods::set_kernel_sizes`] (None: the device's own).
+    sizes: Option<kernel_sizes::KernelSizes>,
 }
+
+/// What the tests' settings change in a method's pipelines.
+trait Settable: Sized {
+    fn make(ctx: &Arc<Context>) -> Result<Self>;
+    fn set_round_pipelines(&mut self, enabled: bool);
+    fn set_kernel_sizes(
+        &mut self,
+        ctx: &Arc<Context>,
+        sizes: kernel_sizes::KernelSizes,
+    ) -> Result<()>;
+}
+
+macro_rules! settable {
+    ($($t:ty),*) => {$(
+        impl Settable for $t {
+            fn make(ctx: &Arc<Context>) -> Result<Self> {
+                <$t>::new(ctx)
+            }
+            fn set_round_pipelines(&mut self, enabled: bool) {
+                <$t>::set_round_pipelines(self, enabled)
+            }
+            fn set_kernel_sizes(
+                &mut self,
+                ctx: &Arc<Context>,
+                sizes: kernel_sizes::KernelSizes,
+            ) -> Result<()> {
+                <$t>::set_kernel_sizes(self, ctx, sizes)
+            }
+        }
+    )*};
+}
+settable!(fast::Fast, rdb::Rdb, layered::Layered);
 
 impl Methods {
     pub fn new(ctx: &Arc<Context>) -> Result<Methods> {
         Ok(Methods {
-            fast: fast::Fast::new(ctx)?,
-            rdb: rdb::Rdb::new(ctx)?,
-            layered: layered::Layered::new(ctx)?,
+            ctx: ctx.clone(),
+            fast: std::sync::OnceLock::new(),
+            rdb: std::sync::OnceLock::new(),
+            layered: std::sync::OnceLock::new(),
+            round_pipelines: true,
+            sizes: None,
         })
+    }
+
+    /// The pipelines in `cell`, made now if they are not yet, with the
+    /// settings asked for so far.
+    fn made<'a, T: Settable>(&self, cell: &'a std::sync::OnceLock<T>) -> Result<&'a T> {
+        if let Some(made) = cell.get() {
+            return Ok(made);
+        }
+        let started = std::time::Instant::now();
+        let mut made = T::make(&self.ctx)?;
+        made.set_round_pipelines(self.round_pipelines);
+        if let Some(sizes) = self.sizes {
+            made.set_kernel_sizes(&self.ctx, sizes)?;
+        }
+        log::info!(
+            "{} pipelines made in {:.0} ms",
+            std::any::type_name::<T>()
+                .rsplit("::")
+                .next()
+                .unwrap_or("method"),
+            started.elapsed().as_secs_f64() * 1e3
+        );
+        Ok(cell.get_or_init(|| made))
     }
 
     /// Whether the frames of the round aperture take the pipelines made
     /// without the aperture's code ([`Specialized::round`]; the default,
     /// true), or the general ones, as the test that they agree renders.
     pub fn set_round_pipelines(&mut self, enabled: bool) {
-        self.fast.set_round_pipelines(enabled);
-        self.rdb.set_round_pipelines(enabled);
-        self.layered.set_round_pipelines(enabled);
+        self.round_pipelines = enabled;
+        if let Some(m) = self.fast.get_mut() {
+            Settable::set_round_pipelines(m, enabled);
+        }
+        if let Some(m) = self.rdb.get_mut() {
+            Settable::set_round_pipelines(m, enabled);
+        }
+        if let Some(m) = self.layered.get_mut() {
+            Settable::set_round_pipelines(m, enabled);
+        }
     }
 
     /// The passes that have more than one cut of their work
     /// ([`kernel_sizes`]) in the form of `sizes`, in place of the
     /// device's own, as the test that the forms agree renders.
-    pub fn set_kernel_sizes(
-        &mut self,
-        ctx: &Arc<Context>,
-        sizes: kernel_sizes::KernelSizes,
-    ) -> Result<()> {
-        self.layered.set_kernel_sizes(ctx, sizes)?;
-        self.rdb.set_kernel_sizes(ctx, sizes)?;
-        self.fast.set_kernel_sizes(ctx, sizes)
+    pub fn set_kernel_sizes(&mut self, sizes: kernel_sizes::KernelSizes) -> Result<()> {
+        self.sizes = Some(sizes);
+        let ctx = self.ctx.clone();
+        if let Some(m) = self.fast.get_mut() {
+            Settable::set_kernel_sizes(m, &ctx, sizes)?;
+        }
+        if let Some(m) = self.rdb.get_mut() {
+            Settable::set_kernel_sizes(m, &ctx, sizes)?;
+        }
+        if let Some(m) = self.layered.get_mut() {
+            Settable::set_kernel_sizes(m, &ctx, sizes)?;
+        }
+        Ok(())
     }
 
-    /// The implementation of `method` with its options.
-    pub fn get(&self, method: &Method) -> Box<dyn DofMethod + '_> {
-        match *method {
+    /// The implementation of `method` with its options (its pipelines made
+    /// on the first frame that asks).
+    pub fn get(&self, method: &Method) -> Result<Box<dyn DofMethod + '_>> {
+        Ok(match *method {
             Method::Pinhole => Box::new(pinhole::Pinhole),
             Method::Fast(options) => Box::new(Configured {
-                pipelines: &self.fast,
+                pipelines: self.made(&self.fast)?,
                 options,
             }),
             Method::Rdb(options) => Box::new(Configured {
-                pipelines: &self.rdb,
+                pipelines: self.made(&self.rdb)?,
                 options,
             }),
             Method::Accum(options) => Box::new(accum::Accum(options)),
             Method::Layered(options) => Box::new(Configured {
-                pipelines: &self.layered,
+                pipelines: self.made(&self.layered)?,
                 options,
             }),
-        }
+        })
     }
 }
 

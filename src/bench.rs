@@ -389,7 +389,8 @@ pub struct Cell {
     pub first_frame_wall_ms: Option<f64>,
     pub passes: Vec<PassStats>,
     pub upload: Upload,
-    /// Encoding the frame as PNG in memory, after the frame.
+    /// Encoding each timed frame as PNG in memory, after the cell's timed
+    /// frames (which run back to back).
     pub png_encode_ms: Stats,
     /// Against accum with 256 samples (`--quality`), else null.
     pub quality: Option<Quality>,
@@ -616,19 +617,26 @@ fn measure_cell(
         lod.get_or_insert(r.lod);
     }
     let mut timings = Vec::new();
-    let mut encode = Vec::new();
+    let mut images = Vec::new();
     let mut samples_per_pass = 1;
+    // The timed frames back to back, as a sequence's render thread draws
+    // them (its files are encoded on another): an encode between them
+    // would let a GPU lower its clocks.
     for _ in 0..options.runs {
         step(name);
         // The frame as `render` writes a PNG: its sRGB 8-bit pixels.
         let r = renderer.render_srgb8(scene, frame)?;
         first_wall_ms.get_or_insert(r.timings.wall_ms);
         lod.get_or_insert(r.lod);
-        let t = Instant::now();
-        r.image.encode_png()?;
-        encode.push(t.elapsed().as_secs_f64() * 1e3);
         timings.push(r.timings);
+        images.push(r.image);
         samples_per_pass = r.samples_per_pass;
+    }
+    let mut encode = Vec::new();
+    for image in &images {
+        let t = Instant::now();
+        image.encode_png()?;
+        encode.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let image = match options.quality {
         true => Some(renderer.render(scene, frame)?.image),

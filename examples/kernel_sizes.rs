@@ -36,13 +36,20 @@ fn run() -> anyhow::Result<()> {
     let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
     let cloud = BenchModel::Synthetic.load(&data, points)?;
     let ctx = Context::new(&ContextOptions::from_env(false, None))?;
-    let mut renderer = Renderer::new(&ctx)?;
-    let scene = renderer.upload(&cloud, SplatSize::Spacing)?;
     let gpu = KernelSizes::for_gpu(
         ctx.info.subgroup_size,
         ctx.info.max_compute_workgroup_invocations,
     );
     let cuts = [("gpu", gpu), ("cpu", KernelSizes::ALONE)];
+    // A renderer per cut, each keeping its pipelines and buffers from
+    // frame to frame; both draw the one scene of the device.
+    let mut renderers = Vec::new();
+    for (_, sizes) in cuts {
+        let mut renderer = Renderer::new(&ctx)?;
+        renderer.set_kernel_sizes(sizes);
+        renderers.push(renderer);
+    }
+    let scene = renderers[0].upload(&cloud, SplatSize::Spacing)?;
     let own = match KernelSizes::for_device(&ctx.info) == gpu {
         true => "gpu",
         false => "cpu",
@@ -72,8 +79,7 @@ fn run() -> anyhow::Result<()> {
         let mut worst_db = f64::INFINITY;
         for round in 0..=rounds {
             let mut images: Vec<LinearImage> = Vec::new();
-            for (c, (_, sizes)) in cuts.iter().enumerate() {
-                renderer.set_kernel_sizes(*sizes)?;
+            for (c, renderer) in renderers.iter().enumerate() {
                 let frame = renderer.render(&scene, &options)?;
                 images.push(frame.image);
                 // Round 0 warms both cuts' pipelines and allocations.

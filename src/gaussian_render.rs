@@ -245,7 +245,10 @@ impl GaussianRenderer {
                 bindings[..4].fill(b);
                 bindings
             })?,
-            layered: Layered::new(ctx)?,
+            layered: Layered::new(
+                ctx,
+                crate::passes::kernel_sizes::KernelSizes::for_device(&ctx.info),
+            )?,
             sort: RadixSort::new(ctx)?,
             capacity: std::sync::atomic::AtomicU32::new(0),
             sh_split_limit: None,
@@ -261,7 +264,8 @@ impl GaussianRenderer {
         &mut self,
         sizes: crate::passes::kernel_sizes::KernelSizes,
     ) -> Result<()> {
-        self.layered.set_kernel_sizes(&self.ctx, sizes)
+        self.layered = Layered::new(&self.ctx, sizes)?;
+        Ok(())
     }
 
     /// Puts the SH of at most `limit` Gaussians in the first of the two

@@ -486,12 +486,10 @@ impl Renderer {
     /// The passes with more than one cut of their work in the form of
     /// `sizes` instead of the device's own
     /// ([`crate::passes::kernel_sizes::KernelSizes::for_device`]): the
-    /// same images, as the test that says so renders.
-    pub fn set_kernel_sizes(
-        &mut self,
-        sizes: crate::passes::kernel_sizes::KernelSizes,
-    ) -> Result<()> {
-        self.methods.set_kernel_sizes(sizes)
+    /// same images, as the test that says so renders. A method's
+    /// pipelines are made again on its next frame.
+    pub fn set_kernel_sizes(&mut self, sizes: crate::passes::kernel_sizes::KernelSizes) {
+        self.methods.set_kernel_sizes(sizes);
     }
 
     /// Eye-dome lighting of the G-buffer's first layer before the

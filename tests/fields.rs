@@ -75,7 +75,7 @@ fn the_passes_equal_the_cpu_reference_at_every_band_level() {
         let mut levels = std::collections::BTreeSet::new();
         let scenes = scenes(&renderer);
         for (cut, sizes) in [("alone", KernelSizes::ALONE), ("shared", gpu_cut)] {
-            renderer.set_kernel_sizes(sizes).unwrap();
+            renderer.set_kernel_sizes(sizes);
             for (name, scene, camera, depths) in &scenes {
                 let (camera, depths) = (*camera, *depths);
                 // The last frame: 320×240, focused at twice the distance, the

@@ -503,7 +503,7 @@ fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
             let mut camera = BenchModel::Bunny.camera(&cloud, 150, 61).unwrap();
             camera.aperture_radius *= 4.0;
             let options = options(camera, method);
-            renderer.set_kernel_sizes(KernelSizes::ALONE).unwrap();
+            renderer.set_kernel_sizes(KernelSizes::ALONE);
             let alone = renderer.render(&scene, &options).unwrap();
             let slices = alone
                 .counts
@@ -518,12 +518,10 @@ fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
                 "{method:?}: one colour"
             );
             for row_threads in [8, 24, 64] {
-                renderer
-                    .set_kernel_sizes(KernelSizes {
-                        row_threads,
-                        ..KernelSizes::ALONE
-                    })
-                    .unwrap();
+                renderer.set_kernel_sizes(KernelSizes {
+                    row_threads,
+                    ..KernelSizes::ALONE
+                });
                 let shared = renderer.render(&scene, &options).unwrap().image;
                 assert!(
                     common::image_bits(&shared) == alone_bits,

@@ -542,12 +542,10 @@ fn both_layouts_of_the_64_bit_bins_give_the_same_bits() {
             );
             let mut frames = Vec::new();
             for bin_major in [false, true] {
-                renderer
-                    .set_kernel_sizes(KernelSizes {
-                        rdb_bin_major: bin_major,
-                        ..KernelSizes::ALONE
-                    })
-                    .unwrap();
+                renderer.set_kernel_sizes(KernelSizes {
+                    rdb_bin_major: bin_major,
+                    ..KernelSizes::ALONE
+                });
                 frames.push(renderer.render(&scene, &o).unwrap());
             }
             let what = format!(

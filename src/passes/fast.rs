@@ -123,16 +123,8 @@ impl Fast {
         self.gather_tree.set_enabled(enabled);
     }
 
-    /// [`super::Methods::set_kernel_sizes`] for the two-field gather.
-    pub(super) fn set_kernel_sizes(
-        &mut self,
-        ctx: &Arc<Context>,
-        sizes: super::kernel_sizes::KernelSizes,
-    ) -> Result<()> {
-        self.fields.set_kernel_sizes(ctx, sizes)
-    }
-
-    pub fn new(ctx: &Arc<Context>) -> Result<Fast> {
+    /// The method's pipelines, the two-field gather's cut as `sizes` says.
+    pub fn new(ctx: &Arc<Context>, sizes: super::kernel_sizes::KernelSizes) -> Result<Fast> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {
             coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
@@ -146,7 +138,7 @@ impl Fast {
                 GATHER_TREE,
                 GATHER_TREE_BINDINGS,
             )?,
-            fields: super::fields::Fields::new(ctx)?,
+            fields: super::fields::Fields::new(ctx, sizes)?,
             blade_gathers: Default::default(),
         })
     }

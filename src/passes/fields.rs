@@ -50,12 +50,13 @@ pub struct Fields {
 }
 
 impl Fields {
-    pub fn new(ctx: &Arc<Context>) -> Result<Fields> {
+    /// The gather's pipelines, its bands cut as `sizes` says.
+    pub fn new(ctx: &Arc<Context>, sizes: KernelSizes) -> Result<Fields> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fields {
             far: ComputePipeline::new(ctx, "fields_far", FAR, &[I, I, B, B])?,
             bands: ComputePipeline::new(ctx, "fields_bands", BANDS, &[I, I, B])?,
-            bands_shared: bands_shared(ctx, KernelSizes::for_device(&ctx.info))?,
+            bands_shared: bands_shared(ctx, sizes)?,
             spread: ComputePipeline::new(ctx, "fields_spread", SPREAD, &[B, B])?,
             resolve: ComputePipeline::new(ctx, "fields_resolve", RESOLVE, &[I, I, B, B, B, B, I])?,
             tables: Buffer::with_bytes(
@@ -65,15 +66,6 @@ impl Fields {
                 vk::BufferUsageFlags::STORAGE_BUFFER,
             )?,
         })
-    }
-}
-
-impl Fields {
-    /// The bands in the cut of `sizes` instead of the device's own, as
-    /// the test that the cuts agree renders.
-    pub fn set_kernel_sizes(&mut self, ctx: &Arc<Context>, sizes: KernelSizes) -> Result<()> {
-        self.bands_shared = bands_shared(ctx, sizes)?;
-        Ok(())
     }
 }
 

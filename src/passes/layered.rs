@@ -118,15 +118,6 @@ fn composite_pipeline(
 }
 
 impl Layered {
-    /// The composite in the form of `sizes` in place of the device's own
-    /// ([`KernelSizes::for_device`]), as the test that the forms agree
-    /// renders.
-    pub fn set_kernel_sizes(&mut self, ctx: &Arc<Context>, sizes: KernelSizes) -> Result<()> {
-        self.composite = composite_pipeline(ctx, sizes)?;
-        self.sizes = sizes;
-        Ok(())
-    }
-
     /// [`super::Methods::set_round_pipelines`] for the spread.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
         if let Some(spread) = &mut self.spread {
@@ -134,7 +125,10 @@ impl Layered {
         }
     }
 
-    pub fn new(ctx: &Arc<Context>) -> Result<Layered> {
+    /// The method's pipelines, its passes cut as `sizes` says
+    /// ([`KernelSizes::for_device`], or another cut for the test that the
+    /// cuts agree).
+    pub fn new(ctx: &Arc<Context>, sizes: KernelSizes) -> Result<Layered> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         // The spreading sums in 64-bit integers: without 64-bit buffer
         // atomics the method reports that it cannot run (`prepare`).
@@ -156,8 +150,8 @@ impl Layered {
                 )?),
                 false => None,
             },
-            composite: composite_pipeline(ctx, KernelSizes::for_device(&ctx.info))?,
-            sizes: KernelSizes::for_device(&ctx.info),
+            composite: composite_pipeline(ctx, sizes)?,
+            sizes,
         })
     }
 }

@@ -8,7 +8,7 @@
 //! here implementing [`DofMethod`], a variant of [`crate::options::Method`],
 //! and its line in [`Methods`].
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use glam::{Vec2, Vec3};
 
@@ -89,11 +89,6 @@ impl<P: crate::vk::PushConstants> Specialized<P> {
     /// (`Renderer::set_specialized_pipelines`).
     pub fn set_enabled(&mut self, enabled: bool) {
         self.general_only = !enabled;
-    }
-
-    /// Whether frames may take the special form ([`Specialized::set_enabled`]).
-    pub fn is_enabled(&self) -> bool {
-        !self.general_only
     }
 
     /// The general form and the one without the code of shaped apertures
@@ -458,80 +453,44 @@ pub struct Configured<'p, P, O> {
 /// dispatch from a [`Method`] to its implementation.
 pub struct Methods {
     ctx: Arc<Context>,
-    fast: std::sync::OnceLock<fast::Fast>,
-    rdb: std::sync::OnceLock<rdb::Rdb>,
-    layered: std::sync::OnceLock<layered::Layered>,
+    fast: OnceLock<fast::Fast>,
+    rdb: OnceLock<rdb::Rdb>,
+    layered: OnceLock<layered::Layered>,
     /// [`Methods::set_round_pipelines`], for pipelines made later too.
     round_pipelines: bool,
-    /// [`Methods::set_kernel_sizes`] (None: the device's own).
-    sizes: Option<kernel_sizes::KernelSizes>,
+    /// How the methods' passes are cut ([`kernel_sizes`]).
+    sizes: kernel_sizes::KernelSizes,
 }
 
-/// What the tests' settings change in a method's pipelines.
-trait Settable: Sized {
-    fn make(ctx: &Arc<Context>) -> Result<Self>;
-    fn set_round_pipelines(&mut self, enabled: bool);
-    fn set_kernel_sizes(
-        &mut self,
-        ctx: &Arc<Context>,
-        sizes: kernel_sizes::KernelSizes,
-    ) -> Result<()>;
+/// The value in `cell`, made by `make` if it holds none yet; its time
+/// logged under `name`.
+fn made<'a, T>(
+    cell: &'a OnceLock<T>,
+    name: &str,
+    make: impl FnOnce() -> Result<T>,
+) -> Result<&'a T> {
+    if let Some(made) = cell.get() {
+        return Ok(made);
+    }
+    let started = std::time::Instant::now();
+    let made = make()?;
+    log::info!(
+        "{name} pipelines made in {:.0} ms",
+        started.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(cell.get_or_init(|| made))
 }
-
-macro_rules! settable {
-    ($($t:ty),*) => {$(
-        impl Settable for $t {
-            fn make(ctx: &Arc<Context>) -> Result<Self> {
-                <$t>::new(ctx)
-            }
-            fn set_round_pipelines(&mut self, enabled: bool) {
-                <$t>::set_round_pipelines(self, enabled)
-            }
-            fn set_kernel_sizes(
-                &mut self,
-                ctx: &Arc<Context>,
-                sizes: kernel_sizes::KernelSizes,
-            ) -> Result<()> {
-                <$t>::set_kernel_sizes(self, ctx, sizes)
-            }
-        }
-    )*};
-}
-settable!(fast::Fast, rdb::Rdb, layered::Layered);
 
 impl Methods {
     pub fn new(ctx: &Arc<Context>) -> Result<Methods> {
         Ok(Methods {
             ctx: ctx.clone(),
-            fast: std::sync::OnceLock::new(),
-            rdb: std::sync::OnceLock::new(),
-            layered: std::sync::OnceLock::new(),
+            fast: OnceLock::new(),
+            rdb: OnceLock::new(),
+            layered: OnceLock::new(),
             round_pipelines: true,
-            sizes: None,
+            sizes: kernel_sizes::KernelSizes::for_device(&ctx.info),
         })
-    }
-
-    /// The pipelines in `cell`, made now if they are not yet, with the
-    /// settings asked for so far.
-    fn made<'a, T: Settable>(&self, cell: &'a std::sync::OnceLock<T>) -> Result<&'a T> {
-        if let Some(made) = cell.get() {
-            return Ok(made);
-        }
-        let started = std::time::Instant::now();
-        let mut made = T::make(&self.ctx)?;
-        made.set_round_pipelines(self.round_pipelines);
-        if let Some(sizes) = self.sizes {
-            made.set_kernel_sizes(&self.ctx, sizes)?;
-        }
-        log::info!(
-            "{} pipelines made in {:.0} ms",
-            std::any::type_name::<T>()
-                .rsplit("::")
-                .next()
-                .unwrap_or("method"),
-            started.elapsed().as_secs_f64() * 1e3
-        );
-        Ok(cell.get_or_init(|| made))
     }
 
     /// Whether the frames of the round aperture take the pipelines made
@@ -540,32 +499,25 @@ impl Methods {
     pub fn set_round_pipelines(&mut self, enabled: bool) {
         self.round_pipelines = enabled;
         if let Some(m) = self.fast.get_mut() {
-            Settable::set_round_pipelines(m, enabled);
+            m.set_round_pipelines(enabled);
         }
         if let Some(m) = self.rdb.get_mut() {
-            Settable::set_round_pipelines(m, enabled);
+            m.set_round_pipelines(enabled);
         }
         if let Some(m) = self.layered.get_mut() {
-            Settable::set_round_pipelines(m, enabled);
+            m.set_round_pipelines(enabled);
         }
     }
 
     /// The passes that have more than one cut of their work
     /// ([`kernel_sizes`]) in the form of `sizes`, in place of the
-    /// device's own, as the test that the forms agree renders.
-    pub fn set_kernel_sizes(&mut self, sizes: kernel_sizes::KernelSizes) -> Result<()> {
-        self.sizes = Some(sizes);
-        let ctx = self.ctx.clone();
-        if let Some(m) = self.fast.get_mut() {
-            Settable::set_kernel_sizes(m, &ctx, sizes)?;
-        }
-        if let Some(m) = self.rdb.get_mut() {
-            Settable::set_kernel_sizes(m, &ctx, sizes)?;
-        }
-        if let Some(m) = self.layered.get_mut() {
-            Settable::set_kernel_sizes(m, &ctx, sizes)?;
-        }
-        Ok(())
+    /// device's own, as the test that the forms agree renders: the
+    /// methods made so far are made again on their next frame.
+    pub fn set_kernel_sizes(&mut self, sizes: kernel_sizes::KernelSizes) {
+        self.sizes = sizes;
+        self.fast.take();
+        self.rdb.take();
+        self.layered.take();
     }
 
     /// The implementation of `method` with its options (its pipelines made
@@ -574,16 +526,28 @@ impl Methods {
         Ok(match *method {
             Method::Pinhole => Box::new(pinhole::Pinhole),
             Method::Fast(options) => Box::new(Configured {
-                pipelines: self.made(&self.fast)?,
+                pipelines: made(&self.fast, "fast", || {
+                    let mut m = fast::Fast::new(&self.ctx, self.sizes)?;
+                    m.set_round_pipelines(self.round_pipelines);
+                    Ok(m)
+                })?,
                 options,
             }),
             Method::Rdb(options) => Box::new(Configured {
-                pipelines: self.made(&self.rdb)?,
+                pipelines: made(&self.rdb, "rdb", || {
+                    let mut m = rdb::Rdb::new(&self.ctx, self.sizes)?;
+                    m.set_round_pipelines(self.round_pipelines);
+                    Ok(m)
+                })?,
                 options,
             }),
             Method::Accum(options) => Box::new(accum::Accum(options)),
             Method::Layered(options) => Box::new(Configured {
-                pipelines: self.made(&self.layered)?,
+                pipelines: made(&self.layered, "layered", || {
+                    let mut m = layered::Layered::new(&self.ctx, self.sizes)?;
+                    m.set_round_pipelines(self.round_pipelines);
+                    Ok(m)
+                })?,
                 options,
             }),
         })

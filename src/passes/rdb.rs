@@ -313,7 +313,8 @@ impl Rdb {
         }
     }
 
-    pub fn new(ctx: &Arc<Context>) -> Result<Rdb> {
+    /// The method's pipelines, the 64-bit bins laid out as `sizes` says.
+    pub fn new(ctx: &Arc<Context>, sizes: KernelSizes) -> Result<Rdb> {
         let img = Binding::StorageImage;
         Ok(Rdb {
             scatter: ComputePipeline::new(
@@ -330,8 +331,7 @@ impl Rdb {
             )?,
             packed: match ctx.info.buffer_int64_atomics {
                 true => {
-                    let (scatter, resolve) =
-                        packed_pipelines(ctx, KernelSizes::for_device(&ctx.info))?;
+                    let (scatter, resolve) = packed_pipelines(ctx, sizes)?;
                     Some(Packed {
                         scatter,
                         resolve,
@@ -341,22 +341,6 @@ impl Rdb {
                 false => None,
             },
         })
-    }
-
-    /// The 64-bit form's passes in the layout of `sizes` instead of the
-    /// device's own, as the test that the layouts agree renders; the
-    /// round pipelines stay as [`Rdb::set_round_pipelines`] left them.
-    pub(super) fn set_kernel_sizes(
-        &mut self,
-        ctx: &Arc<Context>,
-        sizes: KernelSizes,
-    ) -> Result<()> {
-        if let Some(packed) = &mut self.packed {
-            let enabled = packed.resolve.is_enabled();
-            (packed.scatter, packed.resolve) = packed_pipelines(ctx, sizes)?;
-            packed.resolve.set_enabled(enabled);
-        }
-        Ok(())
     }
 
     /// The 64-bit form if `atomics` asks for it (or allows it) and the

@@ -1321,7 +1321,7 @@ const COPY_CHUNK_BYTES: usize = 1 << 20;
 fn copy_in_parallel<T: bytemuck::Pod + Send>(bytes: &[u8]) -> Vec<T> {
     let size = std::mem::size_of::<T>();
     let mut out = vec![T::zeroed(); bytes.len() / size];
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(8));
+    let threads = crate::available_threads().min(8);
     let chunk = (out.len().div_ceil(threads))
         .max(COPY_CHUNK_BYTES / size)
         .max(1);

@@ -1309,27 +1309,16 @@ impl Readback {
     }
 }
 
-/// Bytes of the readback a thread of [`copy_in_parallel`] copies at least.
-const COPY_CHUNK_BYTES: usize = 1 << 20;
-
-/// `bytes` (a whole number of `T`) as a vector of `T`, copied in chunks by
-/// up to 8 threads. The vector's pages are the kernel's fresh zero pages
-/// (one allocation of zeros), first touched by the copy, so the threads
-/// take the page faults as well as the copy in parallel: a 1080p EXR's
-/// 33 MB took one thread 9-12 ms on an H200's host, 22-29 ms in a
-/// sequence's first frames.
+/// `bytes` (a whole number of `T`) as a vector of `T`, copied by
+/// [`crate::copy_in_parallel`] into one allocation of zeros (the kernel's
+/// fresh zero pages, first touched by the copy).
 fn copy_in_parallel<T: bytemuck::Pod + Send>(bytes: &[u8]) -> Vec<T> {
-    let size = std::mem::size_of::<T>();
-    let mut out = vec![T::zeroed(); bytes.len() / size];
-    let threads = crate::available_threads().min(8);
-    let chunk = (out.len().div_ceil(threads))
-        .max(COPY_CHUNK_BYTES / size)
-        .max(1);
-    std::thread::scope(|scope| {
-        for (to, from) in out.chunks_mut(chunk).zip(bytes.chunks(chunk * size)) {
-            scope.spawn(move || bytemuck::cast_slice_mut::<T, u8>(to).copy_from_slice(from));
-        }
-    });
+    let mut out = vec![T::zeroed(); bytes.len() / std::mem::size_of::<T>()];
+    crate::copy_in_parallel(
+        &[bytes],
+        bytemuck::cast_slice_mut(&mut out),
+        crate::available_threads(),
+    );
     out
 }
 
@@ -1392,30 +1381,5 @@ mod tests {
         let vertex = vertices_of(std::slice::from_ref(&splat))[0];
         assert_eq!(vertex.position_size, splat.position_size);
         assert_eq!(vertex.color, splat.color);
-    }
-
-    /// The parallel readback copy is the plain copy, at sizes around its
-    /// chunks' edges (one thread, several, a last chunk shorter by one).
-    #[test]
-    fn the_parallel_copy_is_the_plain_copy() {
-        let bytes: Vec<u8> = (0..5 * COPY_CHUNK_BYTES as u32 + 48)
-            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
-            .collect();
-        for len in [
-            0,
-            16,
-            COPY_CHUNK_BYTES,
-            COPY_CHUNK_BYTES + 16,
-            3 * COPY_CHUNK_BYTES - 16,
-            bytes.len(),
-        ] {
-            // As words: the bytes' floats include NaNs.
-            let linear: Vec<[u32; 4]> = copy_in_parallel(&bytes[..len]);
-            let plain: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(&bytes[..len]);
-            assert!(linear == plain, "{len}");
-            let len3 = len / 3 * 3;
-            let rgb: Vec<u8> = copy_in_parallel(&bytes[..len3]);
-            assert!(rgb == bytes[..len3], "{len3}");
-        }
     }
 }

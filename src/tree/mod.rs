@@ -130,6 +130,10 @@ pub struct SplatTree {
     leaves: Vec<Splat>,
     /// Levels 1, 2, …: the last holds the root alone.
     levels: Vec<Vec<Node>>,
+    /// For each node of levels 2, 3, … (`[level - 2][i]`): the smallest
+    /// diameter of an inner node beneath it, which bounds what the level
+    /// of detail could emit below it ([`SplatTree::inner_diameter_below`]).
+    inner_diameter_below: Vec<Vec<f32>>,
     has_normals: bool,
     /// The largest angle between a point's normal and its stored
     /// (quantised) one: the leaves' normal cone.
@@ -323,7 +327,8 @@ impl SplatTree {
                 // Groups of fewer than 5 on average (many isolated nodes):
                 // fixed groups of 8 for this level instead, so that the
                 // inner nodes stay under n/4 (n/5 + n/25 + …): 32 bytes a
-                // point at most with the leaves.
+                // point at most with the leaves, and 0.2 more for the
+                // inner diameters below the nodes of levels 2 and up.
                 starts = (0..below).step_by(FANOUT).map(|j| j as u32).collect();
             }
             let mut nodes = vec![Node::zeroed(); starts.len()];
@@ -348,10 +353,12 @@ impl SplatTree {
                 .collect();
             levels.push(nodes);
         }
+        let inner_diameter_below = inner_diameters_below(&levels);
         let levels_ms = ms_since(levels_started);
         SplatTree {
             leaves,
             levels,
+            inner_diameter_below,
             has_normals,
             leaf_cone_rad,
             build: BuildTimes {
@@ -378,6 +385,7 @@ impl SplatTree {
         }
         tree.leaves = leaves;
         tree.levels.clear();
+        tree.inner_diameter_below.clear();
         tree
     }
 
@@ -418,6 +426,12 @@ impl SplatTree {
     pub fn bytes(&self) -> usize {
         self.leaves.len() * std::mem::size_of::<Splat>()
             + self.levels.iter().map(Vec::len).sum::<usize>() * std::mem::size_of::<Node>()
+            + self
+                .inner_diameter_below
+                .iter()
+                .map(Vec::len)
+                .sum::<usize>()
+                * std::mem::size_of::<f32>()
     }
 
     /// The whole tree as bytes (leaves, then each level): the same for the
@@ -442,6 +456,34 @@ impl SplatTree {
         }
     }
 
+    /// The smallest diameter of an inner node beneath node `i` of `level`
+    /// ≥ 1 (infinite where only leaves are beneath it).
+    pub fn inner_diameter_below(&self, level: usize, i: usize) -> f32 {
+        match level {
+            0 | 1 => f32::INFINITY,
+            _ => self.inner_diameter_below[level - 2][i],
+        }
+    }
+
+    /// The leaves beneath node `i` of `level` (0: the leaf itself), as
+    /// indices into [`SplatTree::leaves`]: every level keeps its
+    /// children's order, so they are one run.
+    pub fn leaves_below(&self, level: usize, i: usize) -> std::ops::Range<usize> {
+        let first_leaf = |mut level: usize, mut i: usize| {
+            while level > 0 {
+                i = self.levels[level - 1][i].first_child as usize;
+                level -= 1;
+            }
+            i
+        };
+        let end = if i + 1 < self.level_len(level) {
+            first_leaf(level, i + 1)
+        } else {
+            self.leaves.len()
+        };
+        first_leaf(level, i)..end
+    }
+
     /// The children of node `i` of `level` ≥ 1, as indices into `level` − 1.
     pub fn children(&self, level: usize, i: usize) -> std::ops::Range<usize> {
         let nodes = &self.levels[level - 1];
@@ -459,6 +501,31 @@ impl SplatTree {
             self.levels[level - 1].len()
         }
     }
+}
+
+/// [`SplatTree::inner_diameter_below`] of every node of levels 2, 3, …:
+/// the smallest over its children of their diameter and of theirs.
+fn inner_diameters_below(levels: &[Vec<Node>]) -> Vec<Vec<f32>> {
+    let mut below: Vec<Vec<f32>> = Vec::with_capacity(levels.len().saturating_sub(1));
+    for l in 1..levels.len() {
+        let (children, nodes) = (&levels[l - 1], &levels[l]);
+        let of_child = |c: usize| {
+            let d = children[c].splat.position_size[3];
+            below.last().map_or(d, |b: &Vec<f32>| d.min(b[c]))
+        };
+        let level: Vec<f32> = (0..nodes.len())
+            .map(|i| {
+                let end = nodes
+                    .get(i + 1)
+                    .map_or(children.len(), |n| n.first_child as usize);
+                (nodes[i].first_child as usize..end)
+                    .map(of_child)
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .collect();
+        below.push(level);
+    }
+    below
 }
 
 /// Points per unit of parallel work in the build.
@@ -630,14 +697,19 @@ mod tests {
         }
     }
 
-    fn cloud(n: usize, seed: u64, normals: bool) -> Cloud {
+    /// Uniform numbers in [0, 1) from `seed`, the same on every run.
+    pub(super) fn lcg(seed: u64) -> impl FnMut() -> f32 {
         let mut state = seed;
-        let mut next = move || {
+        move || {
             state = state
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        }
+    }
+
+    fn cloud(n: usize, seed: u64, normals: bool) -> Cloud {
+        let mut next = lcg(seed);
         let positions: Vec<Vec3> = (0..n)
             .map(|_| Vec3::new(next(), next(), 0.1 * next()))
             .collect();

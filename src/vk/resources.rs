@@ -112,10 +112,10 @@ impl Buffer {
             usage,
             MemoryLocation::CpuToGpu,
         )?;
-        buffer
+        let mapped = buffer
             .mapped_mut()
-            .ok_or_else(|| Error::Allocation(format!("{name} is not host-visible")))?
-            .copy_from_slice(bytes);
+            .ok_or_else(|| Error::Allocation(format!("{name} is not host-visible")))?;
+        crate::copy_in_parallel(&[bytes], mapped, crate::available_threads());
         Ok(buffer)
     }
 

@@ -196,9 +196,7 @@ impl SplatTree {
                 .map(|h| h.join().expect("a traversal thread does not panic"))
                 .collect()
         });
-        // The pieces in order, each subtree's walk in its place, then the
-        // splats they hold copied in parallel (a frame's splats are
-        // megabytes of fresh pages).
+        // The pieces in order, each subtree's walk in its place.
         let mut walked = results.into_iter().flatten();
         let mut pieces: Vec<Piece> = Vec::new();
         for item in items {
@@ -211,6 +209,19 @@ impl SplatTree {
                 }
             }
         }
+        let (splats, inner_emitted) = self.splats_of(&pieces, threads);
+        Traversal {
+            splats,
+            nodes_visited: visited,
+            inner_emitted,
+            ms: ms_since(started),
+        }
+    }
+
+    /// The splats of `pieces`, in order, copied on up to `threads`
+    /// threads (a frame's splats are megabytes of fresh pages), and how
+    /// many are inner nodes.
+    fn splats_of(&self, pieces: &[Piece], threads: usize) -> (Vec<Splat>, u64) {
         let mut inner_emitted = 0u64;
         let bytes: Vec<&[u8]> = pieces
             .iter()
@@ -227,12 +238,7 @@ impl SplatTree {
             bytes.iter().map(|b| b.len()).sum::<usize>() / size_of::<Splat>()
         ];
         crate::copy_in_parallel(&bytes, bytemuck::cast_slice_mut(&mut splats), threads);
-        Traversal {
-            splats,
-            nodes_visited: visited,
-            inner_emitted,
-            ms: ms_since(started),
-        }
+        (splats, inner_emitted)
     }
 
     /// Depth-first walk of the subtree at (level, i): what it emits

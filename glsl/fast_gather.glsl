@@ -40,7 +40,7 @@ layout(push_constant, std430) uniform Push {
     int levels;     // levels of the block tree (TREE; 0: none)
     ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
     // A shaped aperture: a tap reaches Q where its lens position passes
-    // the shape (blades_pass) instead of the disk; the tree takes a block
+    // the shape (shape_reaches) instead of the disk; the tree takes a block
     // whole where its pixels lie within the disk of radius shape_inner
     // (ShapeRows::inner_radius) or the box (ShapeRows::inner_box) that
     // the shape holds, and leaves it where they lie outside the shape's
@@ -74,27 +74,18 @@ void set_blade_normals() {
     }
 }
 
-// Whether lens position u passes the shape of BLADES blades (0: the
-// squeezed circle): Aperture::blades_pass.
-bool blades_pass(vec2 u) {
-    vec4 m = pc.base_from_lens;
-    vec2 w = vec2(m.x * u.x + m.y * u.y, m.z * u.x + m.w * u.y);
-    float r2 = dot(w, w);
-    if (BLADES == 0) {
-        return r2 <= 1.0;
-    }
-    float most = -1.0;
-    for (int k = 0; k < BLADES; ++k) {
-        most = max(most, dot(u, blade_normals[k]));
-    }
-    float r = sqrt(r2);
-    return r2 <= 1.0 && most * (r - pc.curvature) <= (1.0 - pc.curvature) * pc.blade_cos * r;
-}
+// Whether every frame of the pipeline is shaped (id 10): a pipeline made
+// for shaped frames alone (Fast::gather_for), whose disk code is compiled
+// away. llvmpipe runs both sides of a branch it cannot prove uniform, so
+// a shaped frame through the general pipeline also paid for every tap's
+// disk test and its depth load.
+layout(constant_id = 10) const bool SHAPED_ONLY = false;
 
 // Whether the frame's aperture is shaped: never in the round pipeline
-// (APERTURE_CODE, aperture.glsl), whose shape code is compiled away.
+// (APERTURE_CODE, aperture.glsl), whose shape code is compiled away;
+// always in one made for shaped frames (SHAPED_ONLY).
 bool shaped() {
-    return APERTURE_CODE && pc.shaped != 0u;
+    return APERTURE_CODE && (SHAPED_ONLY || pc.shaped != 0u);
 }
 
 // Whether a block of offsets [v0, v1] from Q, of diameters up to c and
@@ -121,18 +112,47 @@ bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
 }
 
 // Whether a pixel at offset v = P − Q from Q, of diameter c and depth z,
-// reaches Q through a lens position u of the shape: Q = P + sign(z)·c/2·u.
+// reaches Q through a lens position u of the shape: Q = P + sign(z)·c/2·u
+// (Aperture::reaches mirrors it). Tested in v's pixels, without a
+// division: with h = c/2 and s = sign(z), u = −v/(s·h), so |u| ≤ 1 is
+// |v| ≤ h and, with R = |M·v| = h·|w| and m = max_k −s·(v·n_k) = h·(w·d_k)'s
+// largest, the blades' test m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w| times h² is
+// m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h. An even count's blades come in
+// opposite pairs, so m is the largest |v·n_k| of the first half, whatever
+// s (reaches_either_side: the depth need not be read first).
 bool shape_reaches(ivec2 v, float c, float z) {
     if (c <= 0.0) {
         return v == ivec2(0);
     }
-    float s = z >= pc.focus_distance ? 1.0 : -1.0;
-    vec2 u = -2.0 * vec2(v) / (s * c);
-    if (dot(u, u) > 1.0) {
+    float h = 0.5 * c;
+    vec2 x = vec2(v);
+    if (dot(x, x) > h * h) {
         return false;
     }
-    return blades_pass(u) || v == ivec2(0);
+    vec4 m = pc.base_from_lens;
+    vec2 mv = vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+    float r2 = dot(mv, mv);
+    if (BLADES == 0) {
+        return r2 <= h * h;
+    }
+    float most = 0.0;
+    if (BLADES % 2 == 0) {
+        for (int k = 0; k < BLADES / 2; ++k) {
+            most = max(most, abs(dot(x, blade_normals[k])));
+        }
+    } else {
+        float s = z >= pc.focus_distance ? -1.0 : 1.0;
+        for (int k = 0; k < BLADES; ++k) {
+            most = max(most, s * dot(x, blade_normals[k]));
+        }
+    }
+    float r = sqrt(r2);
+    return r2 <= h * h && most * (r - pc.curvature * h) <= (1.0 - pc.curvature) * pc.blade_cos * r * h;
 }
+
+// Whether shape_reaches does not depend on the depth: an even count of
+// blades or none (a shape symmetric about the lens centre).
+const bool REACHES_EITHER_SIDE = BLADES % 2 == 0;
 
 void main() {
     set_blade_normals();
@@ -284,7 +304,15 @@ void main() {
         for (int dx = lo.x - q.x; dx <= hi.x - q.x; ++dx) {
             ivec2 p = q + ivec2(dx, dy);
             vec2 cw = imageLoad(coc_weight, p).xy;
-            if (shaped()) {
+            if (shaped() && REACHES_EITHER_SIDE) {
+                // As the disk's test: the shape's first, the depth's after.
+                if (!shape_reaches(ivec2(dx, dy), cw.x, 0.0)) {
+                    continue;
+                }
+                if (imageLoad(gbuffer_eye, p).z > zq) {
+                    continue;
+                }
+            } else if (shaped()) {
                 float zp = imageLoad(gbuffer_eye, p).z;
                 if (!shape_reaches(ivec2(dx, dy), cw.x, zp) || zp > zq) {
                     continue;

@@ -541,8 +541,8 @@ impl Aperture {
     /// Whether lens position u passes a shape of blades, curvature,
     /// squeeze and turn (not an image; the cat's eye apart): T(u) > 0 of
     /// [`Aperture::transmission`] written without angles, as the tap test
-    /// of `fast`'s gathers makes it (`glsl/fast_gather.glsl`,
-    /// `blades_pass`, mirrors it). With w = M·u, |w| ≤ 1 and, with
+    /// of `fast`'s gathers makes it in pixels ([`Aperture::reaches`]).
+    /// With w = M·u, |w| ≤ 1 and, with
     /// blades, |w| ≤ ρ(φ): as m = max over the blades' middle directions
     /// d_k of w·d_k is |w|·cos δ, that is m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w|.
     pub fn blades_pass(&self, u: Vec2) -> bool {
@@ -557,6 +557,47 @@ impl Aperture {
         let r = r2.sqrt();
         let c = self.curvature;
         most * (r - c) <= (1.0 - c) * self.blade_cos() * r
+    }
+
+    /// Whether a pixel at offset v from Q (pixels), of CoC diameter 2·`h`
+    /// pixels, behind the focus (`behind`) or in front, reaches Q through
+    /// the shape: [`Aperture::blades_pass`] of u = −v/(s·h), s = ±1 the
+    /// side, in v's pixels without a division, as `fast`'s gathers test
+    /// their taps (`glsl/fast_gather.glsl`, `shape_reaches`, mirrors it).
+    /// With R = |M·v| = h·|w| and m = max_k −s·(v·M'd_k) = h·max_k w·d_k,
+    /// the blades' test times h² is m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h; an
+    /// even count's blades come in opposite pairs, so m is the largest
+    /// |v·M'd_k| of the first half and the side does not matter.
+    pub fn reaches(&self, v: Vec2, h: f32, behind: bool) -> bool {
+        if h <= 0.0 {
+            return v == Vec2::ZERO;
+        }
+        if v.length_squared() > h * h {
+            return false;
+        }
+        let r2 = self.base_by_matrix(v).length_squared();
+        if self.blades == 0 {
+            return r2 <= h * h;
+        }
+        // M'd_k: u·(M'd_k) = (M·u)·d_k.
+        let m = self.base_from_lens();
+        let normal = |k: u32| {
+            let d = self.blade_middle(k);
+            Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
+        };
+        let most = if self.blades.is_multiple_of(2) {
+            (0..self.blades / 2)
+                .map(|k| v.dot(normal(k)).abs())
+                .fold(0.0f32, f32::max)
+        } else {
+            let s = if behind { -1.0 } else { 1.0 };
+            (0..self.blades)
+                .map(|k| s * v.dot(normal(k)))
+                .fold(0.0f32, f32::max)
+        };
+        let r = r2.sqrt();
+        let c = self.curvature;
+        r2 <= h * h && most * (r - c * h) <= (1.0 - c) * self.blade_cos() * r * h
     }
 
     /// M·u of [`Aperture::base_from_lens`], as the GLSL tap test forms it.
@@ -1100,12 +1141,10 @@ mod tests {
         }
     }
 
-    /// The tap test without angles agrees with T(u) > 0 away from the
-    /// boundary (where their roundings may differ), and the matrix with
-    /// `base_of`, for blades straight and curved, turned and squeezed.
-    #[test]
-    fn blades_pass_where_the_transmission_is() {
-        let shapes = [
+    /// Blades odd and even, straight and curved, turned and squeezed, and
+    /// the squeezed circle: what the tap tests are tested on.
+    fn tested_shapes() -> [Aperture; 6] {
+        [
             blades(3, 0.0),
             blades(5, 36.0),
             Aperture {
@@ -1125,9 +1164,16 @@ mod tests {
                 ratio: 1.7,
                 ..Aperture::ROUND
             },
-        ];
+        ]
+    }
+
+    /// The tap test without angles agrees with T(u) > 0 away from the
+    /// boundary (where their roundings may differ), and the matrix with
+    /// `base_of`, for blades straight and curved, turned and squeezed.
+    #[test]
+    fn blades_pass_where_the_transmission_is() {
         let (mut checked, mut inside) = (0, 0);
-        for a in shapes {
+        for a in tested_shapes() {
             for i in 0..201 {
                 for j in 0..201 {
                     let u = Vec2::new(i as f32 / 100.0 - 1.0, j as f32 / 100.0 - 1.0);
@@ -1153,6 +1199,52 @@ mod tests {
             inside > checked / 4 && inside < checked,
             "{inside} of {checked} inside"
         );
+    }
+
+    /// The tap test in pixels agrees with the test of its lens position
+    /// away from the boundary, on either side of the focus, for blades
+    /// even and odd, straight and curved, turned and squeezed.
+    #[test]
+    fn reaches_is_blades_pass_of_the_lens_position() {
+        let (mut checked, mut inside) = (0, 0);
+        for a in tested_shapes() {
+            for h in [0.5f32, 3.0, 17.5] {
+                for behind in [false, true] {
+                    let s = if behind { 1.0 } else { -1.0 };
+                    let reach = h.ceil() as i32 + 1;
+                    for y in -reach..=reach {
+                        for x in -reach..=reach {
+                            let v = Vec2::new(x as f32, y as f32);
+                            let u = -v / (s * h);
+                            let w = a.base_of(u);
+                            let rho = if a.blades == 0 {
+                                1.0
+                            } else {
+                                a.blade_radius((-w.y).atan2(w.x)).min(1.0)
+                            };
+                            if (w.length() - rho).abs() < 1e-4 || (u.length() - 1.0).abs() < 1e-4 {
+                                continue;
+                            }
+                            let passes = a.blades_pass(u);
+                            assert_eq!(
+                                a.reaches(v, h, behind),
+                                passes,
+                                "{a:?} at {v}, h {h}, behind {behind}"
+                            );
+                            checked += 1;
+                            inside += usize::from(passes);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            inside > checked / 4 && inside < checked,
+            "{inside} of {checked} inside"
+        );
+        // No reach without a CoC but to Q itself.
+        assert!(blades(6, 0.0).reaches(Vec2::ZERO, 0.0, true));
+        assert!(!blades(6, 0.0).reaches(Vec2::X, 0.0, true));
     }
 
     #[test]

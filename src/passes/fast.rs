@@ -107,11 +107,16 @@ pub struct Fast {
     gather: Specialized<GatherPush>,
     tree: ComputePipeline<TreePush>,
     gather_tree: Specialized<GatherPush>,
-    /// The gathers made for one blade count N each (`BLADES` of
-    /// `glsl/fast_gather.glsl`; at N, 3 to 16), as a shaped frame first
-    /// needs them: pixels, then tree. Those of `gather` and `gather_tree`
-    /// are made for none: the round frames' and the squeezed circle's.
-    blade_gathers: [[OnceLock<ComputePipeline<GatherPush>>; 17]; 2],
+    /// The gathers of shaped frames, made for one blade count N each
+    /// (`BLADES` of `glsl/fast_gather.glsl`; 0 the squeezed circle, else
+    /// 3 to 16) as a frame first needs them, at
+    /// `[shaped only][tree][N]`: made for shaped frames alone
+    /// (`SHAPED_ONLY`, the disk's code compiled away) unless the
+    /// specialized pipelines are off.
+    shaped_gathers: [[[OnceLock<ComputePipeline<GatherPush>>; 17]; 2]; 2],
+    /// Whether frames take the pipelines made for them (the default), or
+    /// the general ones ([`Fast::set_round_pipelines`]).
+    specialized: bool,
     /// `--fast-gather fields`.
     fields: super::fields::Fields,
 }
@@ -121,6 +126,7 @@ impl Fast {
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
         self.gather.set_enabled(enabled);
         self.gather_tree.set_enabled(enabled);
+        self.specialized = enabled;
     }
 
     /// The method's pipelines, the two-field gather's cut as `sizes` says.
@@ -139,15 +145,18 @@ impl Fast {
                 GATHER_TREE_BINDINGS,
             )?,
             fields: super::fields::Fields::new(ctx, sizes)?,
-            blade_gathers: Default::default(),
+            shaped_gathers: Default::default(),
+            specialized: true,
         })
     }
 
     /// The gather of a frame through `aperture`, by the tree where `tree`:
-    /// without blades, `gather`'s or `gather_tree`'s (the round pipeline
-    /// for the round aperture); with N blades, the one made for N (made
-    /// now if no frame has needed it yet). `fast` renders no image or
-    /// cat's eye (`camera::APERTURE_FEATURES`).
+    /// through the round aperture, `gather`'s or `gather_tree`'s round
+    /// pipeline; through a shape, the one made for its blade count and
+    /// for shaped frames alone (made now if no frame has needed it yet).
+    /// With the specialized pipelines off, the general pipeline, or for N
+    /// blades one made for N alone. `fast` renders no image or cat's eye
+    /// (`camera::APERTURE_FEATURES`).
     fn gather_for(
         &self,
         ctx: &Arc<Context>,
@@ -159,10 +168,11 @@ impl Fast {
         } else {
             &self.gather
         };
-        if aperture.blades == 0 {
+        if aperture.is_round() || (aperture.blades == 0 && !self.specialized) {
             return Ok(variants.for_aperture(aperture));
         }
-        let slot = &self.blade_gathers[usize::from(tree)][aperture.blades as usize];
+        let slot = &self.shaped_gathers[usize::from(self.specialized)][usize::from(tree)]
+            [aperture.blades as usize];
         if let Some(pipeline) = slot.get() {
             return Ok(pipeline);
         }
@@ -170,12 +180,19 @@ impl Fast {
             true => ("fast_gather_tree", GATHER_TREE, GATHER_TREE_BINDINGS),
             false => ("fast_gather", GATHER, GATHER_BINDINGS),
         };
+        let mut constants = vec![(BLADES_ID, aperture.blades)];
+        if self.specialized {
+            constants.push((SHAPED_ONLY_ID, 1));
+        }
         let pipeline = ComputePipeline::specialized(
             ctx,
-            &format!("{name} ({} blades)", aperture.blades),
+            &format!(
+                "{name} ({} blades, shaped only: {})",
+                aperture.blades, self.specialized
+            ),
             spirv,
             bindings,
-            &[(BLADES_ID, aperture.blades)],
+            &constants,
         )?;
         Ok(slot.get_or_init(|| pipeline))
     }
@@ -183,6 +200,9 @@ impl Fast {
 
 /// The specialization constant `BLADES` of `glsl/fast_gather.glsl`.
 const BLADES_ID: u32 = 1;
+
+/// The specialization constant `SHAPED_ONLY` of `glsl/fast_gather.glsl`.
+const SHAPED_ONLY_ID: u32 = 10;
 
 /// What the gathers bind: the G-buffer's color and eye, the CoCs and
 /// weights, the tiles' radii and the result; the tree's sums, weights and

@@ -150,6 +150,36 @@ bool shape_reaches(ivec2 v, float c, float z) {
     return r2 <= h * h && most * (r - pc.curvature * h) <= (1.0 - pc.curvature) * pc.blade_cos * r * h;
 }
 
+// Whether the box [v0, v1] lies beyond one line of the blades on side s
+// of the focus, scaled to h: for every offset x of it, (M·x)·d_k is
+// beyond the farthest the shape reaches along d_k, ((1 − C)·cos(π/N) +
+// C)·h (a curved blade bulges out to C·cos δ ≤ C beyond its line). The
+// least of a linear function over a box is at a corner.
+bool box_beyond_a_blade(vec2 corners[4], float h, float s) {
+    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
+    bool beyond = false;
+    for (int k = 0; k < BLADES; ++k) {
+        float least = s * dot(corners[0], blade_normals[k]);
+        for (int i = 1; i < 4; ++i) {
+            least = min(least, s * dot(corners[i], blade_normals[k]));
+        }
+        beyond = beyond || least > reach;
+    }
+    return beyond;
+}
+
+// Whether no offset of the box [v0, v1] reaches Q through the shape for
+// any diameter up to c (a smaller one's shape lies in the larger's), on
+// each side of the focus that the depths zs (min, max) take: beyond one
+// of its blades' lines. h a ten-thousandth past c/2, for the rounding.
+bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
+    float h = 0.50005 * c;
+    vec2 corners[4] = vec2[4](vec2(v0), vec2(v1.x, v0.y), vec2(v0.x, v1.y), vec2(v1));
+    bool behind = zs.y >= pc.focus_distance, front = zs.x < pc.focus_distance;
+    return (!behind || box_beyond_a_blade(corners, h, -1.0))
+        && (!front || box_beyond_a_blade(corners, h, 1.0));
+}
+
 // Whether shape_reaches does not depend on the depth: an even count of
 // blades or none (a shape symmetric about the lens centre).
 const bool REACHES_EITHER_SIDE = BLADES % 2 == 0;
@@ -231,11 +261,13 @@ void main() {
                         float near2 = float(near.x * near.x + near.y * near.y);
                         float far2 = float(far.x * far.x + far.y * far.y);
                         if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
-                                || (shaped() && !shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy))) {
+                                || (shaped() && (!shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy)
+                                                 || box_outside_shape(x0 - q, x1 - q, bound.w, bound.xy)))) {
                             // No pixel passes: every one is behind Q, or out
                             // of its own disk's reach (0.25 c² grows with c,
                             // so the largest c bounds every pixel's test),
-                            // or of the shape's box.
+                            // or of the shape's box, or beyond one of its
+                            // blades.
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
                                 && bound.y <= zq
                                 && (!(far2 > 0.25 * bound.z * bound.z * inner2)

@@ -606,9 +606,10 @@ fn fast_follows_the_shape_on_the_bunny() {
         "{shaped:.2} against accum's round frame's {across:.2} dB"
     );
     // The block tree takes the same pixels (a block whole only within the
-    // shape's inner disk, left only outside its bounding box): the pixel
-    // loop's image but for the order of its float sums (the EXR's half
-    // floats: 2^-11 near 1), under 5 blades and a narrow anamorphic shape.
+    // shape's inner disk, left only outside its bounding box or beyond a
+    // blade's line): the pixel loop's image but for the order of its float
+    // sums (the EXR's half floats: 2^-11 near 1), under 5 blades, 6 curved
+    // ones (which bulge past their lines) and a narrow anamorphic shape.
     let worst = |a: &LinearImage, b: &LinearImage| {
         a.pixels
             .iter()
@@ -623,10 +624,21 @@ fn fast_follows_the_shape_on_the_bunny() {
         &render_cli(&dir, &input, &frame, &tree, &squeeze),
         &render_cli(&dir, &input, &frame, &fast, &squeeze),
     );
-    eprintln!("tree against pixels: 5 blades {blades5:e}, anamorphic {anamorphic:e}");
+    let curved = ["--aperture-blades", "6", "--blade-curvature", "0.5"];
+    let curved = worst(
+        &render_cli(&dir, &input, &frame, &tree, &curved),
+        &render_cli(&dir, &input, &frame, &fast, &curved),
+    );
+    eprintln!(
+        "tree against pixels: 5 blades {blades5:e}, anamorphic {anamorphic:e}, 6 curved {curved:e}"
+    );
     assert!(
         blades5 < 2e-3,
         "5 blades: the tree is {blades5} from the pixel loop"
+    );
+    assert!(
+        curved < 2e-3,
+        "6 curved blades: the tree is {curved} from the pixel loop"
     );
     assert!(
         anamorphic < 2e-3,

@@ -254,16 +254,6 @@ bool spread_fragment(out ivec4 box) {
     if (y_lo > y_hi) {
         return false;
     }
-    // The disk: per row, the interval [x - h, x + h] around the pixel's
-    // centre x, each pixel covered by its overlap with it, times the part
-    // of the row's height inside the disk (anti-aliased both ways); its
-    // area normalises the spread.
-    float area = 0.0;
-    for (int dy = -rows; dy <= rows; ++dy) {
-        vec2 row = disk_row(r, dy);
-        area += 2.0 * row.y * row.x;
-    }
-    vec4 unit = v * (weight / area);
     float centre = float(p.x) + 0.5;
     // No row is wider than max(r, 0.5) each side; the last difference is
     // one past the last pixel.
@@ -309,6 +299,17 @@ bool spread_fragment(out ivec4 box) {
         }
         return true;
     }
+    // The disk: per row, the interval [x - h, x + h] around the pixel's
+    // centre x, each pixel covered by its overlap with it, times the part
+    // of the row's height inside the disk (anti-aliased both ways); its
+    // area normalises the spread. (After the shape's code: a shaped frame
+    // does not sum it.)
+    float area = 0.0;
+    for (int dy = -rows; dy <= rows; ++dy) {
+        vec2 row = disk_row(r, dy);
+        area += 2.0 * row.y * row.x;
+    }
+    vec4 unit = v * (weight / area);
     for (int y = y_lo; y <= y_hi; ++y) {
         vec2 row = disk_row(r, y - p.y);
         float h = row.y;

@@ -231,22 +231,37 @@ impl Scene {
 
     /// The eye-depth range of `splats` through `camera` and their largest
     /// splat in pixels (those nearer than the clip range's near plane do
-    /// not count), at most `point_size_max`.
+    /// not count), at most `point_size_max`: each a least or a greatest,
+    /// taken over runs of the splats on every core (the same values in
+    /// any order).
     fn scene_view(&self, camera: &Camera, splats: &[Splat], point_size_max: f32) -> SceneView {
         let eye_from_world = camera.eye_from_world_transform();
-        let depths = depth_range_with(&eye_from_world, splats.iter().map(Splat::centre));
+        let runs: Vec<&[Splat]> = splats.chunks(SCENE_VIEW_RUN).collect();
+        let threads = crate::available_threads();
+        let depths = crate::parallel_map(&runs, threads, |run| {
+            depth_range_with(&eye_from_world, run.iter().map(Splat::centre))
+        })
+        .into_iter()
+        .flatten()
+        .reduce(|(lo, hi), (l, h)| (lo.min(l), hi.max(h)));
         let (near, _) = clip_range(depths);
         let max_splat_px = match self.splat {
             SplatSize::Pixels(p) => p.min(point_size_max),
             _ => {
                 let f_px = camera.f_px();
-                let mut m = 1.0f32;
-                for v in splats {
-                    let z = eye_from_world.apply(v.centre()).z;
-                    if z >= near {
-                        m = m.max(f_px * v.position_size[3] / z);
+                let widest = |run: &&[Splat]| {
+                    let mut m = 1.0f32;
+                    for v in *run {
+                        let z = eye_from_world.apply(v.centre()).z;
+                        if z >= near {
+                            m = m.max(f_px * v.position_size[3] / z);
+                        }
                     }
-                }
+                    m
+                };
+                let m = crate::parallel_map(&runs, threads, widest)
+                    .into_iter()
+                    .fold(1.0f32, f32::max);
                 warn_of_splats_wider_than(camera, m);
                 m.min(point_size_max)
             }
@@ -1321,6 +1336,9 @@ fn copy_in_parallel<T: bytemuck::Pod + Send>(bytes: &[u8]) -> Vec<T> {
     );
     out
 }
+
+/// Splats per run of [`Scene::scene_view`]'s threads.
+const SCENE_VIEW_RUN: usize = 1 << 16;
 
 /// The mapped bytes of a readback buffer.
 pub(crate) fn host_bytes(buffer: &Buffer) -> Result<&[u8]> {

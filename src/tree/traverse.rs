@@ -300,18 +300,18 @@ impl SplatTree {
                     return Test::Emit;
                 }
             }
-            if view.whole_subtrees && self.holds_its_leaves(view, level, i, e, cone_rad) {
+            if view.whole_subtrees && self.holds_its_leaves(view, level, i, &s, e, cone_rad) {
                 return Test::Leaves;
             }
         }
         Test::Recurse
     }
 
-    /// Whether recursing into inner node `i` of `level` (wholly in front of
-    /// the lens, at eye-space centre `e`, normal cone `cone_rad`) would emit
-    /// every leaf beneath it and nothing else, so that the leaves can be
-    /// taken as one run. Sufficient conditions, each with room for the
-    /// rounding of the tests it stands for:
+    /// Whether recursing into inner node `i` of `level` (splat `s`, wholly
+    /// in front of the lens, at eye-space centre `e`, normal cone
+    /// `cone_rad`) would emit every leaf beneath it and nothing else, so
+    /// that the leaves can be taken as one run. Sufficient conditions,
+    /// each with room for the rounding of the tests it stands for:
     /// - the sphere lies inside the image's frustum unwidened (every test
     ///   beneath widens it by at least 1 px, and every sphere beneath lies
     ///   in this one);
@@ -327,10 +327,10 @@ impl SplatTree {
         view: &View,
         level: usize,
         i: usize,
+        s: &Splat,
         e: Vec3,
         cone_rad: f32,
     ) -> bool {
-        let (s, _) = self.node(level, i);
         let (centre, r) = s.sphere();
         let (z0, z1) = (e.z - r, e.z + r);
         if !inside_frustum(view, e, r) {

@@ -1302,12 +1302,12 @@ impl Readback {
             OutputFormat::LinearF32 => Pixels::Linear(LinearImage {
                 width,
                 height,
-                pixels: copy_in_parallel(&bytes[..16 * pixels]),
+                pixels: collect_in_parallel(&bytes[..16 * pixels]),
             }),
             OutputFormat::Srgb8 => Pixels::Srgb8(Srgb8Image {
                 width,
                 height,
-                rgb: copy_in_parallel(&bytes[..3 * pixels]),
+                rgb: collect_in_parallel(&bytes[..3 * pixels]),
             }),
         };
         let gbuffer = match &self.gbuffer {
@@ -1327,7 +1327,7 @@ impl Readback {
 /// `bytes` (a whole number of `T`) as a vector of `T`, copied by
 /// [`crate::copy_in_parallel`] into one allocation of zeros (the kernel's
 /// fresh zero pages, first touched by the copy).
-fn copy_in_parallel<T: bytemuck::Pod + Send>(bytes: &[u8]) -> Vec<T> {
+fn collect_in_parallel<T: bytemuck::Pod + Send>(bytes: &[u8]) -> Vec<T> {
     let mut out = vec![T::zeroed(); bytes.len() / std::mem::size_of::<T>()];
     crate::copy_in_parallel(
         &[bytes],

@@ -119,7 +119,7 @@ bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
 // largest, the blades' test m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w| times h² is
 // m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h. An even count's blades come in
 // opposite pairs, so m is the largest |v·n_k| of the first half, whatever
-// s (reaches_either_side: the depth need not be read first).
+// s (REACHES_EITHER_SIDE: the depth need not be read first).
 bool shape_reaches(ivec2 v, float c, float z) {
     if (c <= 0.0) {
         return v == ivec2(0);

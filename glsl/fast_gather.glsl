@@ -184,6 +184,77 @@ bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
 // blades or none (a shape symmetric about the lens centre).
 const bool REACHES_EITHER_SIDE = BLADES % 2 == 0;
 
+// Whether the pixel loops clip each row of the window to row_span: in the
+// pipelines made for their frames (the round pipeline, APERTURE_CODE off,
+// and those for shaped frames alone). The general pipeline keeps the
+// whole window, the reference tests/aperture.rs holds the clipped loops
+// to, byte for byte: a tap outside the span fails the test it skips.
+const bool ROW_SPANS = !APERTURE_CODE || SHAPED_ONLY;
+
+// The columns [x0, x1] of row dy of the window (offsets from Q) outside
+// which no tap of a CoC diameter up to 2t reaches Q, on either side of
+// the focus (Aperture::row_span mirrors it, and its test holds every tap
+// that reaches within): the disk |v| <= t; for a shape, the ellipse
+// |M·v| <= t and every blade's half-plane s·(v·n_k) <= ((1 − C)·cos(π/N)
+// + C)·t (an even count's in slabs, an odd count's two sides joined),
+// the scale widened by a thousandth of t and of a pixel for the rounding.
+ivec2 row_span(int dy, float t) {
+    const ivec2 EMPTY = ivec2(1, 0);
+    t = 1.001 * t + 0.001;
+    float y = float(dy);
+    float room = t * t - y * y;
+    if (room < 0.0) {
+        return EMPTY;
+    }
+    vec2 span = vec2(-sqrt(room), sqrt(room));
+    if (shaped()) {
+        vec4 m = pc.base_from_lens;
+        float a = m.x * m.x + m.z * m.z;
+        float b = 2.0 * (m.x * m.y + m.z * m.w) * y;
+        float c = (m.y * m.y + m.w * m.w) * y * y - t * t;
+        float disc = b * b - 4.0 * a * c;
+        if (disc < 0.0) {
+            return EMPTY;
+        }
+        span = vec2(max(span.x, (-b - sqrt(disc)) / (2.0 * a)),
+                    min(span.y, (-b + sqrt(disc)) / (2.0 * a)));
+    }
+    if (shaped() && BLADES > 0) {
+        float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * t;
+        if (BLADES % 2 == 0) {
+            // Blade k + N/2 faces −n_k: a slab for each of the first half.
+            for (int k = 0; k < BLADES / 2; ++k) {
+                vec2 n = blade_normals[k];
+                if (abs(n.x) > 1e-4) {
+                    float x0 = (reach - y * n.y) / n.x, x1 = (-reach - y * n.y) / n.x;
+                    span = vec2(max(span.x, min(x0, x1)), min(span.y, max(x0, x1)));
+                }
+            }
+        } else {
+            vec2 sides[2] = vec2[2](span, span);
+            for (int i = 0; i < 2; ++i) {
+                float s = i == 0 ? 1.0 : -1.0;
+                for (int k = 0; k < BLADES; ++k) {
+                    vec2 n = s * blade_normals[k];
+                    if (abs(n.x) > 1e-4) {
+                        float x = (reach - y * n.y) / n.x;
+                        sides[i] = n.x > 0.0 ? vec2(sides[i].x, min(sides[i].y, x))
+                                             : vec2(max(sides[i].x, x), sides[i].y);
+                    }
+                }
+            }
+            bool front = sides[0].x <= sides[0].y, behind = sides[1].x <= sides[1].y;
+            span = front && behind ? vec2(min(sides[0].x, sides[1].x), max(sides[0].y, sides[1].y))
+                 : front ? sides[0] : sides[1];
+        }
+    }
+    if (span.x > span.y) {
+        return EMPTY;
+    }
+    // Bounded before the conversion: a span wider than any window.
+    return ivec2(ceil(max(span.x, -1.0e6)), floor(min(span.y, 1.0e6)));
+}
+
 void main() {
     set_blade_normals();
     ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
@@ -207,7 +278,12 @@ void main() {
             return;
         }
         for (int dy = max(-r, -q.y); dy <= min(r, pc.extent.y - 1 - q.y); ++dy) {
-            for (int dx = max(-r, -q.x); dx <= min(r, pc.extent.x - 1 - q.x); ++dx) {
+            ivec2 row = ivec2(max(-r, -q.x), min(r, pc.extent.x - 1 - q.x));
+            if (ROW_SPANS) {
+                ivec2 span = row_span(dy, tile.x);
+                row = ivec2(max(row.x, span.x), min(row.y, span.y));
+            }
+            for (int dx = row.x; dx <= row.y; ++dx) {
                 if (shaped()) {
                     if (!shape_reaches(ivec2(dx, dy), cw.x, 1.0 / 0.0)) {
                         continue;
@@ -333,7 +409,12 @@ void main() {
     }
 #endif
     for (int dy = lo.y - q.y; dy <= hi.y - q.y; ++dy) {
-        for (int dx = lo.x - q.x; dx <= hi.x - q.x; ++dx) {
+        ivec2 row = ivec2(lo.x - q.x, hi.x - q.x);
+        if (ROW_SPANS) {
+            ivec2 span = row_span(dy, tile.x);
+            row = ivec2(max(row.x, span.x), min(row.y, span.y));
+        }
+        for (int dx = row.x; dx <= row.y; ++dx) {
             ivec2 p = q + ivec2(dx, dy);
             vec2 cw = imageLoad(coc_weight, p).xy;
             if (shaped() && REACHES_EITHER_SIDE) {

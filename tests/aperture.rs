@@ -679,7 +679,10 @@ fn render_cli(
 /// frames' blur. `fast`'s shaped frames take gathers made for shaped
 /// frames alone (`SHAPED_ONLY`, the disk's code compiled away): through
 /// even and odd blades and the squeezed circle, the same bytes as through
-/// the general gathers (made for the blade count alone).
+/// the general gathers (made for the blade count alone). The pixel loops
+/// of the pipelines made for their frames clip each row of the window to
+/// the taps that can reach (`row_span`), where the general ones run the
+/// whole window: the same bytes show that the clipped taps all fail.
 #[test]
 fn round_pipelines_render_the_round_frames_of_the_general_ones() {
     use pointlens::options::{FastGather, FastOptions, LayeredOptions, RdbAtomics, RdbOptions};

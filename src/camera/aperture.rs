@@ -600,6 +600,89 @@ impl Aperture {
         r2 <= h * h && most * (r - c * h) <= (1.0 - c) * self.blade_cos() * r * h
     }
 
+    /// The columns [x0, x1] of row `dy` of a gather's window (offsets from
+    /// Q) outside which no tap of a CoC diameter up to 2·`t` pixels
+    /// reaches Q, on either side of the focus ([`Aperture::reaches`]; for
+    /// the round aperture the disk's test): x0 > x1 where none does.
+    /// `fast`'s gathers clip their rows to it (`row_span` of
+    /// `glsl/fast_gather.glsl` mirrors it). Each bound is a convex set that
+    /// holds the lens centre and grows with h, so the span of t holds the
+    /// taps of every h ≤ t: the disk |v| ≤ t; for a shape, the ellipse
+    /// |M·v| ≤ t and, with blades, every blade's half-plane s·(v·M'd_k) ≤
+    /// ((1 − C)·cos(π/N) + C)·t on side s (a curved blade bulges past its
+    /// line by at most C); an even count's blades pair into slabs, and an
+    /// odd count's two sides (the shape and its turn by π) are joined. The
+    /// scale is widened by a thousandth of t and of a pixel, far beyond the
+    /// tests' rounding, so that no rounding leaves out a tap that passes.
+    pub fn row_span(&self, dy: i32, t: f32) -> (i32, i32) {
+        const EMPTY: (i32, i32) = (1, 0);
+        let t = 1.001 * t + 0.001;
+        let y = dy as f32;
+        let room = t * t - y * y;
+        if room < 0.0 {
+            return EMPTY;
+        }
+        let (mut lo, mut hi) = (-room.sqrt(), room.sqrt());
+        if self.is_shaped() {
+            // |M·v|² = a·x² + b·x + c over the row: ≤ t² between the roots.
+            let m = self.base_from_lens();
+            let a = m[0] * m[0] + m[2] * m[2];
+            let b = 2.0 * (m[0] * m[1] + m[2] * m[3]) * y;
+            let c = (m[1] * m[1] + m[3] * m[3]) * y * y - t * t;
+            let disc = b * b - 4.0 * a * c;
+            if disc < 0.0 {
+                return EMPTY;
+            }
+            lo = lo.max((-b - disc.sqrt()) / (2.0 * a));
+            hi = hi.min((-b + disc.sqrt()) / (2.0 * a));
+        }
+        if self.is_shaped() && self.blades > 0 {
+            let reach = ((1.0 - self.curvature) * self.blade_cos() + self.curvature) * t;
+            let m = self.base_from_lens();
+            let normal = |k: u32| {
+                let d = self.blade_middle(k);
+                Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
+            };
+            // x within s·(x·n.x + y·n.y) ≤ reach for every blade k listed.
+            let side = |s: f32, blades: u32, (mut lo, mut hi): (f32, f32)| {
+                for k in 0..blades {
+                    let n = normal(k) * s;
+                    if n.x.abs() > 1e-4 {
+                        let x = (reach - y * n.y) / n.x;
+                        if n.x > 0.0 {
+                            hi = hi.min(x);
+                        } else {
+                            lo = lo.max(x);
+                        }
+                    }
+                }
+                (lo, hi)
+            };
+            if self.blades.is_multiple_of(2) {
+                // Blade k + N/2 faces −M'd_k: a slab for each of the first half.
+                let plus = side(1.0, self.blades / 2, (lo, hi));
+                (lo, hi) = side(-1.0, self.blades / 2, plus);
+            } else {
+                let (front, behind) = (
+                    side(1.0, self.blades, (lo, hi)),
+                    side(-1.0, self.blades, (lo, hi)),
+                );
+                (lo, hi) = match (front.0 <= front.1, behind.0 <= behind.1) {
+                    (true, true) => (front.0.min(behind.0), front.1.max(behind.1)),
+                    (true, false) => front,
+                    (false, true) => behind,
+                    (false, false) => return EMPTY,
+                };
+            }
+        }
+        if lo > hi {
+            return EMPTY;
+        }
+        // Bounded before the conversion: a span wider than any window.
+        let bound = 1.0e6;
+        (lo.max(-bound).ceil() as i32, hi.min(bound).floor() as i32)
+    }
+
     /// M·u of [`Aperture::base_from_lens`], as the GLSL tap test forms it.
     fn base_by_matrix(&self, u: Vec2) -> Vec2 {
         let m = self.base_from_lens();
@@ -1245,6 +1328,49 @@ mod tests {
         // No reach without a CoC but to Q itself.
         assert!(blades(6, 0.0).reaches(Vec2::ZERO, 0.0, true));
         assert!(!blades(6, 0.0).reaches(Vec2::X, 0.0, true));
+    }
+
+    /// Every tap that reaches Q with a CoC up to 2t lies within its row's
+    /// span of t, on either side of the focus, for the round aperture and
+    /// blades even and odd, straight and curved, turned and squeezed, at
+    /// scales from under a pixel to a wide window; and the spans are not
+    /// the whole window (they leave out the square's corners).
+    #[test]
+    fn row_spans_hold_every_tap_that_reaches() {
+        let mut shapes = tested_shapes().to_vec();
+        shapes.push(Aperture::ROUND);
+        for a in shapes {
+            for t in [0.4f32, 1.0, 3.0, 7.5, 17.5, 40.25] {
+                let reach = t.ceil() as i32 + 2;
+                let (mut in_spans, mut reaching) = (0usize, 0usize);
+                for y in -reach..=reach {
+                    let (x0, x1) = a.row_span(y, t);
+                    in_spans += usize::try_from(x1 - x0 + 1).unwrap_or(0);
+                    for x in -reach..=reach {
+                        let v = Vec2::new(x as f32, y as f32);
+                        for h in [t, t * 0.999_99, t * 0.71, t * 0.3, 0.2] {
+                            for behind in [false, true] {
+                                if a.reaches(v, h, behind) {
+                                    reaching += 1;
+                                    assert!(
+                                        x0 <= x && x <= x1,
+                                        "{a:?}, t {t}: {v} (h {h}, behind {behind}) outside [{x0}, {x1}]"
+                                    );
+                                }
+                            }
+                        }
+                    }
+                }
+                assert!(reaching > 0, "{a:?}, t {t}: no tap reaches");
+                let window = (2 * t.floor() as usize + 1).pow(2);
+                if t > 7.0 {
+                    assert!(
+                        in_spans < window * 9 / 10,
+                        "{a:?}, t {t}: spans of {in_spans} taps in a window of {window}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -74,6 +74,11 @@ void set_blade_normals() {
     }
 }
 
+// Whether the frame's blades are straight (id 11; Aperture::has_straight_blades,
+// set with BLADES): their polygon lies within the circle |M·v| <= h, and
+// |v| <= |M·v|, so shape_reaches tests the blades alone.
+layout(constant_id = 11) const bool STRAIGHT = false;
+
 // Whether every frame of the pipeline is shaped (id 10): a pipeline made
 // for shaped frames alone (Fast::gather_for), whose disk code is compiled
 // away. llvmpipe runs both sides of a branch it cannot prove uniform, so
@@ -119,14 +124,15 @@ bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
 // largest, the blades' test m·(|w| − C) ≤ (1 − C)·cos(π/N)·|w| times h² is
 // m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h. An even count's blades come in
 // opposite pairs, so m is the largest |v·n_k| of the first half, whatever
-// s (REACHES_EITHER_SIDE: the depth need not be read first).
+// s (REACHES_EITHER_SIDE: the depth need not be read first). Straight
+// blades (STRAIGHT) are m ≤ cos(π/N)·h alone.
 bool shape_reaches(ivec2 v, float c, float z) {
     if (c <= 0.0) {
         return v == ivec2(0);
     }
     float h = 0.5 * c;
     vec2 x = vec2(v);
-    if (dot(x, x) > h * h) {
+    if (!STRAIGHT && dot(x, x) > h * h) {
         return false;
     }
     vec4 m = pc.base_from_lens;
@@ -146,24 +152,22 @@ bool shape_reaches(ivec2 v, float c, float z) {
             most = max(most, s * dot(x, blade_normals[k]));
         }
     }
+    if (STRAIGHT) {
+        return most <= pc.blade_cos * h;
+    }
     float r = sqrt(r2);
     return r2 <= h * h && most * (r - pc.curvature * h) <= (1.0 - pc.curvature) * pc.blade_cos * r * h;
 }
 
-// Whether the box [v0, v1] lies beyond one line of the blades on side s
-// of the focus, scaled to h: for every offset x of it, (M·x)·d_k is
-// beyond the farthest the shape reaches along d_k, ((1 − C)·cos(π/N) +
-// C)·h (a curved blade bulges out to C·cos δ ≤ C beyond its line). The
-// least of a linear function over a box is at a corner.
-bool box_beyond_a_blade(vec2 corners[4], float h, float s) {
-    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
+// Whether the box of centre `mid` and half-size `half_size` lies beyond
+// one line of the blades on side s of the focus: for every offset x of it,
+// s·(x·n_k) = (M·x)·d_k times s is beyond `reach`. The least of s·(x·n_k)
+// over the box is s·(mid·n_k) − |half_size.x·n_k.x| − |half_size.y·n_k.y|.
+bool box_beyond_a_blade(vec2 mid, vec2 half_size, float reach, float s) {
     bool beyond = false;
     for (int k = 0; k < BLADES; ++k) {
-        float least = s * dot(corners[0], blade_normals[k]);
-        for (int i = 1; i < 4; ++i) {
-            least = min(least, s * dot(corners[i], blade_normals[k]));
-        }
-        beyond = beyond || least > reach;
+        vec2 n = blade_normals[k];
+        beyond = beyond || s * dot(mid, n) - dot(half_size, abs(n)) > reach;
     }
     return beyond;
 }
@@ -171,13 +175,26 @@ bool box_beyond_a_blade(vec2 corners[4], float h, float s) {
 // Whether no offset of the box [v0, v1] reaches Q through the shape for
 // any diameter up to c (a smaller one's shape lies in the larger's), on
 // each side of the focus that the depths zs (min, max) take: beyond one
-// of its blades' lines. h a ten-thousandth past c/2, for the rounding.
+// of its blades' lines, which lie ((1 − C)·cos(π/N) + C)·h from the lens
+// centre along d_k (a curved blade bulges out to C·cos δ ≤ C beyond its
+// line). h a ten-thousandth past c/2, for the rounding. An even count's
+// blades come in opposite pairs: beyond one of blades k and k + N/2 on
+// either side alike.
 bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
     float h = 0.50005 * c;
-    vec2 corners[4] = vec2[4](vec2(v0), vec2(v1.x, v0.y), vec2(v0.x, v1.y), vec2(v1));
+    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
+    vec2 mid = 0.5 * vec2(v0 + v1), half_size = 0.5 * vec2(v1 - v0);
+    if (BLADES % 2 == 0) {
+        bool beyond = false;
+        for (int k = 0; k < BLADES / 2; ++k) {
+            vec2 n = blade_normals[k];
+            beyond = beyond || abs(dot(mid, n)) - dot(half_size, abs(n)) > reach;
+        }
+        return beyond;
+    }
     bool behind = zs.y >= pc.focus_distance, front = zs.x < pc.focus_distance;
-    return (!behind || box_beyond_a_blade(corners, h, -1.0))
-        && (!front || box_beyond_a_blade(corners, h, 1.0));
+    return (!behind || box_beyond_a_blade(mid, half_size, reach, -1.0))
+        && (!front || box_beyond_a_blade(mid, half_size, reach, 1.0));
 }
 
 // Whether shape_reaches does not depend on the depth: an even count of

@@ -617,6 +617,25 @@ fn fast_follows_the_shape_on_the_bunny() {
             .map(|(a, b)| (0..4).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max))
             .fold(0.0, f32::max)
     };
+    // Blades of curvature 1 are the circle: their frame (through the
+    // pipelines of curved blades, which test the circle too) is the round
+    // one but for rim taps that round the other way, far from the
+    // hexagon's (through those of straight blades).
+    let circle = render_cli(
+        &dir,
+        &input,
+        &frame,
+        &fast,
+        &["--aperture-blades", "6", "--blade-curvature", "1"],
+    );
+    let (circle, hexagon) = (psnr(&circle, &f0), psnr(&render(&fast, "6"), &f0));
+    eprintln!(
+        "against the round frame: 6 blades of curvature 1 {circle:.2} dB, straight {hexagon:.2} dB"
+    );
+    assert!(
+        circle > 60.0 && circle > hexagon + 20.0,
+        "6 blades of curvature 1 at {circle:.2} dB from the round frame, straight ones at {hexagon:.2}"
+    );
     let tree = ["fast", "--fast-gather", "tree"];
     let blades5 = worst(&render(&tree, "5"), &f5);
     let squeeze = ["--anamorphic-ratio", "2"];

@@ -568,11 +568,16 @@ impl Aperture {
     /// the blades' test times h² is m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h; an
     /// even count's blades come in opposite pairs, so m is the largest
     /// |v·M'd_k| of the first half and the side does not matter.
+    ///
+    /// Straight blades ([`Aperture::has_straight_blades`]) are the test
+    /// m ≤ cos(π/N)·h alone: their polygon lies within the circle |w| ≤
+    /// 1, and |v| ≤ |M·v| (M turns and stretches, never shrinks).
     pub fn reaches(&self, v: Vec2, h: f32, behind: bool) -> bool {
         if h <= 0.0 {
             return v == Vec2::ZERO;
         }
-        if v.length_squared() > h * h {
+        let straight = self.has_straight_blades();
+        if !straight && v.length_squared() > h * h {
             return false;
         }
         let r2 = self.base_by_matrix(v).length_squared();
@@ -595,9 +600,17 @@ impl Aperture {
                 .map(|k| s * v.dot(normal(k)))
                 .fold(0.0f32, f32::max)
         };
+        if straight {
+            return most <= self.blade_cos() * h;
+        }
         let r = r2.sqrt();
         let c = self.curvature;
         r2 <= h * h && most * (r - c * h) <= (1.0 - c) * self.blade_cos() * r * h
+    }
+
+    /// Whether the shape is a polygon of straight blades (N ≥ 3, C = 0).
+    pub fn has_straight_blades(&self) -> bool {
+        self.blades > 0 && self.curvature == 0.0
     }
 
     /// The columns [x0, x1] of row `dy` of a gather's window (offsets from

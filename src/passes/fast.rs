@@ -99,6 +99,9 @@ push_constants! {
     }
 }
 
+/// A gather per blade count N (0 to 16), made as a frame first needs it.
+type BladeGathers = [OnceLock<ComputePipeline<GatherPush>>; 17];
+
 /// The pipelines of the method.
 pub struct Fast {
     coc: ComputePipeline<CocPush>,
@@ -110,10 +113,11 @@ pub struct Fast {
     /// The gathers of shaped frames, made for one blade count N each
     /// (`BLADES` of `glsl/fast_gather.glsl`; 0 the squeezed circle, else
     /// 3 to 16) as a frame first needs them, at
-    /// `[shaped only][tree][N]`: made for shaped frames alone
+    /// `[shaped only][tree][straight][N]`: made for shaped frames alone
     /// (`SHAPED_ONLY`, the disk's code compiled away) unless the
-    /// specialized pipelines are off.
-    shaped_gathers: [[[OnceLock<ComputePipeline<GatherPush>>; 17]; 2]; 2],
+    /// specialized pipelines are off, and for straight blades or curved
+    /// ones (`STRAIGHT`: no circle to test).
+    shaped_gathers: [[[BladeGathers; 2]; 2]; 2],
     /// Whether frames take the pipelines made for them (the default), or
     /// the general ones ([`Fast::set_round_pipelines`]).
     specialized: bool,
@@ -155,7 +159,9 @@ impl Fast {
     /// pipeline; through a shape, the one made for its blade count and
     /// for shaped frames alone (made now if no frame has needed it yet).
     /// With the specialized pipelines off, the general pipeline, or for N
-    /// blades one made for N alone. `fast` renders no image or cat's eye
+    /// blades one made for N alone. Either way a shape of blades takes a
+    /// pipeline made for straight blades or for curved ones
+    /// ([`Aperture::has_straight_blades`]). `fast` renders no image or cat's eye
     /// (`camera::APERTURE_FEATURES`).
     fn gather_for(
         &self,
@@ -171,8 +177,9 @@ impl Fast {
         if aperture.is_round() || (aperture.blades == 0 && !self.specialized) {
             return Ok(variants.for_aperture(aperture));
         }
+        let straight = aperture.has_straight_blades();
         let slot = &self.shaped_gathers[usize::from(self.specialized)][usize::from(tree)]
-            [aperture.blades as usize];
+            [usize::from(straight)][aperture.blades as usize];
         if let Some(pipeline) = slot.get() {
             return Ok(pipeline);
         }
@@ -180,14 +187,17 @@ impl Fast {
             true => ("fast_gather_tree", GATHER_TREE, GATHER_TREE_BINDINGS),
             false => ("fast_gather", GATHER, GATHER_BINDINGS),
         };
-        let mut constants = vec![(BLADES_ID, aperture.blades)];
+        let mut constants = vec![
+            (BLADES_ID, aperture.blades),
+            (STRAIGHT_ID, u32::from(straight)),
+        ];
         if self.specialized {
             constants.push((SHAPED_ONLY_ID, 1));
         }
         let pipeline = ComputePipeline::specialized(
             ctx,
             &format!(
-                "{name} ({} blades, shaped only: {})",
+                "{name} ({} blades, straight: {straight}, shaped only: {})",
                 aperture.blades, self.specialized
             ),
             spirv,
@@ -203,6 +213,9 @@ const BLADES_ID: u32 = 1;
 
 /// The specialization constant `SHAPED_ONLY` of `glsl/fast_gather.glsl`.
 const SHAPED_ONLY_ID: u32 = 10;
+
+/// The specialization constant `STRAIGHT` of `glsl/fast_gather.glsl`.
+const STRAIGHT_ID: u32 = 11;
 
 /// What the gathers bind: the G-buffer's color and eye, the CoCs and
 /// weights, the tiles' radii and the result; the tree's sums, weights and

@@ -197,6 +197,27 @@ bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
         && (!front || box_beyond_a_blade(mid, half_size, reach, 1.0));
 }
 
+// Whether every offset of the box [v0, v1] reaches Q through the
+// squeezed circle (no blades) for every diameter of c and more (a larger
+// one's ellipse holds the smaller's), whatever the side of the focus: its
+// corners lie within the ellipse |M·v| <= h, h a ten-thousandth short of
+// c/2 (it is convex: the corners decide; |v| <= |M·v| too). Blades keep
+// the inner disk and box alone: their polygon's test, cheaper by the
+// box's centre and half-size, took a fifth of the leaves away and no time
+// (docs/decisions/aperture-shape.md).
+bool box_inside_ellipse(ivec2 v0, ivec2 v1, float c) {
+    float h = 0.49995 * c;
+    vec2 corners[4] = vec2[4](vec2(v0), vec2(v1.x, v0.y), vec2(v0.x, v1.y), vec2(v1));
+    vec4 m = pc.base_from_lens;
+    bool inside = true;
+    for (int i = 0; i < 4; ++i) {
+        vec2 x = corners[i];
+        vec2 mv = vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+        inside = inside && dot(mv, mv) <= h * h;
+    }
+    return inside;
+}
+
 // Whether shape_reaches does not depend on the depth: an even count of
 // blades or none (a shape symmetric about the lens centre).
 const bool REACHES_EITHER_SIDE = BLADES % 2 == 0;
@@ -365,12 +386,13 @@ void main() {
                                 && bound.y <= zq
                                 && (!(far2 > 0.25 * bound.z * bound.z * inner2)
                                     || (shaped()
-                                        && all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))))) {
+                                        && (all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))
+                                            || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z)))))) {
                             // Every pixel passes: inside the window, none
                             // behind Q, the farthest within the smallest
                             // disk's reach (a shape's: its inner disk's or
                             // inner box's, inside every chord, turned or
-                            // not).
+                            // not; the squeezed circle's: the ellipse).
                             sum += sums[at];
                             weight += weights[at];
                         } else if (l > TREE_LEAF_LEVEL) {

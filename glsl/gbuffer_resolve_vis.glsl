@@ -34,6 +34,10 @@ layout(push_constant, std430) uniform VisPush {
     float half_cell;     // a lens sample's cell (Aperture::lens_cell_half_width)
     float color_scale;   // the linear color of a splat's code 65535 (1: white)
     int target_end_row;  // the G-buffer row after the target's last
+    // The lens that blurs the G-buffer after it: f_px, aperture radius,
+    // focus distance, and the CoC (px) past which no pixel is marked
+    // (ResolvePass::area_blur; zeros: none).
+    float area_blur[4];
 } pc;
 
 #include "visibility_word.glsl"
@@ -56,15 +60,35 @@ vec4 target_sample(ivec2 q) {
 #define AREA_LIST_BINDING 5
 #include "gbuffer_area.glsl"
 
-// Whether the words of the target pixels [lo, hi) are all `first`.
-bool all_of(ivec2 lo, ivec2 hi, uint64_t first) {
+#include "lens.glsl"
+
+// Whether the words of the target pixels [lo, hi) are all `first`; their
+// splats' depths (min, max; +inf where none) in `zs`.
+bool all_of(ivec2 lo, ivec2 hi, uint64_t first, out vec2 zs) {
     bool one = true;
+    zs = vec2(1.0 / 0.0, 0.0);
     for (int y = lo.y; y < hi.y; ++y) {
         for (int x = lo.x; x < hi.x; ++x) {
-            one = one && word_at(ivec2(x, y)) == first;
+            uint64_t word = word_at(ivec2(x, y));
+            one = one && word == first;
+            float z = word == NOTHING ? 1.0 / 0.0 : uintBitsToFloat(uint(word >> 32));
+            zs = vec2(min(zs.x, z), max(zs.y, z));
         }
     }
     return one;
+}
+
+// Whether every depth in [zs.x, zs.y] blurs past the limit through the
+// lens after the G-buffer (pc.area_blur): the CoC grows away from the
+// focus on either side, so its least over the range is at an end, or 0
+// where the range holds the focus.
+bool blurred_past_limit(vec2 zs) {
+    float f_px = pc.area_blur[0], radius = pc.area_blur[1], focus = pc.area_blur[2];
+    float limit = pc.area_blur[3];
+    if (limit <= 0.0 || (zs.x <= focus && zs.y >= focus)) {
+        return false;
+    }
+    return min(coc_px(zs.x, f_px, radius, focus), coc_px(zs.y, f_px, radius, focus)) > limit;
 }
 #endif
 
@@ -72,14 +96,16 @@ void main() {
     resolve_blocks();
 #ifdef AREA_MARKS
     // Marked: the pixel's samples and the ring of its neighbours' nearest
-    // samples around them (within the target) do not all hold one word.
+    // samples around them (within the target) do not all hold one word,
+    // and not all of their depths blur past the limit.
     ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
     if (any(greaterThanEqual(p, pc.extent))) {
         return;
     }
     ivec2 block, lo, hi;
     area_window(p, int(pc.scale), pc.extent.x, TARGET_FIRST_ROW, pc.target_end_row, block, lo, hi);
-    if (!all_of(lo, hi, word_at(block))) {
+    vec2 zs;
+    if (!all_of(lo, hi, word_at(block), zs) && !blurred_past_limit(zs)) {
         mark(p);
     }
 #endif

@@ -678,6 +678,7 @@ impl GBuffer {
                     target_rows,
                     lens_weight: self.lens_weight(lens_u, lens),
                     color_scale: self.view.color_scale,
+                    area_blur: self.area_blur(lens),
                 };
                 passes
                     .resolve
@@ -807,6 +808,7 @@ impl GBuffer {
                 target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
+                area_blur: [0.0; 4],
             };
             passes.resolve.record(
                 frame,
@@ -872,6 +874,7 @@ impl GBuffer {
                 target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
+                area_blur: [0.0; 4],
             };
             passes.resolve.record(
                 frame,
@@ -881,6 +884,22 @@ impl GBuffer {
             );
             before = Access::COMPUTE_READ;
         }
+    }
+
+    /// The lens that blurs the G-buffer after it and the CoC past which
+    /// the area resolve leaves a pixel ([`ResolvePass::area_blur`]): the
+    /// camera's, where `lens` says the method blurs through it.
+    fn area_blur(&self, lens: &GBufferLens) -> [f32; 4] {
+        let camera = &self.view.frame.camera;
+        if !lens.blurred_after || camera.aperture_radius <= 0.0 {
+            return [0.0; 4];
+        }
+        [
+            camera.f_px(),
+            camera.aperture_radius,
+            camera.focus_distance,
+            crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX,
+        ]
     }
 
     /// How the G-buffer's pixels weigh lens position `lens_u`, one of

@@ -94,6 +94,65 @@ fn area_coverage_sees_a_square_edge_as_its_area() {
     });
 }
 
+/// Through a lens that blurs the G-buffer after it, a pixel whose every
+/// splat blurs past `AREA_BLUR_LIMIT_PX` keeps its samples' mean: two
+/// splats 40.6 px wide side by side, one at the focus (its left edge's
+/// pixels covered 0.3, by area to 1/128) and one far behind it (a CoC of 14.8 px), in the
+/// G-buffer of `fast`. The in-focus square's edges resolve by area, the
+/// far one's by the samples (K = 3: 1/3), bit for bit as with samples; the
+/// pinhole method, which does not blur its G-buffer, takes both by area.
+#[test]
+fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
+    use pointlens::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
+    with_gpu(|ctx| {
+        let mut renderer = Renderer::new(ctx).unwrap();
+        renderer.set_raster(Raster::Compute);
+        let camera = pointlens::camera::Camera {
+            aperture_radius: 0.2,
+            focus_distance: 2.0,
+            ..common::camera(192, 72)
+        };
+        let f = camera.f_px();
+        // A point at depth z seen at pixel x, in the row of centre 36.
+        let at = |x: f32, z: f32| Vec3::new((x - 96.0) * z / f, 0.0, -z);
+        let cloud = common::cloud(&[(at(48.0, 2.0), Vec3::ONE), (at(144.0, 8.0), Vec3::ONE)]);
+        let far_coc = camera.coc_px(8.0);
+        assert!(far_coc > AREA_BLUR_LIMIT_PX, "{far_coc} px");
+        let scene = renderer.upload(&cloud, SplatSize::Pixels(40.6)).unwrap();
+        let alphas = |renderer: &mut Renderer, method: Method, coverage: Coverage| {
+            renderer.set_coverage(Some(coverage));
+            let options = RenderOptions {
+                ssaa: 3,
+                ..common::options(camera, method)
+            };
+            let (_, g) = renderer.render_with_gbuffer(&scene, &options).unwrap();
+            // The left edge's column of each square, down its middle rows.
+            let column = |x: u32| -> Vec<f32> {
+                (26..46u32)
+                    .map(|y| g.color[((y + g.guard) * g.width + x + g.guard) as usize][3])
+                    .collect()
+            };
+            (column(27), column(123))
+        };
+        let fast = Method::Fast(Default::default());
+        let (near, far) = alphas(&mut renderer, fast, Coverage::Area);
+        let (near_samples, far_samples) = alphas(&mut renderer, fast, Coverage::Samples);
+        let (_, far_pinhole) = alphas(&mut renderer, Method::Pinhole, Coverage::Area);
+        eprintln!(
+            "fast: near {:?}, far {:?}; pinhole: far {:?}",
+            near[0], far[0], far_pinhole[0]
+        );
+        // A box's x edges count in 64ths of a pixel (as above).
+        let column_edge = 1.0 / 128.0 + HALF_STEP;
+        for (i, ((n, f), p)) in near.iter().zip(&far).zip(&far_pinhole).enumerate() {
+            assert!((n - 0.3).abs() <= column_edge, "row {i}: near {n}");
+            assert!((p - 0.3).abs() <= column_edge, "row {i}: pinhole's far {p}");
+            assert!((near_samples[i] - 1.0 / 3.0).abs() <= HALF_STEP, "row {i}");
+            assert_eq!(f.to_bits(), far_samples[i].to_bits(), "row {i}: far {f}");
+        }
+    });
+}
+
 /// A frame that one splat covers whole, and one with nothing in it: every
 /// pixel's samples see one word, none is marked, and the images are the
 /// samples' bit for bit.

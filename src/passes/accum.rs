@@ -27,6 +27,7 @@ impl DofMethod for Accum {
         GBufferLens {
             positions: camera.aperture.lens_samples(self.0.samples),
             cat_eye: camera.aperture.cat_eye,
+            blurred_after: false,
         }
     }
 

@@ -54,6 +54,7 @@ push_constants! {
         half_cell: f32,
         color_scale: f32,
         target_end_row: i32,
+        area_blur: [f32; 4],
     }
 }
 
@@ -145,6 +146,11 @@ pub struct ResolvePass {
     /// The linear colour of a splat's code 65535 (1: white): a covered
     /// sample's color is multiplied by it.
     pub color_scale: f32,
+    /// The lens that blurs the G-buffer after it (f_px, aperture radius,
+    /// focus distance) and the CoC (px) past which the area resolve does
+    /// not mark a pixel ([`super::gbuffer_area::AREA_BLUR_LIMIT_PX`]);
+    /// zeros: every pixel its words mark.
+    pub area_blur: [f32; 4],
 }
 
 impl ResolvePass {
@@ -391,6 +397,7 @@ impl GBufferResolve {
                     half_cell,
                     color_scale: pass.color_scale,
                     target_end_row: pass.target_rows.1 as i32,
+                    area_blur: pass.area_blur,
                 };
                 let (plain, marks) = self
                     .visibility

@@ -337,14 +337,27 @@ pub struct DofInput<'r> {
 pub struct GBufferLens {
     pub positions: Vec<Vec2>,
     pub cat_eye: f32,
+    /// Whether the method blurs the G-buffer through the camera's lens
+    /// after it: its area coverage then leaves the pixels whose every
+    /// splat blurs past [`gbuffer_area::AREA_BLUR_LIMIT_PX`].
+    pub blurred_after: bool,
 }
 
 impl GBufferLens {
-    /// The lens centre alone: a pinhole G-buffer.
+    /// The lens centre alone: a pinhole G-buffer, the image itself.
     pub fn centre() -> GBufferLens {
         GBufferLens {
             positions: vec![Vec2::ZERO],
             cat_eye: 0.0,
+            blurred_after: false,
+        }
+    }
+
+    /// The lens centre, a G-buffer the method then blurs through the lens.
+    pub fn centre_blurred_after() -> GBufferLens {
+        GBufferLens {
+            blurred_after: true,
+            ..GBufferLens::centre()
         }
     }
 }
@@ -359,9 +372,10 @@ pub trait DofMethod {
 
     /// The normalised lens positions the G-buffer is rasterised through,
     /// each with all K×K sub-pixel samples, for the camera's aperture, and
-    /// how each receiving pixel weighs them: the lens centre by default.
+    /// how each receiving pixel weighs them: by default the lens centre,
+    /// a G-buffer the method blurs through the lens after it.
     fn gbuffer_lens(&self, _camera: &Camera) -> GBufferLens {
-        GBufferLens::centre()
+        GBufferLens::centre_blurred_after()
     }
 
     /// How many depth-peeled G-buffer layers the method reads (DESIGN §6):

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use super::{DofFrame, DofInput, DofMethod, FrameView, VeilRule};
+use super::{DofFrame, DofInput, DofMethod, FrameView, GBufferLens, VeilRule};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::vk::{Context, Frame, Image};
@@ -11,6 +11,11 @@ use crate::vk::{Context, Frame, Image};
 pub struct Pinhole;
 
 impl DofMethod for Pinhole {
+    /// The G-buffer is the image: no blur hides its error.
+    fn gbuffer_lens(&self, _: &Camera) -> GBufferLens {
+        GBufferLens::centre()
+    }
+
     fn guard_coc_px(&self, _: &Camera, _: Option<(f32, f32)>) -> f32 {
         0.0
     }

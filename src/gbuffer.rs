@@ -888,18 +888,24 @@ impl GBuffer {
 
     /// The lens that blurs the G-buffer after it and the CoC past which
     /// the area resolve leaves a pixel ([`ResolvePass::area_blur`]): the
-    /// camera's, where `lens` says the method blurs through it.
+    /// camera's, where `lens` says the method blurs through it. A shape
+    /// blurs a point less far across than its CoC's disk: the limit grows
+    /// by the shape's least reach ([`crate::camera::Aperture::least_reach`]);
+    /// an aperture image or the cat's eye (a corner's clipped lens) may
+    /// blur a point hardly at all, and their frames mark every pixel, as
+    /// the pinhole's do.
     fn area_blur(&self, lens: &GBufferLens) -> [f32; 4] {
         let camera = &self.view.frame.camera;
-        if !lens.blurred_after || camera.aperture_radius <= 0.0 {
-            return [0.0; 4];
+        let reach = camera.aperture.least_reach();
+        match reach {
+            Some(reach) if lens.blurred_after && camera.aperture_radius > 0.0 => [
+                camera.f_px(),
+                camera.aperture_radius,
+                camera.focus_distance,
+                crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX / reach,
+            ],
+            _ => [0.0; 4],
         }
-        [
-            camera.f_px(),
-            camera.aperture_radius,
-            camera.focus_distance,
-            crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX,
-        ]
     }
 
     /// How the G-buffer's pixels weigh lens position `lens_u`, one of

@@ -101,6 +101,9 @@ fn area_coverage_sees_a_square_edge_as_its_area() {
 /// G-buffer of `fast`. The in-focus square's edges resolve by area, the
 /// far one's by the samples (K = 3: 1/3), bit for bit as with samples; the
 /// pinhole method, which does not blur its G-buffer, takes both by area.
+/// A shape blurs less far across than the CoC's disk, so the limit grows
+/// by its least reach: through `layered`, 6 blades (cos 30°) leave the far
+/// square to its samples, and the same squeezed 4 times take it by area.
 #[test]
 fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
     use pointlens::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
@@ -119,7 +122,7 @@ fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
         let far_coc = camera.coc_px(8.0);
         assert!(far_coc > AREA_BLUR_LIMIT_PX, "{far_coc} px");
         let scene = renderer.upload(&cloud, SplatSize::Pixels(40.6)).unwrap();
-        let alphas = |renderer: &mut Renderer, method: Method, coverage: Coverage| {
+        let alphas = |renderer: &mut Renderer, camera, method: Method, coverage: Coverage| {
             renderer.set_coverage(Some(coverage));
             let options = RenderOptions {
                 ssaa: 3,
@@ -135,18 +138,46 @@ fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
             (column(27), column(123))
         };
         let fast = Method::Fast(Default::default());
-        let (near, far) = alphas(&mut renderer, fast, Coverage::Area);
-        let (near_samples, far_samples) = alphas(&mut renderer, fast, Coverage::Samples);
-        let (_, far_pinhole) = alphas(&mut renderer, Method::Pinhole, Coverage::Area);
+        let (near, far) = alphas(&mut renderer, camera, fast, Coverage::Area);
+        let (near_samples, far_samples) = alphas(&mut renderer, camera, fast, Coverage::Samples);
+        let (_, far_pinhole) = alphas(&mut renderer, camera, Method::Pinhole, Coverage::Area);
+        // A shape blurs less far across than the CoC's disk: the limit
+        // grows by its least reach, cos 30° for 6 blades (the far square
+        // still past it) and a quarter of that squeezed 4 times (no longer
+        // past it), through layered (fast's gather refuses shapes).
+        let shaped = |ratio: f32| pointlens::camera::Camera {
+            aperture: pointlens::camera::Aperture {
+                blades: 6,
+                ratio,
+                ..pointlens::camera::Aperture::ROUND
+            },
+            ..camera
+        };
+        let layered = Method::layered(2);
+        let (_, far_hexagon) = alphas(&mut renderer, shaped(1.0), layered, Coverage::Area);
+        let (_, far_hexagon_samples) =
+            alphas(&mut renderer, shaped(1.0), layered, Coverage::Samples);
+        let (_, far_squeezed) = alphas(&mut renderer, shaped(4.0), layered, Coverage::Area);
         eprintln!(
-            "fast: near {:?}, far {:?}; pinhole: far {:?}",
-            near[0], far[0], far_pinhole[0]
+            "fast: near {:?}, far {:?}; pinhole: far {:?}; layered, 6 blades: far {:?}, squeezed {:?}",
+            near[0], far[0], far_pinhole[0], far_hexagon[0], far_squeezed[0]
         );
         // A box's x edges count in 64ths of a pixel (as above).
         let column_edge = 1.0 / 128.0 + HALF_STEP;
         for (i, ((n, f), p)) in near.iter().zip(&far).zip(&far_pinhole).enumerate() {
             assert!((n - 0.3).abs() <= column_edge, "row {i}: near {n}");
             assert!((p - 0.3).abs() <= column_edge, "row {i}: pinhole's far {p}");
+            let squeezed = far_squeezed[i];
+            assert!(
+                (squeezed - 0.3).abs() <= column_edge,
+                "row {i}: squeezed far {squeezed}"
+            );
+            let hexagon = far_hexagon[i];
+            assert_eq!(
+                hexagon.to_bits(),
+                far_hexagon_samples[i].to_bits(),
+                "row {i}: 6 blades' far {hexagon}"
+            );
             assert!((near_samples[i] - 1.0 / 3.0).abs() <= HALF_STEP, "row {i}");
             assert_eq!(f.to_bits(), far_samples[i].to_bits(), "row {i}: far {f}");
         }

@@ -608,6 +608,21 @@ impl Aperture {
         r2 <= h * h && most * (r - c * h) <= (1.0 - c) * self.blade_cos() * r * h
     }
 
+    /// The least distance from the lens centre to the edge of the shape,
+    /// in lens radii, where it is the whole of T (blades, curvature,
+    /// squeeze, turn; None: an aperture image or the cat's eye, which
+    /// may pass less anywhere): a blade's middle lies (1 − C)·cos(π/N) + C
+    /// ≥ cos(π/N) out, and the squeeze narrows the shape by its ratio.
+    /// A point's blur through it spans at least this part of its CoC
+    /// across, in every direction.
+    pub fn least_reach(&self) -> Option<f32> {
+        if self.image.is_some() || self.cat_eye > 0.0 {
+            return None;
+        }
+        let squeeze = self.ratio.max(1.0 / self.ratio);
+        Some(self.blade_cos() / squeeze)
+    }
+
     /// Whether the shape is a polygon of straight blades (N ≥ 3, C = 0).
     pub fn has_straight_blades(&self) -> bool {
         self.blades > 0 && self.curvature == 0.0

@@ -79,6 +79,13 @@ void set_blade_normals() {
 // |v| <= |M·v|, so shape_reaches tests the blades alone.
 layout(constant_id = 11) const bool STRAIGHT = false;
 
+// M·x of Aperture::base_from_lens (Aperture::base_by_matrix mirrors it):
+// an offset or lens position, its squeeze undone, then turned.
+vec2 base_by_matrix(vec2 x) {
+    vec4 m = pc.base_from_lens;
+    return vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+}
+
 // Whether every frame of the pipeline is shaped (id 10): a pipeline made
 // for shaped frames alone (Fast::gather_for), whose disk code is compiled
 // away. llvmpipe runs both sides of a branch it cannot prove uniform, so
@@ -135,8 +142,7 @@ bool shape_reaches(ivec2 v, float c, float z) {
     if (!STRAIGHT && dot(x, x) > h * h) {
         return false;
     }
-    vec4 m = pc.base_from_lens;
-    vec2 mv = vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+    vec2 mv = base_by_matrix(x);
     float r2 = dot(mv, mv);
     if (BLADES == 0) {
         return r2 <= h * h;
@@ -208,11 +214,9 @@ bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
 bool box_inside_ellipse(ivec2 v0, ivec2 v1, float c) {
     float h = 0.49995 * c;
     vec2 corners[4] = vec2[4](vec2(v0), vec2(v1.x, v0.y), vec2(v0.x, v1.y), vec2(v1));
-    vec4 m = pc.base_from_lens;
     bool inside = true;
     for (int i = 0; i < 4; ++i) {
-        vec2 x = corners[i];
-        vec2 mv = vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+        vec2 mv = base_by_matrix(corners[i]);
         inside = inside && dot(mv, mv) <= h * h;
     }
     return inside;

@@ -584,12 +584,7 @@ impl Aperture {
         if self.blades == 0 {
             return r2 <= h * h;
         }
-        // M'd_k: u·(M'd_k) = (M·u)·d_k.
-        let m = self.base_from_lens();
-        let normal = |k: u32| {
-            let d = self.blade_middle(k);
-            Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
-        };
+        let normal = |k: u32| self.blade_normal(k);
         let most = if self.blades.is_multiple_of(2) {
             (0..self.blades / 2)
                 .map(|k| v.dot(normal(k)).abs())
@@ -666,15 +661,10 @@ impl Aperture {
         }
         if self.is_shaped() && self.blades > 0 {
             let reach = ((1.0 - self.curvature) * self.blade_cos() + self.curvature) * t;
-            let m = self.base_from_lens();
-            let normal = |k: u32| {
-                let d = self.blade_middle(k);
-                Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
-            };
             // x within s·(x·n.x + y·n.y) ≤ reach for every blade k listed.
             let side = |s: f32, blades: u32, (mut lo, mut hi): (f32, f32)| {
                 for k in 0..blades {
-                    let n = normal(k) * s;
+                    let n = self.blade_normal(k) * s;
                     if n.x.abs() > 1e-4 {
                         let x = (reach - y * n.y) / n.x;
                         if n.x > 0.0 {
@@ -709,6 +699,13 @@ impl Aperture {
         // Bounded before the conversion: a span wider than any window.
         let bound = 1.0e6;
         (lo.max(-bound).ceil() as i32, hi.min(bound).floor() as i32)
+    }
+
+    /// Blade k's middle direction turned back to lens positions, M'·d_k:
+    /// u·(M'·d_k) = (M·u)·d_k (`blade_normals` of `glsl/fast_gather.glsl`).
+    fn blade_normal(&self, k: u32) -> Vec2 {
+        let (m, d) = (self.base_from_lens(), self.blade_middle(k));
+        Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
     }
 
     /// M·u of [`Aperture::base_from_lens`], as the GLSL tap test forms it.

@@ -148,6 +148,21 @@ uint64_t columns_of(float x0, float x1, float per_target_px) {
     return below_hi & ~below_lo;
 }
 
+// Word's square as a box [x0, x1) × [y0, y1) in target pixels from the
+// corner of the pixel whose block starts at `block`: (x0, x1, y0, y1).
+vec4 box_of(uint64_t word, ivec2 block) {
+    vec4 sq = squares[word_splat(word)];
+    vec2 a = sq.xy - 0.5 * sq.z - vec2(block);
+    vec2 b = sq.xy + 0.5 * sq.z - vec2(block);
+    return vec4(a.x, b.x, a.y, b.y);
+}
+
+// Whether word's square reaches into the pixel's box [0, side)².
+bool reaches_into(uint64_t word, ivec2 block, float side) {
+    vec4 box = box_of(word, block);
+    return min(box.y, side) > max(box.x, 0.0) && min(box.w, side) > max(box.z, 0.0);
+}
+
 void main() {
     ivec2 p;
     if (!marked_pixel(p)) {
@@ -157,17 +172,15 @@ void main() {
     float side = float(k);
     ivec2 block, t_lo, t_hi;
     area_window(p, k, pc.extent.x, pc.target_first_row, pc.target_end_row, block, t_lo, t_hi);
-    // The candidates, nearest first by their words, and their squares
-    // (target pixels from the pixel's corner: x0, x1, y0, y1; the pixel's
-    // box is [0, K]²).
-    // Empty places hold NOTHING, beyond every splat's word. The loops
-    // over the places have a constant count and are unrolled: each place
-    // is a register, not memory indexed lane by lane.
+    // The candidates, nearest first by their words. Empty places hold
+    // NOTHING, beyond every splat's word. The loops over the places have a
+    // constant count and are unrolled: each place is a register, not
+    // memory indexed lane by lane. A word's square is loaded to test that
+    // it reaches into the box, and again for the candidates kept: the list
+    // moves words alone, not their boxes.
     uint64_t words[AREA_CANDIDATES];
-    vec4 boxes[AREA_CANDIDATES];
     [[unroll]] for (int c = 0; c < AREA_CANDIDATES; ++c) {
         words[c] = NOTHING;
-        boxes[c] = vec4(0.0);
     }
     // No word is 0: a splat's depth is beyond the near plane.
     uint64_t last = uint64_t(0);
@@ -181,26 +194,14 @@ void main() {
                 skip = skip || words[c] == word;
             }
             last = word;
-            if (skip) {
+            if (skip || !reaches_into(word, block, side)) {
                 continue;
             }
-            vec4 sq = squares[word_splat(word)];
-            vec2 a = sq.xy - 0.5 * sq.z - vec2(block);
-            vec2 b = sq.xy + 0.5 * sq.z - vec2(block);
-            vec4 box = vec4(a.x, b.x, a.y, b.y);
-            if (!(min(b.x, side) > max(a.x, 0.0) && min(b.y, side) > max(a.y, 0.0))) {
-                continue;
-            }
-            // Into its place by word; the farthest falls off a full list.
+            // Into its place; the farthest falls off a full list.
             [[unroll]] for (int c = 0; c < AREA_CANDIDATES; ++c) {
-                if (word < words[c]) {
-                    uint64_t w = words[c];
-                    vec4 v = boxes[c];
-                    words[c] = word;
-                    boxes[c] = box;
-                    word = w;
-                    box = v;
-                }
+                uint64_t w = words[c];
+                words[c] = min(w, word);
+                word = max(w, word);
             }
         }
     }
@@ -212,6 +213,12 @@ void main() {
         // No splat reaches the box but by less than a float's step: the
         // plain resolve's color stays.
         return;
+    }
+    // Their squares (target pixels from the pixel's corner: x0, x1, y0,
+    // y1; the pixel's box is [0, K]²); an empty place's is empty.
+    vec4 boxes[AREA_CANDIDATES];
+    [[unroll]] for (int c = 0; c < AREA_CANDIDATES; ++c) {
+        boxes[c] = c < n ? box_of(words[c], block) : vec4(0.0);
     }
     // What the candidates leave uncovered is what the window's samples
     // outside every candidate saw (background, or splats past a full

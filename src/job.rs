@@ -37,10 +37,10 @@ use crate::image_io::{
 use crate::options::{check_lod, Lod, Method};
 use crate::render::{RenderOptions, Rendered, Renderer, Scene};
 use crate::report::FrameReport;
-use crate::scene::{self, HostScene, SceneKind, SceneSpec, Scenes};
+use crate::scene::{self, DeviceSetup, HostScene, SceneKind, SceneSpec, Scenes};
 use crate::sequence::{CameraPath, FramePattern, FrameRange, Motion};
 use crate::video::VideoWriter;
-use crate::vk::{Context, ContextOptions};
+use crate::vk::ContextOptions;
 
 /// What is rendered: one image, or a sequence of numbered ones.
 #[derive(Debug, Clone)]
@@ -459,31 +459,40 @@ impl RenderJob {
         // ends the process at once, removing the file being written.
         let stop = Arc::new(AtomicBool::new(false));
         watch_signals(self.is_sequence(), stop.clone())?;
-        let t_load = Instant::now();
-        let host = HostScene::open(scene, &mut |done, total| {
-            // Progress only: an observer's error waits for the next event.
-            let _ = events(JobEvent::Loading { done, total });
+        // The device opens and makes its pipelines on a thread of its own
+        // while the file is read and its hierarchy built.
+        let method = self.spec.method;
+        let ready = std::thread::scope(|threads| -> Result<Option<_>> {
+            let setup = threads.spawn(|| DeviceSetup::open(device, kind, scene, &method));
+            let t_load = Instant::now();
+            let host = HostScene::open(scene, &mut |done, total| {
+                // Progress only: an observer's error waits for the next event.
+                let _ = events(JobEvent::Loading { done, total });
+            })?;
+            let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
+            let plan = self.plan(host.framing())?;
+            if let Some(video) = &self.video {
+                video.check_plan(&plan)?;
+            }
+            if plan.frames.is_empty() {
+                log::warn!(
+                    "nothing to render: the {} frames' files exist",
+                    plan.skipped
+                );
+                // The device, made for nothing, goes unused.
+                return Ok(None);
+            }
+            let built = host.build(scene)?;
+            let setup = setup
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+            Ok(Some((built, setup, plan, load_ms)))
         })?;
-        let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
-        let plan = self.plan(host.framing())?;
-        if let Some(video) = &self.video {
-            video.check_plan(&plan)?;
-        }
-        if plan.frames.is_empty() {
-            log::warn!(
-                "nothing to render: the {} frames' files exist",
-                plan.skipped
-            );
+        let Some((built, setup, plan, load_ms)) = ready else {
             return Ok(Outcome::default());
-        }
-        let t_device = Instant::now();
-        let ctx = Context::new(device)?;
-        log::info!(
-            "device: {} (opened in {:.0} ms)",
-            ctx.info.describe(),
-            t_device.elapsed().as_secs_f64() * 1e3
-        );
-        let on_device = host.upload(&ctx, scene)?;
+        };
+        let on_device = built.upload(setup, scene)?;
+        let ctx = on_device.ctx().clone();
         events(JobEvent::Planned {
             frames: plan.frames.len(),
         })?;

@@ -151,6 +151,32 @@ pub struct Scene {
     pub upload: Upload,
 }
 
+/// A cloud's splat hierarchy built on the host, before any device
+/// exists; [`Renderer::upload_built`] makes it a [`Scene`].
+pub struct BuiltTree {
+    tree: SplatTree,
+    splat: SplatSize,
+}
+
+impl BuiltTree {
+    /// The hierarchy of a cloud it takes, splats sized by `splat`: the
+    /// cloud is dropped as soon as the hierarchy holds its points (the
+    /// peak memory of a cloud read whole).
+    pub fn build_owned(cloud: PointCloud, splat: SplatSize) -> Result<BuiltTree> {
+        check_point_count(cloud.len())?;
+        let threads = crate::available_threads();
+        let tree = SplatTree::build_owned(cloud, points_of, splat.leaf_size(), threads);
+        Ok(BuiltTree { tree, splat })
+    }
+}
+
+/// Refuses a cloud of more points than a splat's 32-bit index holds.
+fn check_point_count(points: usize) -> Result<()> {
+    u32::try_from(points)
+        .map(drop)
+        .map_err(|_| Error::InvalidArgument(format!("{points} points exceed 2^32")))
+}
+
 impl Scene {
     /// Number of points.
     pub fn len(&self) -> usize {
@@ -653,13 +679,9 @@ impl Renderer {
         })
     }
 
-    /// [`Renderer::upload`] of a cloud it takes: the same scene, the
-    /// cloud dropped as soon as the hierarchy holds its points (the peak
-    /// memory of a cloud read whole).
-    pub fn upload_owned(&self, cloud: PointCloud, splat: SplatSize) -> Result<Scene> {
-        self.upload_tree(cloud.len(), splat, |threads| {
-            SplatTree::build_owned(cloud, points_of, splat.leaf_size(), threads)
-        })
+    /// The scene of a hierarchy built on the host ([`BuiltTree`]).
+    pub fn upload_built(&self, built: BuiltTree) -> Scene {
+        self.scene_of(built.tree, built.splat)
     }
 
     fn upload_tree(
@@ -668,10 +690,11 @@ impl Renderer {
         splat: SplatSize,
         build: impl FnOnce(usize) -> SplatTree,
     ) -> Result<Scene> {
-        u32::try_from(points)
-            .map_err(|_| Error::InvalidArgument(format!("{points} points exceed 2^32")))?;
-        let threads = crate::available_threads();
-        let tree = build(threads);
+        check_point_count(points)?;
+        Ok(self.scene_of(build(crate::available_threads()), splat))
+    }
+
+    fn scene_of(&self, tree: SplatTree, splat: SplatSize) -> Scene {
         let upload = Upload {
             splat_sizes_ms: tree.build.spacing_ms,
             tree_ms: tree.build.total_ms,
@@ -679,13 +702,19 @@ impl Renderer {
             gpu_ms: 0.0,
             wall_ms: tree.build.total_ms,
         };
-        Ok(Scene {
+        Scene {
             tree,
             splat,
             ctx: self.ctx.clone(),
             last: Mutex::new(None),
             upload,
-        })
+        }
+    }
+
+    /// Makes the pipelines of `method` now, as its first frame would: a
+    /// process that knows its method makes them while it reads its file.
+    pub fn make_pipelines_for(&self, method: &Method) -> Result<()> {
+        self.methods.get(method).map(drop)
     }
 
     /// The splats and raster view of `scene` through `camera`: depth

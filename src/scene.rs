@@ -3,18 +3,21 @@
 //! node, a set of 3D Gaussians (docs/ARCHITECTURE.md, "The scene
 //! interface").
 //!
-//! A scene lives in two stages. [`HostScene::open`] reads the file (its
+//! A scene lives in stages. [`HostScene::open`] reads the file (its
 //! kind chosen by [`input::kind_of`], the one place
 //! that looks at magic bytes) and answers what the job needs before a
 //! device exists: the points the default camera is framed on
-//! ([`HostScene::framing`]). [`HostScene::upload`] then makes a
+//! ([`HostScene::framing`]). [`HostScene::build`] does the rest of the
+//! host's work (a cloud's splat hierarchy), while [`DeviceSetup::open`],
+//! which needs nothing of the file, opens the device for the kind and
+//! makes its pipelines. [`BuiltScene::upload`] then makes a
 //! [`DeviceScene`]: the kind's renderer and its data on the device, which
 //! renders and writes one frame at a time ([`DeviceScene::render_frame`]).
 //! Which flags a kind refuses is one table, [`FLAGS`], checked by
 //! [`check_flags`] before anything is read.
 //!
-//! A new kind of scene is a variant of [`SceneKind`], of [`HostScene`] and
-//! of [`DeviceScene`], a column of [`FLAGS`] (the kinds that accept each
+//! A new kind of scene is a variant of [`SceneKind`], of [`HostScene`],
+//! [`BuiltScene`], [`DeviceSetup`] and [`DeviceScene`], a column of [`FLAGS`] (the kinds that accept each
 //! flag) and its magic bytes in `input::kind_of`.
 
 use std::path::{Path, PathBuf};
@@ -36,9 +39,9 @@ use crate::options::Lod;
 use crate::options::{
     Coverage, EdlOptions, Method, Raster, SplatShape, DEFAULT_LAYERS, DEFAULT_LOD_PX,
 };
-use crate::render::{Renderer, Scene, SplatSize};
+use crate::render::{BuiltTree, Renderer, Scene, SplatSize};
 use crate::tree::Widening;
-use crate::vk::Context;
+use crate::vk::{Context, ContextOptions};
 
 /// The kind of a scene: what its file holds.
 pub type SceneKind = InputKind;
@@ -348,18 +351,98 @@ impl HostScene {
         }
     }
 
-    /// The scene on the device `ctx`, with its renderer set as `spec`
-    /// asks; the host's copy is dropped once the device holds it.
-    pub fn upload(self, ctx: &Arc<Context>, spec: &SceneSpec) -> Result<DeviceScene> {
-        if let HostScene::Gaussians { scene, .. } = self {
-            let renderer = GaussianRenderer::new(ctx)?;
-            let gpu = renderer.upload(&scene)?;
-            return Ok(DeviceScene::Gaussians { renderer, gpu });
+    /// The host's work before the device: a cloud read whole gets its
+    /// splat hierarchy (the cloud dropped as soon as the hierarchy holds
+    /// its points); a COPC file and 3D Gaussians are ready as read.
+    pub fn build(self, spec: &SceneSpec) -> Result<BuiltScene> {
+        Ok(match self {
+            HostScene::Cloud(cloud) => {
+                BuiltScene::Cloud(BuiltTree::build_owned(cloud, spec.splat)?)
+            }
+            HostScene::Copc { clouds, ranges, .. } => BuiltScene::Copc { clouds, ranges },
+            HostScene::Gaussians { scene, .. } => BuiltScene::Gaussians(scene),
+        })
+    }
+}
+
+/// A scene built on the host and ready for a device
+/// ([`HostScene::build`]).
+// One a job, held once: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+pub enum BuiltScene {
+    /// A cloud read whole, as its splat hierarchy.
+    Cloud(BuiltTree),
+    /// A COPC file read by node; `--color`'s ranges over the whole file.
+    Copc {
+        clouds: CopcClouds,
+        ranges: Option<ColorRanges>,
+    },
+    /// 3D Gaussians.
+    Gaussians(GaussianScene),
+}
+
+impl BuiltScene {
+    /// The scene on the device `setup` opened for its kind; the host's
+    /// copy is dropped once the device holds it.
+    pub fn upload(self, setup: DeviceSetup, spec: &SceneSpec) -> Result<DeviceScene> {
+        match (self, setup) {
+            (BuiltScene::Cloud(tree), DeviceSetup::Points(renderer)) => {
+                let scene = renderer.upload_built(tree);
+                Ok(DeviceScene::Cloud { renderer, scene })
+            }
+            (BuiltScene::Copc { clouds, ranges }, DeviceSetup::Points(renderer)) => {
+                let color = spec.color.zip(ranges);
+                let copc = CopcScenes::new(clouds, spec.splat, color);
+                Ok(DeviceScene::Copc { renderer, copc })
+            }
+            (BuiltScene::Gaussians(scene), DeviceSetup::Gaussians(renderer)) => {
+                let gpu = renderer.upload(&scene)?;
+                Ok(DeviceScene::Gaussians { renderer, gpu })
+            }
+            _ => Err(Error::InvalidArgument(
+                "a scene uploaded to a device opened for another kind".to_string(),
+            )),
+        }
+    }
+}
+
+/// A device opened for a kind of scene, its renderer's pipelines made:
+/// what [`DeviceSetup::open`] makes while the file is read and built
+/// (`pointlens render` opens it on a thread of its own).
+// One a job, held once: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+pub enum DeviceSetup {
+    /// Points (a cloud, a COPC file): the renderer set as the scene's
+    /// flags ask, with the pipelines of the job's method.
+    Points(Renderer),
+    /// 3D Gaussians.
+    Gaussians(GaussianRenderer),
+}
+
+impl DeviceSetup {
+    /// Opens the device of `options` for a scene of `kind` read with
+    /// `spec`, and makes the renderer's pipelines; for points also those
+    /// of `method`, which its first frame would make.
+    pub fn open(
+        options: &ContextOptions,
+        kind: SceneKind,
+        spec: &SceneSpec,
+        method: &Method,
+    ) -> Result<DeviceSetup> {
+        let t_device = std::time::Instant::now();
+        let ctx = Context::new(options)?;
+        log::info!(
+            "device: {} (opened in {:.0} ms)",
+            ctx.info.describe(),
+            t_device.elapsed().as_secs_f64() * 1e3
+        );
+        if kind == SceneKind::Gaussians {
+            return Ok(DeviceSetup::Gaussians(GaussianRenderer::new(&ctx)?));
         }
         let t_pipelines = std::time::Instant::now();
-        let mut renderer = Renderer::new(ctx)?;
+        let mut renderer = Renderer::new(&ctx)?;
         log::info!(
-            "renderer's pipelines made in {:.0} ms (a method's when a frame first asks)",
+            "renderer's pipelines made in {:.0} ms",
             t_pipelines.elapsed().as_secs_f64() * 1e3
         );
         renderer.set_raster(spec.raster.unwrap_or_default());
@@ -367,19 +450,8 @@ impl HostScene {
         renderer.set_tile_px(spec.tile_px);
         renderer.set_splat_shape(spec.splat_shape.unwrap_or_default())?;
         renderer.set_coverage(spec.coverage);
-        match self {
-            // The hierarchy holds the points from its leaves on.
-            HostScene::Cloud(cloud) => {
-                let scene = renderer.upload_owned(cloud, spec.splat)?;
-                Ok(DeviceScene::Cloud { renderer, scene })
-            }
-            HostScene::Copc { clouds, ranges, .. } => {
-                let color = spec.color.zip(ranges);
-                let copc = CopcScenes::new(clouds, spec.splat, color);
-                Ok(DeviceScene::Copc { renderer, copc })
-            }
-            HostScene::Gaussians { .. } => unreachable!("uploaded above"),
-        }
+        renderer.make_pipelines_for(method)?;
+        Ok(DeviceSetup::Points(renderer))
     }
 }
 

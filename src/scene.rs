@@ -17,8 +17,9 @@
 //! [`check_flags`] before anything is read.
 //!
 //! A new kind of scene is a variant of [`SceneKind`], of [`HostScene`],
-//! [`BuiltScene`], [`DeviceSetup`] and [`DeviceScene`], a column of [`FLAGS`] (the kinds that accept each
-//! flag) and its magic bytes in `input::kind_of`.
+//! [`BuiltScene`], [`DeviceSetup`] and [`DeviceScene`], a column of
+//! [`FLAGS`] (the kinds that accept each flag) and its magic bytes in
+//! `input::kind_of`.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -399,9 +400,13 @@ impl BuiltScene {
                 let gpu = renderer.upload(&scene)?;
                 Ok(DeviceScene::Gaussians { renderer, gpu })
             }
-            _ => Err(Error::InvalidArgument(
-                "a scene uploaded to a device opened for another kind".to_string(),
-            )),
+            // The device was opened for the kind the file's magic bytes
+            // showed before it was read: only a file replaced meanwhile
+            // differs.
+            _ => Err(Error::InvalidArgument(format!(
+                "{}: the file changed while it was read",
+                spec.input.display()
+            ))),
         }
     }
 }

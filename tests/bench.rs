@@ -550,6 +550,7 @@ fn saved_reports_read_back_bit_exact() {
 #[test]
 fn bench_fails_on_any_validation_message() {
     // Not `with_gpu`: this test makes the validation layer speak on purpose.
+    let _one_at_a_time = common::gpu_lock();
     let ctx = Context::new(&ContextOptions {
         validation: true,
         device: Some("llvmpipe".into()),

@@ -266,6 +266,7 @@ fn bunny_pinhole_matches_the_reviewed_reference() {
 #[test]
 fn the_canary_sees_validation_errors() {
     // The harness must fail a test on a validation message: provoke one.
+    let _one_at_a_time = common::gpu_lock();
     let ctx = Context::new(&ContextOptions {
         validation: true,
         device: Some("llvmpipe".into()),

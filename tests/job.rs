@@ -416,6 +416,7 @@ fn frames_in_flight_write_the_bytes_of_frames_written_one_at_a_time() {
         };
         let in_flight = job_into(name("flight"));
         let mut order = Vec::new();
+        let one_at_a_time_here = common::gpu_lock();
         let outcome = in_flight
             .run(
                 &pointlens::scene::SceneSpec::of(&bunny_path),
@@ -428,6 +429,7 @@ fn frames_in_flight_write_the_bytes_of_frames_written_one_at_a_time() {
                 },
             )
             .unwrap();
+        drop(one_at_a_time_here);
         assert_eq!(order, [1, 2, 3, 4], "{}", method.short_name());
         assert_eq!(outcome.reports.len(), 4);
         let one_at_a_time = job_into(name("one"));

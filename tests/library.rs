@@ -19,7 +19,10 @@ fn the_example_renders_every_kind_of_scene_through_the_library() {
         validation: true,
         device: Some("llvmpipe".into()),
     };
-    let images = render_scenes::render_all(&dir, &device).expect("the three scenes render");
+    let images = {
+        let _one_at_a_time = common::gpu_lock();
+        render_scenes::render_all(&dir, &device).expect("the three scenes render")
+    };
     assert_eq!(images.len(), 3);
     for path in &images {
         let image = read_image(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

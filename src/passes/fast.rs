@@ -52,6 +52,7 @@ push_constants! {
         shape_rows: i32,
         shape_y_min: f32,
         shape_y_max: f32,
+        background_only: u32,
     }
 }
 
@@ -137,7 +138,7 @@ impl Fast {
     pub fn new(ctx: &Arc<Context>, sizes: super::kernel_sizes::KernelSizes) -> Result<Fast> {
         use Binding::{StorageBuffer as B, StorageImage as I};
         Ok(Fast {
-            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B])?,
+            coc: ComputePipeline::new(ctx, "fast_coc", COC, &[I, I, B, B])?,
             tile_max: ComputePipeline::new(ctx, "fast_tile_max", TILE_MAX, &[I; 3])?,
             tile_dilate: ComputePipeline::new(ctx, "fast_tile_dilate", TILE_DILATE, &[I; 2])?,
             gather: Specialized::round(ctx, "fast_gather", GATHER, GATHER_BINDINGS)?,
@@ -369,6 +370,8 @@ struct FastImages {
     /// disk).
     shape: ShapeTerms,
     shape_chords: Buffer,
+    /// The background's pixel count (`fast_coc.comp`), one float.
+    background_count: Buffer,
     coc_weight: Image,
     tile_max: Image,
     tile_radius: Image,
@@ -445,6 +448,13 @@ impl FastImages {
         Ok(FastImages {
             shape: ShapeTerms::of(shape.as_ref()),
             shape_chords,
+            background_count: Buffer::new(
+                ctx,
+                "fast background count",
+                4,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuOnly,
+            )?,
             coc_weight: image("fast coc", vk::Format::R32G32_SFLOAT, w, h, storage)?,
             tile_max: image("fast tile max", vk::Format::R32G32_SFLOAT, tw, th, storage)?,
             tile_radius: image(
@@ -487,24 +497,33 @@ impl FastFrame<'_> {
                 (input.eye, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ),
                 (&images.coc_weight, Access::NONE, Access::COMPUTE_WRITE),
             ]);
+            let binds = [
+                Bind::StorageImage(input.eye),
+                Bind::StorageImage(&images.coc_weight),
+                Bind::StorageBuffer(&images.shape_chords),
+                Bind::StorageBuffer(&images.background_count),
+            ];
+            let push = |background_only: bool| CocPush {
+                extent: [w, h],
+                f_px: camera.f_px(),
+                aperture_radius: camera.aperture_radius,
+                focus_distance: camera.focus_distance,
+                area_weights: (options.weights == FastWeights::Area) as u32,
+                shaped: images.shape.shaped,
+                shape_rows: images.shape.rows,
+                shape_y_min: images.shape.y_min,
+                shape_y_max: images.shape.y_max,
+                background_only: background_only as u32,
+            };
+            // The background's count, once; then every pixel's, the
+            // background's read from it.
+            rec.memory_barrier(Access::COMPUTE_READ, Access::COMPUTE_WRITE);
+            rec.dispatch(&p.coc, &binds, &push(true), [1, 1, 1]);
+            rec.memory_barrier(Access::COMPUTE_WRITE, Access::COMPUTE_READ);
             rec.dispatch(
                 &p.coc,
-                &[
-                    Bind::StorageImage(input.eye),
-                    Bind::StorageImage(&images.coc_weight),
-                    Bind::StorageBuffer(&images.shape_chords),
-                ],
-                &CocPush {
-                    extent: [w, h],
-                    f_px: camera.f_px(),
-                    aperture_radius: camera.aperture_radius,
-                    focus_distance: camera.focus_distance,
-                    area_weights: (options.weights == FastWeights::Area) as u32,
-                    shaped: images.shape.shaped,
-                    shape_rows: images.shape.rows,
-                    shape_y_min: images.shape.y_min,
-                    shape_y_max: images.shape.y_max,
-                },
+                &binds,
+                &push(false),
                 [groups(w as u32, 8), groups(h as u32, 8), 1],
             );
         });

@@ -635,6 +635,7 @@ mod tests {
             shape_rows: i32,
             shape_y_min: f32,
             shape_y_max: f32,
+            background_only: u32,
         }
     }
 
@@ -650,6 +651,7 @@ mod tests {
             shape_rows: i32,
             shape_y_min: f32,
             shape_y_max: f32,
+            background_only: u32,
         }
     }
 
@@ -664,11 +666,13 @@ mod tests {
             shaped: u32,
             shape_rows: i32,
             shape_y_min: f32,
+            shape_y_max: f32,
         }
     }
 
     crate::push_constants! {
-        /// A field of another size (an i64 where GLSL has a uint).
+        /// A field of another size (an i64 where GLSL has a uint; the
+        /// block's last field left out, which would pad the struct).
         struct Wide {
             extent: [i32; 2],
             f_px: f32,
@@ -696,7 +700,7 @@ mod tests {
         ] {
             let err = result.expect_err(what).to_string();
             assert!(
-                err.contains("fast_coc") && err.contains("shape_y_max@36+4"),
+                err.contains("fast_coc") && err.contains("background_only@40+4"),
                 "{what}: {err}"
             );
         }

@@ -504,6 +504,7 @@ mod tests {
                 ("shape_rows", 28, 4),
                 ("shape_y_min", 32, 4),
                 ("shape_y_max", 36, 4),
+                ("background_only", 40, 4),
             ],
         );
     }

@@ -304,6 +304,6 @@ void main() {
     // A pixel none of whose samples saw a splat, with candidates over part
     // of it: their nearest depth (covered pixels have a depth).
     vec4 eye = imageLoad(gbuffer_eye, p);
-    float z = isinf(eye.z) ? uintBitsToFloat(uint(words[0] >> 32)) : eye.z;
+    float z = isinf(eye.z) ? word_depth(words[0]) : eye.z;
     imageStore(gbuffer_eye, p, vec4(eye.xy, z, result.a));
 }

@@ -50,7 +50,7 @@ vec4 target_sample(ivec2 q) {
     uint i = word_splat(word);
     uvec2 c = splat_pairs[3u * i + 2u];
     vec3 color = vec3(unpackUnorm2x16(c.x), unpackUnorm2x16(c.y).x);
-    return vec4(color, uintBitsToFloat(uint(word >> 32)));
+    return vec4(color, word_depth(word));
 }
 
 #define TARGET_FIRST_ROW pc.target_first_row
@@ -71,7 +71,7 @@ bool all_of(ivec2 lo, ivec2 hi, uint64_t first, out vec2 zs) {
         for (int x = lo.x; x < hi.x; ++x) {
             uint64_t word = word_at(ivec2(x, y));
             one = one && word == first;
-            float z = word == NOTHING ? 1.0 / 0.0 : uintBitsToFloat(uint(word >> 32));
+            float z = word_depth(word);
             zs = vec2(min(zs.x, z), max(zs.y, z));
         }
     }

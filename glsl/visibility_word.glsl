@@ -16,3 +16,8 @@ uint64_t word_at(ivec2 t) {
 uint word_splat(uint64_t word) {
     return uint(word & 0xffffffffUL);
 }
+
+// The eye depth of a word's splat (+inf for NOTHING: no splat).
+float word_depth(uint64_t word) {
+    return word == NOTHING ? 1.0 / 0.0 : uintBitsToFloat(uint(word >> 32));
+}

@@ -642,6 +642,7 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
             let first = frame(1);
             let one_frame = ctx.allocated_bytes();
             let (created, _, _) = ctx.pool_counts();
+            let (frames_made, frames_taken) = ctx.frame_object_counts();
             let mut bytes = Vec::new();
             for i in [2, 3, 4, 1, 1, 1, 1] {
                 let again = frame(i);
@@ -660,6 +661,22 @@ fn recycled_images_change_no_method_s_frame_and_memory_stays_flat() {
             // frames before may differ by a few vertices).
             let (created_after, reused, _) = ctx.pool_counts();
             assert!(reused > 0, "{}: nothing reused", method.short_name());
+            // Each frame's command pool, fence and timestamp pools are the
+            // first frame's: none is made after it.
+            let (frames_made_after, frames_taken_after) = ctx.frame_object_counts();
+            assert_eq!(
+                frames_made_after,
+                frames_made,
+                "{}: frames made their own command pools",
+                method.short_name()
+            );
+            assert!(
+                frames_taken_after - frames_taken >= bytes.len() as u64,
+                "{}: {} frames took {} kept command pools",
+                method.short_name(),
+                bytes.len(),
+                frames_taken_after - frames_taken
+            );
             let n = bytes.len();
             assert!(
                 bytes[n - 1] < one_frame + one_frame / 10,

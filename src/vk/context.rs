@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
+use super::frame::{FrameObjects, KEPT_FRAMES};
 use super::pool::{Key, Parts, Pool};
 
 use crate::error::{Error, Result, VkContext};
@@ -163,6 +164,9 @@ pub struct Context {
     allocator: ManuallyDrop<Mutex<Allocator>>,
     /// The last frames' dropped images and buffers, for the next frame.
     pool: Mutex<Pool>,
+    /// Completed frames' command pools, fences and timestamp pools, for
+    /// the next frames ([`super::frame::FrameObjects`]).
+    frames: Mutex<KeptFrames>,
     pub info: DeviceInfo,
     validation: bool,
 }
@@ -371,6 +375,7 @@ impl Context {
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             pool: Mutex::new(Pool::default()),
+            frames: Mutex::new(KeptFrames::default()),
             info,
             validation: options.validation,
         };
@@ -526,14 +531,71 @@ impl Context {
         }
     }
 
-    /// Turns the recycling of images and buffers between frames on (the
-    /// default) or off (every frame makes its own and destroys them after:
-    /// for measuring what the recycling saves).
+    /// Turns the recycling of images, buffers and frames' command pools,
+    /// fences and timestamp pools between frames on (the default) or off
+    /// (every frame makes its own and destroys them after: for measuring
+    /// what the recycling saves).
     pub fn set_frame_pool(&self, on: bool) {
         self.pool().disabled = !on;
         if !on {
             self.release_pool();
+            self.release_frame_objects();
         }
+    }
+
+    /// A completed frame's objects for the next frame, if one is kept.
+    pub(super) fn take_frame_objects(&self) -> Option<FrameObjects> {
+        let mut kept = self.kept_frames();
+        match kept.objects.pop() {
+            Some(objects) => {
+                kept.reused += 1;
+                Some(objects)
+            }
+            None => {
+                kept.created += 1;
+                None
+            }
+        }
+    }
+
+    /// Keeps a completed frame's objects (reset) for the next frame; they
+    /// are destroyed instead when the pool is off or enough are kept.
+    pub(super) fn keep_frame_objects(&self, objects: FrameObjects) {
+        let unkept = {
+            let mut kept = self.kept_frames();
+            if self.pool().disabled || kept.objects.len() >= KEPT_FRAMES {
+                Some(objects)
+            } else {
+                kept.objects.push(objects);
+                None
+            }
+        };
+        if let Some(objects) = unkept {
+            // SAFETY: a completed frame's objects, in no pending submission.
+            unsafe { objects.destroy(&self.device) };
+        }
+    }
+
+    /// Destroys the kept frames' objects.
+    fn release_frame_objects(&self) {
+        let all = std::mem::take(&mut self.kept_frames().objects);
+        for objects in all {
+            // SAFETY: kept objects are those of completed frames.
+            unsafe { objects.destroy(&self.device) };
+        }
+    }
+
+    fn kept_frames(&self) -> MutexGuard<'_, KeptFrames> {
+        self.frames
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Frames' objects: (sets made anew, sets taken from an earlier
+    /// frame), for tests and reports.
+    pub fn frame_object_counts(&self) -> (u64, u64) {
+        let kept = self.kept_frames();
+        (kept.created, kept.reused)
     }
 
     /// The pool's counts: (objects created anew, objects reused, objects
@@ -588,6 +650,14 @@ impl Context {
     }
 }
 
+/// Completed frames' objects and how often a frame made or took them.
+#[derive(Default)]
+struct KeptFrames {
+    objects: Vec<FrameObjects>,
+    created: u64,
+    reused: u64,
+}
+
 impl Drop for Context {
     fn drop(&mut self) {
         // SAFETY: every resource holds an `Arc<Context>`, so none is alive
@@ -597,6 +667,7 @@ impl Drop for Context {
             let _ = self.device.device_wait_idle();
         }
         self.release_pool();
+        self.release_frame_objects();
         let flush = *self
             .queue_submit
             .get_mut()

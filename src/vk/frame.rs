@@ -66,18 +66,101 @@ fn add_pass(passes: &mut Vec<PassTiming>, name: &str, gpu_ms: f64, count: u32) {
 /// Scopes per timestamp query pool; a frame adds pools as it needs them.
 const POOL_SCOPES: u32 = 256;
 
+/// Frames' objects the context keeps for the next frames: as many as the
+/// frames that can be alive at once (a sequence's frames in flight, the
+/// frame of a Gaussian scene beside a point frame), more are destroyed.
+pub(super) const KEPT_FRAMES: usize = 4;
+
+/// The Vulkan objects a frame records and waits with: a command pool with
+/// its one primary command buffer, a fence, and the timestamp pools. A
+/// frame that completed hands them back to its context
+/// ([`Context::keep_frame_objects`]), reset, and the next frame takes them
+/// instead of making its own: a sequence makes them once.
+pub(super) struct FrameObjects {
+    pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    /// Unsignalled whenever the objects are not in a frame's hands.
+    fence: vk::Fence,
+    /// Timestamp pools, each reset by the frame that uses it, in its
+    /// command buffer, before its first query.
+    queries: Vec<vk::QueryPool>,
+}
+
+impl FrameObjects {
+    /// Makes a command pool, its command buffer and an unsignalled fence
+    /// (no timestamp pool yet).
+    fn create(ctx: &Context) -> Result<FrameObjects> {
+        let pool_info = vk::CommandPoolCreateInfo::default().queue_family_index(ctx.queue_family);
+        // SAFETY: valid device and create info; the pool is owned by
+        // `objects` from the next statement on, destroyed by `destroy`
+        // below if a later step fails (null handles harmlessly).
+        let pool = unsafe { ctx.device.create_command_pool(&pool_info, None) }
+            .vk("vkCreateCommandPool")?;
+        let mut objects = FrameObjects {
+            pool,
+            cmd: vk::CommandBuffer::null(),
+            fence: vk::Fence::null(),
+            queries: Vec::new(),
+        };
+        let made = (|| -> Result<()> {
+            let alloc = vk::CommandBufferAllocateInfo::default()
+                .command_pool(objects.pool)
+                .level(vk::CommandBufferLevel::PRIMARY)
+                .command_buffer_count(1);
+            // SAFETY: the pool was created above on this device.
+            objects.cmd = unsafe { ctx.device.allocate_command_buffers(&alloc) }
+                .vk("vkAllocateCommandBuffers")?[0];
+            // SAFETY: plain object creation.
+            objects.fence = unsafe {
+                ctx.device
+                    .create_fence(&vk::FenceCreateInfo::default(), None)
+            }
+            .vk("vkCreateFence")?;
+            Ok(())
+        })();
+        match made {
+            Ok(()) => Ok(objects),
+            Err(e) => {
+                // SAFETY: nothing was submitted with these objects.
+                unsafe { objects.destroy(&ctx.device) };
+                Err(e)
+            }
+        }
+    }
+
+    /// Destroys the objects (the command buffer with its pool).
+    ///
+    /// # Safety
+    /// No submission that used them is pending.
+    pub(super) unsafe fn destroy(self, device: &ash::Device) {
+        // SAFETY: by the caller's promise nothing pending uses them; null
+        // handles are ignored by Vulkan.
+        unsafe {
+            for pool in &self.queries {
+                device.destroy_query_pool(*pool, None);
+            }
+            device.destroy_fence(self.fence, None);
+            device.destroy_command_pool(self.pool, None);
+        }
+    }
+}
+
 /// A command buffer being recorded. Create with [`Frame::begin`], record
 /// passes with [`Frame::pass`], finish with [`Frame::submit_and_wait`].
 /// Every resource a pass records is borrowed for `'r`: it outlives the
 /// frame, so it is alive until the submission has completed.
 pub struct Frame<'r> {
     ctx: Arc<Context>,
-    pool: vk::CommandPool,
+    /// `None` only while dropping.
+    objects: Option<FrameObjects>,
     cmd: vk::CommandBuffer,
-    fence: vk::Fence,
-    /// Timestamp pools; scope i owns queries 2(i mod P) and 2(i mod P)+1 of
-    /// pool i div P (P = POOL_SCOPES).
-    pools: Vec<vk::QueryPool>,
+    /// Timestamp pools this frame has reset and writes: the first of
+    /// `objects.queries`. Scope i owns queries 2(i mod P) and 2(i mod P)+1
+    /// of pool i div P (P = POOL_SCOPES).
+    queries_used: usize,
+    /// Whether the submission was waited for to completion, so that the
+    /// objects can go back to the context.
+    completed: bool,
     /// The first error met while recording, returned by `submit_and_wait`.
     deferred_error: Option<Error>,
     scopes: Vec<(String, u32)>,
@@ -86,53 +169,48 @@ pub struct Frame<'r> {
 }
 
 impl<'r> Frame<'r> {
-    /// Allocates a command buffer and begins recording.
+    /// Takes a command buffer (the context's kept one of an earlier frame,
+    /// or a new one) and begins recording.
     pub fn begin(ctx: &Arc<Context>, name: &str) -> Result<Frame<'r>> {
         let started = Instant::now();
-        let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(ctx.queue_family)
-            .flags(vk::CommandPoolCreateFlags::TRANSIENT);
-        // SAFETY: valid device and create info; the pool is owned by the
-        // Frame from the next statement on, whose Drop destroys it (and the
-        // null handles harmlessly if a later step fails).
-        let pool = unsafe { ctx.device.create_command_pool(&pool_info, None) }
-            .vk("vkCreateCommandPool")?;
-        let mut frame = Frame {
+        let objects = match ctx.take_frame_objects() {
+            Some(objects) => objects,
+            None => {
+                let objects = FrameObjects::create(ctx)?;
+                ctx.set_name(objects.pool, name);
+                ctx.set_name(objects.fence, name);
+                objects
+            }
+        };
+        ctx.set_name(objects.cmd, name);
+        let frame = Frame {
             ctx: ctx.clone(),
-            pool,
-            cmd: vk::CommandBuffer::null(),
-            fence: vk::Fence::null(),
-            pools: Vec::new(),
+            cmd: objects.cmd,
+            objects: Some(objects),
+            queries_used: 0,
+            completed: false,
             deferred_error: None,
             scopes: Vec::new(),
             started,
             resources: PhantomData,
         };
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(frame.pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(1);
-        // SAFETY: the pool was created above on this device.
-        frame.cmd = unsafe { ctx.device.allocate_command_buffers(&alloc) }
-            .vk("vkAllocateCommandBuffers")?[0];
-        // SAFETY: plain object creation.
-        frame.fence = unsafe {
-            ctx.device
-                .create_fence(&vk::FenceCreateInfo::default(), None)
-        }
-        .vk("vkCreateFence")?;
-        ctx.set_name(frame.pool, name);
-        ctx.set_name(frame.cmd, name);
-        ctx.set_name(frame.fence, name);
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: a freshly allocated buffer, recorded once.
+        // SAFETY: a new command buffer, or one whose pool was reset after
+        // its submission completed (`Drop`): in the initial state.
         unsafe {
             ctx.device
                 .begin_command_buffer(frame.cmd, &begin)
                 .vk("vkBeginCommandBuffer")?;
         }
         Ok(frame)
+    }
+
+    /// This frame's objects (present until it is dropped).
+    fn objects(&self) -> &FrameObjects {
+        self.objects
+            .as_ref()
+            .expect("a frame's objects until its drop")
     }
 
     /// The context this frame records for.
@@ -169,23 +247,32 @@ impl<'r> Frame<'r> {
         result
     }
 
-    /// Makes sure scope `index` has a query pool, creating and resetting a
-    /// new one when the last is full.
+    /// Makes sure scope `index` has a query pool: the next of the frame's
+    /// objects' pools, or a new one, reset in this command buffer.
     fn reserve_scope(&mut self, index: u32) -> Result<()> {
-        if (index / POOL_SCOPES) < self.pools.len() as u32 {
+        if (index / POOL_SCOPES) < self.queries_used as u32 {
             return Ok(());
         }
-        let info = vk::QueryPoolCreateInfo::default()
-            .query_type(vk::QueryType::TIMESTAMP)
-            .query_count(2 * POOL_SCOPES);
-        // SAFETY: plain object creation; the pool is reset in this command
-        // buffer (outside any render pass: passes record whole render passes)
-        // before any of its queries is written.
-        let pool =
-            unsafe { self.ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
-        self.pools.push(pool);
-        self.ctx.set_name(pool, "frame timestamps");
-        // SAFETY: see above.
+        let objects = self
+            .objects
+            .as_mut()
+            .expect("a frame's objects until its drop");
+        if self.queries_used == objects.queries.len() {
+            let info = vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::TIMESTAMP)
+                .query_count(2 * POOL_SCOPES);
+            // SAFETY: plain object creation; the frame's objects own it.
+            let pool = unsafe { self.ctx.device.create_query_pool(&info, None) }
+                .vk("vkCreateQueryPool")?;
+            objects.queries.push(pool);
+            self.ctx.set_name(pool, "frame timestamps");
+        }
+        let pool = objects.queries[self.queries_used];
+        self.queries_used += 1;
+        // SAFETY: the pool is reset in this command buffer (outside any
+        // render pass: passes record whole render passes) before any of
+        // its queries is written; no pending submission uses it (an
+        // earlier frame's completed before its objects came back).
         unsafe {
             self.ctx
                 .device
@@ -204,7 +291,7 @@ impl<'r> Frame<'r> {
             self.ctx.device.cmd_write_timestamp2(
                 self.cmd,
                 vk::PipelineStageFlags2::ALL_COMMANDS,
-                self.pools[(query / per_pool) as usize],
+                self.objects().queries[(query / per_pool) as usize],
                 query % per_pool,
             )
         };
@@ -214,6 +301,7 @@ impl<'r> Frame<'r> {
     pub fn submit_and_wait(mut self) -> Result<FrameTimings> {
         let ctx = &self.ctx;
         let cmds = [self.cmd];
+        let fence = self.objects().fence;
         let submit = vk::SubmitInfo::default().command_buffers(&cmds);
         // SAFETY: the buffer was recorded by this frame and is submitted once;
         // the fence is unsignalled and waited on before anything is read;
@@ -233,16 +321,16 @@ impl<'r> Frame<'r> {
                 });
             }
             ctx.device
-                .queue_submit(ctx.queue, &[submit], self.fence)
+                .queue_submit(ctx.queue, &[submit], fence)
                 .vk("vkQueueSubmit")?;
             ctx.device
-                .wait_for_fences(&[self.fence], true, u64::MAX)
+                .wait_for_fences(&[fence], true, u64::MAX)
                 .vk("vkWaitForFences")?;
             // Under the validation layer, a submission of nothing with the
             // context's flush fence, waited for: the layer retires each
             // submission on a thread of its own and lets go of its command
             // buffers only after it has signalled the waiters, so without
-            // this the frame's pool, destroyed next, could leave the last
+            // this the frame's pool, reset or destroyed next, could leave the last
             // reference to a command buffer's state on that thread, whose
             // destructor (layer 1.3.239, Debian 12's) then erases the
             // buffer's labels from a map this thread writes while it records
@@ -269,6 +357,7 @@ impl<'r> Frame<'r> {
                 });
             }
         }
+        self.completed = true;
         let wall_ms = self.started.elapsed().as_secs_f64() * 1e3;
         if let Some(e) = self.deferred_error.take() {
             return Err(e);
@@ -277,7 +366,10 @@ impl<'r> Frame<'r> {
         let n = self.scopes.len() as u32;
         if n > 0 && ctx.info.timestamp_valid_bits > 0 {
             let mut ticks = Vec::with_capacity(2 * n as usize);
-            for (p, pool) in self.pools.iter().enumerate() {
+            for (p, pool) in self.objects().queries[..self.queries_used]
+                .iter()
+                .enumerate()
+            {
                 let used = (n - p as u32 * POOL_SCOPES).min(POOL_SCOPES);
                 let mut part = vec![0u64; 2 * used as usize];
                 // SAFETY: queries 0..2*used of this pool were written by this
@@ -319,16 +411,28 @@ impl<'r> Frame<'r> {
 
 impl Drop for Frame<'_> {
     fn drop(&mut self) {
-        // SAFETY: either the submission completed (submit_and_wait waited on
-        // the fence) or nothing was submitted; destroying the pool frees the
-        // command buffer. Null handles are ignored by Vulkan.
-        unsafe {
-            for pool in &self.pools {
-                self.ctx.device.destroy_query_pool(*pool, None);
+        let Some(objects) = self.objects.take() else {
+            return;
+        };
+        if self.completed {
+            // SAFETY: the submission completed (submit_and_wait waited on
+            // the fence, and under validation on the flush after it), so
+            // the pool's command buffer and the fence are in no pending
+            // submission: both may be reset.
+            let reset = unsafe {
+                self.ctx
+                    .device
+                    .reset_command_pool(objects.pool, vk::CommandPoolResetFlags::empty())
+                    .and_then(|()| self.ctx.device.reset_fences(&[objects.fence]))
+            };
+            if reset.is_ok() {
+                self.ctx.keep_frame_objects(objects);
+                return;
             }
-            self.ctx.device.destroy_fence(self.fence, None);
-            self.ctx.device.destroy_command_pool(self.pool, None);
         }
+        // SAFETY: either the submission completed or nothing was submitted
+        // (a frame dropped unsubmitted, or whose submission failed).
+        unsafe { objects.destroy(&self.ctx.device) };
     }
 }
 

@@ -84,3 +84,35 @@ fn the_example_renders_every_kind_of_scene_through_the_library() {
         );
     }
 }
+
+#[test]
+fn a_file_whose_kind_changed_between_its_two_reads_is_one_line_naming_it() {
+    // `render` opens the device for the kind the file's first bytes show
+    // while the main thread reads the file (`RenderJob::run`): a file
+    // replaced between the two reads by one of another kind meets a
+    // device opened for the wrong kind, refused in one line.
+    use pointlens::options::Method;
+    use pointlens::scene::{DeviceSetup, HostScene, SceneKind, SceneSpec};
+    let bunny = common::root().join("data/bunny_colored.ply");
+    let gaussians = common::root().join("data/autzen_gaussians.ply");
+    let device = ContextOptions {
+        validation: true,
+        device: Some("llvmpipe".into()),
+    };
+    let _one_at_a_time = common::gpu_lock();
+    for (path, opened_for) in [(&bunny, SceneKind::Gaussians), (&gaussians, SceneKind::Cloud)] {
+        let spec = SceneSpec::of(path);
+        let host = HostScene::open(&spec, &mut |_, _| {}).unwrap();
+        assert_ne!(host.kind(), opened_for);
+        let built = host.build(&spec).unwrap();
+        let setup = DeviceSetup::open(&device, opened_for, &spec, &Method::Pinhole).unwrap();
+        let message = match built.upload(setup, &spec) {
+            Ok(_) => panic!("{}: uploaded to a device opened for another kind", path.display()),
+            Err(e) => e.to_string(),
+        };
+        assert_eq!(
+            message,
+            format!("{}: the file changed while it was read", path.display())
+        );
+    }
+}

@@ -100,14 +100,20 @@ fn a_file_whose_kind_changed_between_its_two_reads_is_one_line_naming_it() {
         device: Some("llvmpipe".into()),
     };
     let _one_at_a_time = common::gpu_lock();
-    for (path, opened_for) in [(&bunny, SceneKind::Gaussians), (&gaussians, SceneKind::Cloud)] {
+    for (path, opened_for) in [
+        (&bunny, SceneKind::Gaussians),
+        (&gaussians, SceneKind::Cloud),
+    ] {
         let spec = SceneSpec::of(path);
         let host = HostScene::open(&spec, &mut |_, _| {}).unwrap();
         assert_ne!(host.kind(), opened_for);
         let built = host.build(&spec).unwrap();
         let setup = DeviceSetup::open(&device, opened_for, &spec, &Method::Pinhole).unwrap();
         let message = match built.upload(setup, &spec) {
-            Ok(_) => panic!("{}: uploaded to a device opened for another kind", path.display()),
+            Ok(_) => panic!(
+                "{}: uploaded to a device opened for another kind",
+                path.display()
+            ),
             Err(e) => e.to_string(),
         };
         assert_eq!(

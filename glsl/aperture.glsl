@@ -1,7 +1,8 @@
 // The aperture's cat's eye (docs/decisions/aperture-shape.md), mirrored
 // from src/camera/aperture.rs (Aperture::cat_eye_centre,
-// Aperture::cat_eye_passes); tests/aperture.rs holds each method that
-// follows it to the analytic image.
+// Aperture::cat_eye_passes, Aperture::cat_eye_blur_reach); tests/aperture.rs
+// holds each method that follows it to the analytic image, and
+// tests/shaders.rs the blur's reach to the CPU's.
 
 // Whether this pipeline carries the code of shaped apertures and of the
 // cat's eye (a specialization constant, id 0: src/passes/mod.rs,
@@ -15,6 +16,23 @@ vec2 cat_eye_centre(ivec2 p, ivec2 frame, float cat_eye) {
     vec2 half_frame = 0.5 * vec2(frame);
     vec2 d = (vec2(p) + 0.5 - half_frame) / length(half_frame);
     return -2.0 * cat_eye * d;
+}
+
+// The least part of its CoC across which a lens holding the disk of radius
+// shape_reach, clipped by the cat's eye S, blurs a point seen at d (as
+// cat_eye_centre's; half_diag = |frame/2| px) whose CoC runs over the
+// range of coc's two ends (px) on one side of the focus (behind: beyond
+// it); 0 where it may not blur at all (Aperture::cat_eye_blur_reach).
+float cat_eye_blur_reach(float shape_reach, float cat_eye, vec2 d, float half_diag, vec2 coc, bool behind) {
+    float delta = 2.0 * cat_eye * length(d);
+    float s = behind ? cat_eye : -cat_eye;
+    vec2 k = vec2(1.0) + s * coc / half_diag;
+    if (k.x * k.y <= 0.0) {
+        return 0.0;
+    }
+    vec2 t = vec2(1.0) / abs(k);
+    vec2 edge = 0.5 * (vec2(shape_reach) + (1.0 - delta) * t);
+    return max(min(min(shape_reach, min(t.x, t.y)), min(edge.x, edge.y)), 0.0);
 }
 
 // Whether lens position u passes the circle of radius 1 about `centre`.

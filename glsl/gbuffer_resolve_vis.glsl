@@ -35,9 +35,10 @@ layout(push_constant, std430) uniform VisPush {
     float color_scale;   // the linear color of a splat's code 65535 (1: white)
     int target_end_row;  // the G-buffer row after the target's last
     // The lens that blurs the G-buffer after it: f_px, aperture radius,
-    // focus distance, and the CoC (px) past which no pixel is marked
-    // (ResolvePass::area_blur; zeros: none).
-    float area_blur[4];
+    // focus distance, the CoC (px) past which no pixel is marked, and,
+    // for the cat's eye, its S and the shape's least reach, by which each
+    // pixel's limit grows (ResolvePass::area_blur; zeros: none).
+    float area_blur[6];
 } pc;
 
 #include "visibility_word.glsl"
@@ -79,16 +80,28 @@ bool all_of(ivec2 lo, ivec2 hi, uint64_t first, out vec2 zs) {
 }
 
 // Whether every depth in [zs.x, zs.y] blurs past the limit through the
-// lens after the G-buffer (pc.area_blur): the CoC grows away from the
-// focus on either side, so its least over the range is at an end, or 0
-// where the range holds the focus.
-bool blurred_past_limit(vec2 zs) {
+// lens after the G-buffer (pc.area_blur) at G-buffer pixel p: the CoC
+// grows away from the focus on either side, so its least over the range
+// is at an end, or 0 where the range holds the focus. With the cat's eye,
+// the blur spans at least the part of the CoC that the pixel's clipped
+// lens leaves (cat_eye_blur_reach).
+bool blurred_past_limit(ivec2 p, vec2 zs) {
     float f_px = pc.area_blur[0], radius = pc.area_blur[1], focus = pc.area_blur[2];
     float limit = pc.area_blur[3];
     if (limit <= 0.0 || (zs.x <= focus && zs.y >= focus)) {
         return false;
     }
-    return min(coc_px(zs.x, f_px, radius, focus), coc_px(zs.y, f_px, radius, focus)) > limit;
+    vec2 coc = vec2(coc_px(zs.x, f_px, radius, focus), coc_px(zs.y, f_px, radius, focus));
+    float least = min(coc.x, coc.y);
+    float cat_eye = pc.area_blur[4];
+    if (cat_eye > 0.0) {
+        vec2 half_frame = 0.5 * vec2(pc.frame_size);
+        float half_diag = length(half_frame);
+        vec2 d = (vec2(p + pc.window_origin) + 0.5 - half_frame) / half_diag;
+        float reach = cat_eye_blur_reach(pc.area_blur[5], cat_eye, d, half_diag, coc, zs.x > focus);
+        return least * reach > limit;
+    }
+    return least > limit;
 }
 #endif
 
@@ -105,7 +118,7 @@ void main() {
     ivec2 block, lo, hi;
     area_window(p, int(pc.scale), pc.extent.x, TARGET_FIRST_ROW, pc.target_end_row, block, lo, hi);
     vec2 zs;
-    if (!all_of(lo, hi, word_at(block), zs) && !blurred_past_limit(zs)) {
+    if (!all_of(lo, hi, word_at(block), zs) && !blurred_past_limit(p, zs)) {
         mark(p);
     }
 #endif

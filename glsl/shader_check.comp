@@ -1,17 +1,21 @@
 #version 460
 // Evaluates the GLSL includes that mirror CPU formulas (lens.glsl: the thin
-// lens of DESIGN §2; concentric.glsl: the concentric map of DESIGN §5) on a
-// list of inputs, so that tests/shaders.rs can compare them with
-// src/camera. Not used by the renderer.
+// lens of DESIGN §2; concentric.glsl: the concentric map of DESIGN §5;
+// aperture.glsl: the cat's eye's blur reach) on a list of inputs, so that
+// tests/shaders.rs can compare them with src/camera. Not used by the
+// renderer.
 #include "lens.glsl"
 #include "concentric.glsl"
+#include "aperture.glsl"
 
 layout(local_size_x = 64) in;
 
-// Per case: (z, u.x, u.y, unused), (square point a.x, a.y, disk point u.x, u.y).
+// Per case: (z, u.x, u.y, unused), (square point a.x, a.y, disk point u.x, u.y),
+// (d.x, d.y, coc.x, coc.y), (shape reach, cat's eye S, behind (0 or 1), |frame/2|).
 layout(binding = 0, std430) readonly buffer Inputs { vec4 inputs[]; };
 // Per case: (coc_px(z), lens_offset_px(z, u), signed_coc_px(z)),
-// (concentric_disk(a), concentric_square(u)).
+// (concentric_disk(a), concentric_square(u)), (cat_eye_blur_reach, 0, 0, 0),
+// zeros.
 layout(binding = 1, std430) writeonly buffer Outputs { vec4 outputs[]; };
 
 layout(push_constant, std430) uniform Push {
@@ -26,12 +30,18 @@ void main() {
     if (i >= pc.count) {
         return;
     }
-    vec4 lens_in = inputs[2 * i];
-    vec4 map_in = inputs[2 * i + 1];
+    vec4 lens_in = inputs[4 * i];
+    vec4 map_in = inputs[4 * i + 1];
+    vec4 cat_in = inputs[4 * i + 2];
+    vec4 reach_in = inputs[4 * i + 3];
     float z = lens_in.x;
     float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
     vec2 offset = lens_offset_px(z, lens_in.yz, pc.f_px, pc.aperture_radius, pc.focus_distance);
     float signed_c = signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
-    outputs[2 * i] = vec4(c, offset, signed_c);
-    outputs[2 * i + 1] = vec4(concentric_disk(map_in.xy), concentric_square(map_in.zw));
+    outputs[4 * i] = vec4(c, offset, signed_c);
+    outputs[4 * i + 1] = vec4(concentric_disk(map_in.xy), concentric_square(map_in.zw));
+    float reach = cat_eye_blur_reach(reach_in.x, reach_in.y, cat_in.xy, reach_in.w, cat_in.zw,
+                                     reach_in.z > 0.5);
+    outputs[4 * i + 2] = vec4(reach, 0.0, 0.0, 0.0);
+    outputs[4 * i + 3] = vec4(0.0);
 }

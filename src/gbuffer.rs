@@ -808,7 +808,7 @@ impl GBuffer {
                 target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
-                area_blur: [0.0; 4],
+                area_blur: [0.0; 6],
             };
             passes.resolve.record(
                 frame,
@@ -874,7 +874,7 @@ impl GBuffer {
                 target_rows: (0, height),
                 lens_weight: LensWeight::ONE,
                 color_scale: self.view.color_scale,
-                area_blur: [0.0; 4],
+                area_blur: [0.0; 6],
             };
             passes.resolve.record(
                 frame,
@@ -890,21 +890,31 @@ impl GBuffer {
     /// the area resolve leaves a pixel ([`ResolvePass::area_blur`]): the
     /// camera's, where `lens` says the method blurs through it. A shape
     /// blurs a point less far across than its CoC's disk: the limit grows
-    /// by the shape's least reach ([`crate::camera::Aperture::least_reach`]);
-    /// an aperture image or the cat's eye (a corner's clipped lens) may
-    /// blur a point hardly at all, and their frames mark every pixel, as
-    /// the pinhole's do.
-    fn area_blur(&self, lens: &GBufferLens) -> [f32; 4] {
+    /// by the shape's least reach ([`crate::camera::Aperture::least_reach`]),
+    /// and with the cat's eye by what each pixel's clipped lens leaves of
+    /// it, which the resolve works out
+    /// ([`crate::camera::Aperture::cat_eye_blur_reach`]); an aperture
+    /// image may blur a point hardly at all, and its frames mark every
+    /// pixel, as the pinhole's do.
+    fn area_blur(&self, lens: &GBufferLens) -> [f32; 6] {
         let camera = &self.view.frame.camera;
-        let reach = camera.aperture.least_reach();
-        match reach {
-            Some(reach) if lens.blurred_after && camera.aperture_radius > 0.0 => [
-                camera.f_px(),
-                camera.aperture_radius,
-                camera.focus_distance,
-                crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX / reach,
-            ],
-            _ => [0.0; 4],
+        let limit = crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
+        match camera.aperture.least_reach() {
+            Some(reach) if lens.blurred_after && camera.aperture_radius > 0.0 => {
+                let lens = [camera.f_px(), camera.aperture_radius, camera.focus_distance];
+                match camera.aperture.cat_eye > 0.0 {
+                    true => [
+                        lens[0],
+                        lens[1],
+                        lens[2],
+                        limit,
+                        camera.aperture.cat_eye,
+                        reach,
+                    ],
+                    false => [lens[0], lens[1], lens[2], limit / reach, 0.0, 0.0],
+                }
+            }
+            _ => [0.0; 6],
         }
     }
 

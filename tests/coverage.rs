@@ -94,6 +94,55 @@ fn area_coverage_sees_a_square_edge_as_its_area() {
     });
 }
 
+/// A compute-raster renderer, the blur limit's camera (192×72, focused at
+/// depth 2 through a lens of radius 0.2) and white squares 40.6 px wide,
+/// each centred at (pixel x in the row of centre 36, depth z).
+fn squares_in_depth(
+    ctx: &std::sync::Arc<pointlens::vk::Context>,
+    squares: &[(f32, f32)],
+) -> (Renderer, pointlens::camera::Camera, Scene) {
+    let mut renderer = Renderer::new(ctx).unwrap();
+    renderer.set_raster(Raster::Compute);
+    let camera = pointlens::camera::Camera {
+        aperture_radius: 0.2,
+        focus_distance: 2.0,
+        ..common::camera(192, 72)
+    };
+    let f = camera.f_px();
+    let points: Vec<_> = squares
+        .iter()
+        .map(|&(x, z)| (Vec3::new((x - 96.0) * z / f, 0.0, -z), Vec3::ONE))
+        .collect();
+    let scene = renderer
+        .upload(&common::cloud(&points), SplatSize::Pixels(40.6))
+        .unwrap();
+    (renderer, camera, scene)
+}
+
+/// The G-buffer's coverage down the middle rows (26–45) of two columns,
+/// the frame rendered with `method` at K = 3 and `coverage`.
+fn edge_alphas(
+    renderer: &mut Renderer,
+    scene: &Scene,
+    camera: pointlens::camera::Camera,
+    method: Method,
+    coverage: Coverage,
+    columns: [u32; 2],
+) -> (Vec<f32>, Vec<f32>) {
+    renderer.set_coverage(Some(coverage));
+    let options = RenderOptions {
+        ssaa: 3,
+        ..common::options(camera, method)
+    };
+    let (_, g) = renderer.render_with_gbuffer(scene, &options).unwrap();
+    let column = |x: u32| -> Vec<f32> {
+        (26..46u32)
+            .map(|y| g.color[((y + g.guard) * g.width + x + g.guard) as usize][3])
+            .collect()
+    };
+    (column(columns[0]), column(columns[1]))
+}
+
 /// Through a lens that blurs the G-buffer after it, a pixel whose every
 /// splat blurs past `AREA_BLUR_LIMIT_PX` keeps its samples' mean: two
 /// splats 40.6 px wide side by side, one at the focus (its left edge's
@@ -108,34 +157,12 @@ fn area_coverage_sees_a_square_edge_as_its_area() {
 fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
     use pointlens::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
     with_gpu(|ctx| {
-        let mut renderer = Renderer::new(ctx).unwrap();
-        renderer.set_raster(Raster::Compute);
-        let camera = pointlens::camera::Camera {
-            aperture_radius: 0.2,
-            focus_distance: 2.0,
-            ..common::camera(192, 72)
-        };
-        let f = camera.f_px();
-        // A point at depth z seen at pixel x, in the row of centre 36.
-        let at = |x: f32, z: f32| Vec3::new((x - 96.0) * z / f, 0.0, -z);
-        let cloud = common::cloud(&[(at(48.0, 2.0), Vec3::ONE), (at(144.0, 8.0), Vec3::ONE)]);
+        let (mut renderer, camera, scene) = squares_in_depth(ctx, &[(48.0, 2.0), (144.0, 8.0)]);
         let far_coc = camera.coc_px(8.0);
         assert!(far_coc > AREA_BLUR_LIMIT_PX, "{far_coc} px");
-        let scene = renderer.upload(&cloud, SplatSize::Pixels(40.6)).unwrap();
         let alphas = |renderer: &mut Renderer, camera, method: Method, coverage: Coverage| {
-            renderer.set_coverage(Some(coverage));
-            let options = RenderOptions {
-                ssaa: 3,
-                ..common::options(camera, method)
-            };
-            let (_, g) = renderer.render_with_gbuffer(&scene, &options).unwrap();
-            // The left edge's column of each square, down its middle rows.
-            let column = |x: u32| -> Vec<f32> {
-                (26..46u32)
-                    .map(|y| g.color[((y + g.guard) * g.width + x + g.guard) as usize][3])
-                    .collect()
-            };
-            (column(27), column(123))
+            // The left edge's column of each square.
+            edge_alphas(renderer, &scene, camera, method, coverage, [27, 123])
         };
         let fast = Method::Fast(Default::default());
         let (near, far) = alphas(&mut renderer, camera, fast, Coverage::Area);
@@ -180,6 +207,63 @@ fn a_blurred_pixel_keeps_its_samples_where_the_lens_blurs_past_the_limit() {
             );
             assert!((near_samples[i] - 1.0 / 3.0).abs() <= HALF_STEP, "row {i}");
             assert_eq!(f.to_bits(), far_samples[i].to_bits(), "row {i}: far {f}");
+        }
+    });
+}
+
+/// With the cat's eye, a pixel's limit grows by what its clipped lens
+/// leaves of the blur (`Aperture::cat_eye_blur_reach`): two squares far
+/// behind the focus (CoC 14.8 px; the background's 19.7) in a 192×72
+/// frame, their left edges at columns 123 and 179, through `layered` with
+/// S = 1. At column 123 (|d| ≈ 0.28) the blur still spans 0.68 of the
+/// CoC, 10 px: its samples, bit for bit; at column 179 (|d| ≈ 0.82) only
+/// 0.22, 3.3 px: by area. At S = 0.5 both keep their samples.
+#[test]
+fn the_cat_s_eye_leaves_a_pixel_to_its_samples_where_its_clipped_lens_still_blurs_past_the_limit() {
+    with_gpu(|ctx| {
+        let (mut renderer, camera, scene) = squares_in_depth(ctx, &[(144.0, 8.0), (200.0, 8.0)]);
+        let mut alphas = |cat_eye: f32, coverage: Coverage| {
+            let camera = pointlens::camera::Camera {
+                aperture: pointlens::camera::Aperture {
+                    cat_eye,
+                    ..pointlens::camera::Aperture::ROUND
+                },
+                ..camera
+            };
+            let layered = Method::layered(2);
+            edge_alphas(&mut renderer, &scene, camera, layered, coverage, [123, 179])
+        };
+        let column_edge = 1.0 / 128.0 + HALF_STEP;
+        for cat_eye in [1.0, 0.5] {
+            let (inner, outer) = alphas(cat_eye, Coverage::Area);
+            let (inner_samples, outer_samples) = alphas(cat_eye, Coverage::Samples);
+            for i in 0..inner.len() {
+                assert_eq!(
+                    inner[i].to_bits(),
+                    inner_samples[i].to_bits(),
+                    "S = {cat_eye}, row {i}: column 123's {}",
+                    inner[i]
+                );
+                assert!(
+                    (inner_samples[i] - 1.0 / 3.0).abs() <= HALF_STEP,
+                    "S = {cat_eye}, row {i}: samples' {}",
+                    inner_samples[i]
+                );
+                if cat_eye == 1.0 {
+                    assert!(
+                        (outer[i] - 0.3).abs() <= column_edge,
+                        "S = 1, row {i}: column 179's {}",
+                        outer[i]
+                    );
+                } else {
+                    assert_eq!(
+                        outer[i].to_bits(),
+                        outer_samples[i].to_bits(),
+                        "S = {cat_eye}, row {i}: column 179's {}",
+                        outer[i]
+                    );
+                }
+            }
         }
     });
 }

@@ -1,7 +1,8 @@
 //! The GLSL includes that mirror CPU formulas agree with them: `lens.glsl`
 //! (the thin lens of DESIGN §2) with `camera::Camera`, `concentric.glsl`
 //! (the concentric map of DESIGN §5) with `camera::concentric_disk` and
-//! `concentric_square`. `glsl/shader_check.comp` evaluates the GLSL side on
+//! `concentric_square`, `aperture.glsl`'s `cat_eye_blur_reach` with
+//! `camera::Aperture::cat_eye_blur_reach`. `glsl/shader_check.comp` evaluates the GLSL side on
 //! lavapipe for a few thousand inputs.
 
 mod common;
@@ -36,7 +37,7 @@ fn uniform(seed: u64) -> impl FnMut() -> f32 {
     }
 }
 
-/// Runs `shader_check.comp` on `inputs` (two vec4 per case) for `camera`.
+/// Runs `shader_check.comp` on `inputs` (four vec4 per case) for `camera`.
 fn evaluate_on_gpu(camera: &Camera, inputs: &[[f32; 4]]) -> Vec<[f32; 4]> {
     with_gpu(|ctx| {
         let pipeline = ComputePipeline::<Push>::new(
@@ -65,7 +66,7 @@ fn evaluate_on_gpu(camera: &Camera, inputs: &[[f32; 4]]) -> Vec<[f32; 4]> {
             MemoryLocation::GpuToCpu,
         )
         .unwrap();
-        let cases = (inputs.len() / 2) as u32;
+        let cases = (inputs.len() / 4) as u32;
         let mut frame = Frame::begin(ctx, "shader check").unwrap();
         frame.pass("shader_check", |rec| {
             rec.dispatch(
@@ -87,7 +88,7 @@ fn evaluate_on_gpu(camera: &Camera, inputs: &[[f32; 4]]) -> Vec<[f32; 4]> {
 }
 
 #[test]
-fn lens_and_concentric_includes_agree_with_the_cpu() {
+fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
     let camera = Camera {
         width: 640,
         height: 480,
@@ -124,9 +125,49 @@ fn lens_and_concentric_includes_agree_with_the_cpu() {
         };
         inputs.push([z, lens_u.x, lens_u.y, 0.0]);
         inputs.push([a.x, a.y, u.x, u.y]);
+        // The cat's eye: pixels over the frame and past its corners (|d|
+        // up to 1.2), CoC ranges on either side of the focus up to past
+        // the frame's half diagonal (where k changes sign), shapes from a
+        // sliver to round, S from 0 to 1.
+        let d = Vec2::new(2.4 * next() - 1.2, 2.4 * next() - 1.2);
+        let coc = Vec2::new(900.0 * next() * next(), 900.0 * next() * next());
+        let shape_reach = [1.0, 0.866_025_4, 0.25 + 0.75 * next()][i % 3];
+        let cat_eye = if i % 7 == 0 { 1.0 } else { next() };
+        let behind = (i % 2) as f32;
+        inputs.push([d.x, d.y, coc.x, coc.y]);
+        inputs.push([shape_reach, cat_eye, behind, 400.0]);
     }
     let outputs = evaluate_on_gpu(&camera, &inputs);
     assert_eq!(outputs.len(), inputs.len());
+    // The cat's eye's reach: + − × ÷, abs, min, max and one length (a
+    // square root, which Vulkan lets differ by a few ulp): 1e-5 of a CoC.
+    let (mut worst_reach, mut zero_reach, mut some_reach) = (0.0f32, 0, 0);
+    for case in 0..n {
+        let [dx, dy, c0, c1] = inputs[4 * case + 2];
+        let [shape_reach, cat_eye, behind, half_diag] = inputs[4 * case + 3];
+        let gpu = outputs[4 * case + 2][0];
+        let cpu = pointlens::camera::Aperture::cat_eye_blur_reach(
+            shape_reach,
+            cat_eye,
+            Vec2::new(dx, dy),
+            half_diag,
+            Vec2::new(c0, c1),
+            behind > 0.5,
+        );
+        worst_reach = worst_reach.max((gpu - cpu).abs());
+        zero_reach += (cpu == 0.0) as u32;
+        some_reach += (cpu > 0.0) as u32;
+    }
+    assert!(
+        worst_reach <= 1e-5,
+        "cat_eye_blur_reach: worst difference {worst_reach}"
+    );
+    // The inputs reach both outcomes: a blur and none (a sliver, or k's
+    // sign changing over the range).
+    assert!(
+        zero_reach > n as u32 / 50 && some_reach > n as u32 / 2,
+        "cat_eye_blur_reach: {zero_reach} zero, {some_reach} positive of {n}"
+    );
     // Tolerances: the lens formulas use only + − × ÷ and abs, so both sides
     // agree but for the GPU's division (2.5 ulp allowed): 1e-6 relative.
     // The maps go through sin, cos and atan, which Vulkan does not require
@@ -135,10 +176,10 @@ fn lens_and_concentric_includes_agree_with_the_cpu() {
     let mut signs_differ = 0;
     let mut bins_differ = 0;
     for case in 0..n {
-        let [z, ux, uy, _] = inputs[2 * case];
-        let [ax, ay, dx, dy] = inputs[2 * case + 1];
-        let [c, ox, oy, signed_c] = outputs[2 * case];
-        let [disk_x, disk_y, square_x, square_y] = outputs[2 * case + 1];
+        let [z, ux, uy, _] = inputs[4 * case];
+        let [ax, ay, dx, dy] = inputs[4 * case + 1];
+        let [c, ox, oy, signed_c] = outputs[4 * case];
+        let [disk_x, disk_y, square_x, square_y] = outputs[4 * case + 1];
         let cpu_c = camera.coc_px(z);
         worst_coc = worst_coc.max((c - cpu_c).abs() / cpu_c.max(1.0));
         let cpu_signed = camera.signed_coc_px(z);

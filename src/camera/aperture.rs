@@ -604,18 +604,59 @@ impl Aperture {
     }
 
     /// The least distance from the lens centre to the edge of the shape,
-    /// in lens radii, where it is the whole of T (blades, curvature,
-    /// squeeze, turn; None: an aperture image or the cat's eye, which
-    /// may pass less anywhere): a blade's middle lies (1 − C)·cos(π/N) + C
-    /// ≥ cos(π/N) out, and the squeeze narrows the shape by its ratio.
-    /// A point's blur through it spans at least this part of its CoC
+    /// in lens radii (blades, curvature, squeeze, turn; the cat's eye
+    /// apart: [`Aperture::cat_eye_blur_reach`]; None: an aperture image,
+    /// which may pass less anywhere): a blade's middle lies
+    /// (1 − C)·cos(π/N) + C ≥ cos(π/N) out, and the squeeze narrows the
+    /// shape by its ratio. The shape holds the disk of this radius, so a
+    /// point's blur through it spans at least this part of its CoC
     /// across, in every direction.
     pub fn least_reach(&self) -> Option<f32> {
-        if self.image.is_some() || self.cat_eye > 0.0 {
+        if self.image.is_some() {
             return None;
         }
         let squeeze = self.ratio.max(1.0 / self.ratio);
         Some(self.blade_cos() / squeeze)
+    }
+
+    /// The least part of its CoC across which a lens holding the disk of
+    /// radius `shape_reach` ([`Aperture::least_reach`]), clipped by the
+    /// cat's eye S = `cat_eye`, blurs a point seen at `d` (its pixel's
+    /// offset from the frame's centre over |frame/2|, as
+    /// [`Aperture::cat_eye_centre`]; `half_diag` = |frame/2| px) whose
+    /// CoC runs over the range of `coc`'s two ends (px) on one side of
+    /// the focus (`behind`: beyond it); 0 where it may not blur at all.
+    /// Mirrored by `cat_eye_blur_reach` in `glsl/aperture.glsl`.
+    ///
+    /// The pixels the point reaches see, in its lens positions, one circle
+    /// (`cat_circle` of `glsl/layered_spread.comp`): radius t = 1/|k| about
+    /// a centre δ·t from the lens's, δ = 2S·|d|, k = 1 ± S·CoC/|frame/2|
+    /// (+ behind the focus). Its meet with the disk of radius a is at
+    /// least min(2a, 2t, a + t − δt) across (along the line of the
+    /// centres), so the blur spans min(a, t, (a + (1 − δ)·t)/2) of the
+    /// CoC; each term is monotonic in t, which is monotonic in the CoC
+    /// where k keeps its sign, so the least over the range is at an end.
+    pub fn cat_eye_blur_reach(
+        shape_reach: f32,
+        cat_eye: f32,
+        d: Vec2,
+        half_diag: f32,
+        coc: Vec2,
+        behind: bool,
+    ) -> f32 {
+        let delta = 2.0 * cat_eye * d.length();
+        let s = if behind { cat_eye } else { -cat_eye };
+        let k = Vec2::ONE + s * coc / half_diag;
+        if k.x * k.y <= 0.0 {
+            // The circle of some CoC in the range passes through infinity.
+            return 0.0;
+        }
+        let t = Vec2::ONE / k.abs();
+        let edge = 0.5 * (Vec2::splat(shape_reach) + (1.0 - delta) * t);
+        shape_reach
+            .min(t.min_element())
+            .min(edge.min_element())
+            .max(0.0)
     }
 
     /// Whether the shape is a polygon of straight blades (N ≥ 3, C = 0).

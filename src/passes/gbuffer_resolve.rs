@@ -54,7 +54,7 @@ push_constants! {
         half_cell: f32,
         color_scale: f32,
         target_end_row: i32,
-        area_blur: [f32; 4],
+        area_blur: [f32; 6],
     }
 }
 
@@ -147,10 +147,12 @@ pub struct ResolvePass {
     /// sample's color is multiplied by it.
     pub color_scale: f32,
     /// The lens that blurs the G-buffer after it (f_px, aperture radius,
-    /// focus distance) and the CoC (px) past which the area resolve does
-    /// not mark a pixel ([`super::gbuffer_area::AREA_BLUR_LIMIT_PX`]);
-    /// zeros: every pixel its words mark.
-    pub area_blur: [f32; 4],
+    /// focus distance), the CoC (px) past which the area resolve does
+    /// not mark a pixel ([`super::gbuffer_area::AREA_BLUR_LIMIT_PX`]),
+    /// and with the cat's eye its S and the shape's least reach, by which
+    /// each pixel's limit grows ([`crate::camera::Aperture::cat_eye_blur_reach`];
+    /// else 0, 0); zeros: every pixel its words mark.
+    pub area_blur: [f32; 6],
 }
 
 impl ResolvePass {

@@ -19,12 +19,13 @@ vec2 cat_eye_centre(ivec2 p, ivec2 frame, float cat_eye) {
 }
 
 // The least part of its CoC across which a lens holding the disk of radius
-// shape_reach, clipped by the cat's eye S, blurs a point seen at d (as
-// cat_eye_centre's; half_diag = |frame/2| px) whose CoC runs over the
-// range of coc's two ends (px) on one side of the focus (behind: beyond
-// it); 0 where it may not blur at all (Aperture::cat_eye_blur_reach).
-float cat_eye_blur_reach(float shape_reach, float cat_eye, vec2 d, float half_diag, vec2 coc, bool behind) {
-    float delta = 2.0 * cat_eye * length(d);
+// shape_reach, clipped by the cat's eye S whose circle is centred at
+// `centre` (cat_eye_centre of the point's pixel; half_diag = |frame/2| px),
+// blurs a point whose CoC runs over the range of coc's two ends (px) on
+// one side of the focus (behind: beyond it); 0 where it may not blur at
+// all (Aperture::cat_eye_blur_reach).
+float cat_eye_blur_reach(float shape_reach, float cat_eye, vec2 centre, float half_diag, vec2 coc, bool behind) {
+    float delta = length(centre);
     float s = behind ? cat_eye : -cat_eye;
     vec2 k = vec2(1.0) + s * coc / half_diag;
     if (k.x * k.y <= 0.0) {

@@ -95,10 +95,9 @@ bool blurred_past_limit(ivec2 p, vec2 zs) {
     float least = min(coc.x, coc.y);
     float cat_eye = pc.area_blur[4];
     if (cat_eye > 0.0) {
-        vec2 half_frame = 0.5 * vec2(pc.frame_size);
-        float half_diag = length(half_frame);
-        vec2 d = (vec2(p + pc.window_origin) + 0.5 - half_frame) / half_diag;
-        float reach = cat_eye_blur_reach(pc.area_blur[5], cat_eye, d, half_diag, coc, zs.x > focus);
+        vec2 centre = cat_eye_centre(pc.window_origin + p, pc.frame_size, cat_eye);
+        float half_diag = length(0.5 * vec2(pc.frame_size));
+        float reach = cat_eye_blur_reach(pc.area_blur[5], cat_eye, centre, half_diag, coc, zs.x > focus);
         return least * reach > limit;
     }
     return least > limit;

@@ -11,7 +11,7 @@
 layout(local_size_x = 64) in;
 
 // Per case: (z, u.x, u.y, unused), (square point a.x, a.y, disk point u.x, u.y),
-// (d.x, d.y, coc.x, coc.y), (shape reach, cat's eye S, behind (0 or 1), |frame/2|).
+// (cat's eye centre x, y, coc.x, coc.y), (shape reach, cat's eye S, behind (0 or 1), |frame/2|).
 layout(binding = 0, std430) readonly buffer Inputs { vec4 inputs[]; };
 // Per case: (coc_px(z), lens_offset_px(z, u), signed_coc_px(z)),
 // (concentric_disk(a), concentric_square(u)), (cat_eye_blur_reach, 0, 0, 0),

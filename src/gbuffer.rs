@@ -898,21 +898,24 @@ impl GBuffer {
     /// pixel, as the pinhole's do.
     fn area_blur(&self, lens: &GBufferLens) -> [f32; 6] {
         let camera = &self.view.frame.camera;
-        let limit = crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
-        match camera.aperture.least_reach() {
+        let aperture = &camera.aperture;
+        let limit_px = crate::passes::gbuffer_area::AREA_BLUR_LIMIT_PX;
+        match aperture.least_reach() {
             Some(reach) if lens.blurred_after && camera.aperture_radius > 0.0 => {
-                let lens = [camera.f_px(), camera.aperture_radius, camera.focus_distance];
-                match camera.aperture.cat_eye > 0.0 {
-                    true => [
-                        lens[0],
-                        lens[1],
-                        lens[2],
-                        limit,
-                        camera.aperture.cat_eye,
-                        reach,
-                    ],
-                    false => [lens[0], lens[1], lens[2], limit / reach, 0.0, 0.0],
-                }
+                // The limit grows by the shape's reach here, or with the
+                // cat's eye by each pixel's in the resolve.
+                let (limit_px, cat_eye, shape_reach) = match aperture.cat_eye > 0.0 {
+                    true => (limit_px, aperture.cat_eye, reach),
+                    false => (limit_px / reach, 0.0, 0.0),
+                };
+                [
+                    camera.f_px(),
+                    camera.aperture_radius,
+                    camera.focus_distance,
+                    limit_px,
+                    cat_eye,
+                    shape_reach,
+                ]
             }
             _ => [0.0; 6],
         }

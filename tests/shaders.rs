@@ -134,7 +134,8 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
         let shape_reach = [1.0, 0.866_025_4, 0.25 + 0.75 * next()][i % 3];
         let cat_eye = if i % 7 == 0 { 1.0 } else { next() };
         let behind = (i % 2) as f32;
-        inputs.push([d.x, d.y, coc.x, coc.y]);
+        let centre = -2.0 * cat_eye * d;
+        inputs.push([centre.x, centre.y, coc.x, coc.y]);
         inputs.push([shape_reach, cat_eye, behind, 400.0]);
     }
     let outputs = evaluate_on_gpu(&camera, &inputs);
@@ -143,13 +144,13 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
     // square root, which Vulkan lets differ by a few ulp): 1e-5 of a CoC.
     let (mut worst_reach, mut zero_reach, mut some_reach) = (0.0f32, 0, 0);
     for case in 0..n {
-        let [dx, dy, c0, c1] = inputs[4 * case + 2];
+        let [cx, cy, c0, c1] = inputs[4 * case + 2];
         let [shape_reach, cat_eye, behind, half_diag] = inputs[4 * case + 3];
         let gpu = outputs[4 * case + 2][0];
         let cpu = pointlens::camera::Aperture::cat_eye_blur_reach(
             shape_reach,
             cat_eye,
-            Vec2::new(dx, dy),
+            Vec2::new(cx, cy),
             half_diag,
             Vec2::new(c0, c1),
             behind > 0.5,

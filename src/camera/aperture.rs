@@ -621,16 +621,16 @@ impl Aperture {
 
     /// The least part of its CoC across which a lens holding the disk of
     /// radius `shape_reach` ([`Aperture::least_reach`]), clipped by the
-    /// cat's eye S = `cat_eye`, blurs a point seen at `d` (its pixel's
-    /// offset from the frame's centre over |frame/2|, as
-    /// [`Aperture::cat_eye_centre`]; `half_diag` = |frame/2| px) whose
-    /// CoC runs over the range of `coc`'s two ends (px) on one side of
-    /// the focus (`behind`: beyond it); 0 where it may not blur at all.
-    /// Mirrored by `cat_eye_blur_reach` in `glsl/aperture.glsl`.
+    /// cat's eye S = `cat_eye` whose circle is centred at `centre`
+    /// ([`Aperture::cat_eye_centre`] of the point's pixel, −2S·d;
+    /// `half_diag` = |frame/2| px), blurs a point whose CoC runs over the
+    /// range of `coc`'s two ends (px) on one side of the focus (`behind`:
+    /// beyond it); 0 where it may not blur at all. Mirrored by
+    /// `cat_eye_blur_reach` in `glsl/aperture.glsl`.
     ///
     /// The pixels the point reaches see, in its lens positions, one circle
     /// (`cat_circle` of `glsl/layered_spread.comp`): radius t = 1/|k| about
-    /// a centre δ·t from the lens's, δ = 2S·|d|, k = 1 ± S·CoC/|frame/2|
+    /// a centre δ·t from the lens's, δ = |centre| = 2S·|d|, k = 1 ± S·CoC/|frame/2|
     /// (+ behind the focus). Its meet with the disk of radius a is at
     /// least min(2a, 2t, a + t − δt) across (along the line of the
     /// centres), so the blur spans min(a, t, (a + (1 − δ)·t)/2) of the
@@ -639,12 +639,12 @@ impl Aperture {
     pub fn cat_eye_blur_reach(
         shape_reach: f32,
         cat_eye: f32,
-        d: Vec2,
+        centre: Vec2,
         half_diag: f32,
         coc: Vec2,
         behind: bool,
     ) -> f32 {
-        let delta = 2.0 * cat_eye * d.length();
+        let delta = centre.length();
         let s = if behind { cat_eye } else { -cat_eye };
         let k = Vec2::ONE + s * coc / half_diag;
         if k.x * k.y <= 0.0 {

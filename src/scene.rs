@@ -458,6 +458,14 @@ impl DeviceSetup {
         renderer.make_pipelines_for(method)?;
         Ok(DeviceSetup::Points(renderer))
     }
+
+    /// The device opened.
+    pub fn ctx(&self) -> &Arc<Context> {
+        match self {
+            DeviceSetup::Points(renderer) => renderer.ctx(),
+            DeviceSetup::Gaussians(renderer) => renderer.ctx(),
+        }
+    }
 }
 
 /// A cloud read whole from `path`, refused in one line where it would

@@ -109,6 +109,7 @@ fn a_file_whose_kind_changed_between_its_two_reads_is_one_line_naming_it() {
         assert_ne!(host.kind(), opened_for);
         let built = host.build(&spec).unwrap();
         let setup = DeviceSetup::open(&device, opened_for, &spec, &Method::Pinhole).unwrap();
+        let log = setup.ctx().message_log();
         let message = match built.upload(setup, &spec) {
             Ok(_) => panic!(
                 "{}: uploaded to a device opened for another kind",
@@ -120,5 +121,9 @@ fn a_file_whose_kind_changed_between_its_two_reads_is_one_line_naming_it() {
             message,
             format!("{}: the file changed while it was read", path.display())
         );
+        // The device, dropped with the refusal, was used and let go of
+        // without a validation message.
+        let messages = log.messages();
+        assert!(messages.is_empty(), "validation reported {messages:?}");
     }
 }

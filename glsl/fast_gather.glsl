@@ -185,11 +185,24 @@ bool box_beyond_a_blade(vec2 mid, vec2 half_size, float reach, float s) {
 // centre along d_k (a curved blade bulges out to C·cos δ ≤ C beyond its
 // line). h a ten-thousandth past c/2, for the rounding. An even count's
 // blades come in opposite pairs: beyond one of blades k and k + N/2 on
-// either side alike.
+// either side alike. Without blades: beyond the squeezed circle, on
+// either side alike (it is symmetric about the lens centre).
 bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
     float h = 0.50005 * c;
-    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
     vec2 mid = 0.5 * vec2(v0 + v1), half_size = 0.5 * vec2(v1 - v0);
+    if (BLADES == 0) {
+        // The squeezed circle |M·v| <= h, across the axis g = Mᵀ·M·mid (its
+        // normal where the ray through the box's centre meets it): the
+        // ellipse reaches h·|M⁻ᵀ·g| = h·|M·mid| along g, the box no less
+        // than g·mid − |half_size.x·g.x| − |half_size.y·g.y|, and
+        // g·mid = |M·mid|². Its bounding box (shape_box_meets) leaves the
+        // corners between them to be opened down to the leaves.
+        vec2 mm = base_by_matrix(mid);
+        vec4 m = pc.base_from_lens;
+        vec2 g = vec2(m.x * mm.x + m.z * mm.y, m.y * mm.x + m.w * mm.y);
+        return dot(mm, mm) - dot(half_size, abs(g)) > h * length(mm);
+    }
+    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
     if (BLADES % 2 == 0) {
         bool beyond = false;
         for (int k = 0; k < BLADES / 2; ++k) {

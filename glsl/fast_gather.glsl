@@ -43,9 +43,10 @@ layout(push_constant, std430) uniform Push {
     // the shape (shape_reaches) instead of the disk; the tree takes a block
     // whole where its pixels lie within the disk of radius shape_inner
     // (ShapeRows::inner_radius) or the box (ShapeRows::inner_box) that
-    // the shape holds, and leaves it where they lie outside the shape's
-    // bounding box, scaled by the block's largest c and turned for the
-    // pixels in front of the focus.
+    // the shape holds, or within its blades' polygon or its ellipse, and
+    // leaves it where they lie outside the shape's bounding box, scaled by
+    // the block's largest c and turned for the pixels in front of the
+    // focus, or beyond one of its blades' lines or its ellipse.
     uint shaped;
     float focus_distance;
     vec2 shape_inner_box; // ShapeRows::inner_box: half-width, half-height
@@ -165,65 +166,30 @@ bool shape_reaches(ivec2 v, float c, float z) {
     return r2 <= h * h && most * (r - pc.curvature * h) <= (1.0 - pc.curvature) * pc.blade_cos * r * h;
 }
 
-// Whether the box of centre `mid` and half-size `half_size` lies beyond
-// one line of the blades on side s of the focus: for every offset x of it,
-// s·(x·n_k) = (M·x)·d_k times s is beyond `reach`. The least of s·(x·n_k)
-// over the box is s·(mid·n_k) − |half_size.x·n_k.x| − |half_size.y·n_k.y|.
-bool box_beyond_a_blade(vec2 mid, vec2 half_size, float reach, float s) {
-    bool beyond = false;
-    for (int k = 0; k < BLADES; ++k) {
-        vec2 n = blade_normals[k];
-        beyond = beyond || s * dot(mid, n) - dot(half_size, abs(n)) > reach;
-    }
-    return beyond;
-}
-
-// Whether no offset of the box [v0, v1] reaches Q through the shape for
-// any diameter up to c (a smaller one's shape lies in the larger's), on
-// each side of the focus that the depths zs (min, max) take: beyond one
-// of its blades' lines, which lie ((1 − C)·cos(π/N) + C)·h from the lens
-// centre along d_k (a curved blade bulges out to C·cos δ ≤ C beyond its
-// line). h a ten-thousandth past c/2, for the rounding. An even count's
-// blades come in opposite pairs: beyond one of blades k and k + N/2 on
-// either side alike. Without blades: beyond the squeezed circle, on
-// either side alike (it is symmetric about the lens centre).
-bool box_outside_shape(ivec2 v0, ivec2 v1, float c, vec2 zs) {
+// Whether no offset of the box [v0, v1] reaches Q through the squeezed
+// circle (no blades) for any diameter up to c (a smaller one's ellipse
+// lies in the larger's), on either side of the focus alike (it is
+// symmetric about the lens centre), h a ten-thousandth past c/2 for the
+// rounding: across the axis g = Mᵀ·M·mid (the ellipse's normal where the
+// ray through the box's centre meets it), the ellipse reaches
+// h·|M⁻ᵀ·g| = h·|M·mid| along g, the box no less than
+// g·mid − |half_size.x·g.x| − |half_size.y·g.y|, and g·mid = |M·mid|².
+// The shape's bounding box (shape_box_meets) alone left the corners
+// between the two to be opened down to the leaves.
+bool box_outside_ellipse(ivec2 v0, ivec2 v1, float c) {
     float h = 0.50005 * c;
     vec2 mid = 0.5 * vec2(v0 + v1), half_size = 0.5 * vec2(v1 - v0);
-    if (BLADES == 0) {
-        // The squeezed circle |M·v| <= h, across the axis g = Mᵀ·M·mid (its
-        // normal where the ray through the box's centre meets it): the
-        // ellipse reaches h·|M⁻ᵀ·g| = h·|M·mid| along g, the box no less
-        // than g·mid − |half_size.x·g.x| − |half_size.y·g.y|, and
-        // g·mid = |M·mid|². Its bounding box (shape_box_meets) leaves the
-        // corners between them to be opened down to the leaves.
-        vec2 mm = base_by_matrix(mid);
-        vec4 m = pc.base_from_lens;
-        vec2 g = vec2(m.x * mm.x + m.z * mm.y, m.y * mm.x + m.w * mm.y);
-        return dot(mm, mm) - dot(half_size, abs(g)) > h * length(mm);
-    }
-    float reach = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * h;
-    if (BLADES % 2 == 0) {
-        bool beyond = false;
-        for (int k = 0; k < BLADES / 2; ++k) {
-            vec2 n = blade_normals[k];
-            beyond = beyond || abs(dot(mid, n)) - dot(half_size, abs(n)) > reach;
-        }
-        return beyond;
-    }
-    bool behind = zs.y >= pc.focus_distance, front = zs.x < pc.focus_distance;
-    return (!behind || box_beyond_a_blade(mid, half_size, reach, -1.0))
-        && (!front || box_beyond_a_blade(mid, half_size, reach, 1.0));
+    vec2 mm = base_by_matrix(mid);
+    vec4 m = pc.base_from_lens;
+    vec2 g = vec2(m.x * mm.x + m.z * mm.y, m.y * mm.x + m.w * mm.y);
+    return dot(mm, mm) - dot(half_size, abs(g)) > h * length(mm);
 }
 
 // Whether every offset of the box [v0, v1] reaches Q through the
 // squeezed circle (no blades) for every diameter of c and more (a larger
 // one's ellipse holds the smaller's), whatever the side of the focus: its
 // corners lie within the ellipse |M·v| <= h, h a ten-thousandth short of
-// c/2 (it is convex: the corners decide; |v| <= |M·v| too). Blades keep
-// the inner disk and box alone: their polygon's test, cheaper by the
-// box's centre and half-size, took a fifth of the leaves away and no time
-// (docs/decisions/aperture-shape.md).
+// c/2 (it is convex: the corners decide; |v| <= |M·v| too).
 bool box_inside_ellipse(ivec2 v0, ivec2 v1, float c) {
     float h = 0.49995 * c;
     vec2 corners[4] = vec2[4](vec2(v0), vec2(v1.x, v0.y), vec2(v0.x, v1.y), vec2(v1));
@@ -233,6 +199,47 @@ bool box_inside_ellipse(ivec2 v0, ivec2 v1, float c) {
         inside = inside && dot(mv, mv) <= h * h;
     }
     return inside;
+}
+
+// Of the box [v0, v1] of offsets from Q, of depths bound.xy (min, max)
+// and diameters bound.zw (min, max), on each side of the focus its depths
+// take: x, whether no offset reaches Q through the blades for any
+// diameter up to bound.w (a smaller one's shape lies in the larger's):
+// the box lies beyond one of their lines, which lie ((1 − C)·cos(π/N) + C)·h
+// from the lens centre along d_k (a curved blade bulges out to
+// C·cos δ ≤ C beyond its line), h a ten-thousandth past c/2; y, whether
+// every offset reaches Q for every diameter of bound.z and more: the box
+// lies within the blades' polygon, whose lines lie cos(π/N)·h out, h a
+// ten-thousandth short of c/2 (the polygon lies within the shape whatever
+// the curvature: a curved blade bulges past its line between the same
+// corners, on the circle). Over the box, s·(v·n_k) runs s·(mid·n_k) ±
+// (|half_size.x·n_k.x| + |half_size.y·n_k.y|), worked out once a blade for
+// both. An even count's blades come in opposite pairs: half of them, on
+// either side alike.
+bvec2 blade_box(ivec2 v0, ivec2 v1, vec4 bound) {
+    float reach_out = ((1.0 - pc.curvature) * pc.blade_cos + pc.curvature) * 0.50005 * bound.w;
+    float reach_in = pc.blade_cos * 0.49995 * bound.z;
+    vec2 mid = 0.5 * vec2(v0 + v1), half_size = 0.5 * vec2(v1 - v0);
+    bool outside = false, inside = true;
+    if (BLADES % 2 == 0) {
+        for (int k = 0; k < BLADES / 2; ++k) {
+            vec2 n = blade_normals[k];
+            float along = abs(dot(mid, n)), across = dot(half_size, abs(n));
+            outside = outside || along - across > reach_out;
+            inside = inside && along + across <= reach_in;
+        }
+        return bvec2(outside, inside);
+    }
+    bool behind = bound.y >= pc.focus_distance, front = bound.x < pc.focus_distance;
+    bool out_behind = false, out_front = false;
+    for (int k = 0; k < BLADES; ++k) {
+        vec2 n = blade_normals[k];
+        float along = dot(mid, n), across = dot(half_size, abs(n));
+        out_behind = out_behind || -along - across > reach_out;
+        out_front = out_front || along - across > reach_out;
+        inside = inside && (!behind || -along + across <= reach_in) && (!front || along + across <= reach_in);
+    }
+    return bvec2((!behind || out_behind) && (!front || out_front), inside);
 }
 
 // Whether shape_reaches does not depend on the depth: an even count of
@@ -391,25 +398,28 @@ void main() {
                         ivec2 far = max(abs(x0 - q), abs(x1 - q));
                         float near2 = float(near.x * near.x + near.y * near.y);
                         float far2 = float(far.x * far.x + far.y * far.y);
+                        bvec2 blades = shaped() && BLADES > 0 ? blade_box(x0 - q, x1 - q, bound) : bvec2(false);
                         if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
                                 || (shaped() && (!shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy)
-                                                 || box_outside_shape(x0 - q, x1 - q, bound.w, bound.xy)))) {
+                                                 || (BLADES > 0 ? blades.x : box_outside_ellipse(x0 - q, x1 - q, bound.w))))) {
                             // No pixel passes: every one is behind Q, or out
                             // of its own disk's reach (0.25 c² grows with c,
                             // so the largest c bounds every pixel's test),
                             // or of the shape's box, or beyond one of its
-                            // blades.
+                            // blades or its squeezed circle.
                         } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
                                 && bound.y <= zq
                                 && (!(far2 > 0.25 * bound.z * bound.z * inner2)
                                     || (shaped()
                                         && (all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))
-                                            || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z)))))) {
+                                            || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z))
+                                            || (BLADES > 0 && blades.y))))) {
                             // Every pixel passes: inside the window, none
                             // behind Q, the farthest within the smallest
                             // disk's reach (a shape's: its inner disk's or
                             // inner box's, inside every chord, turned or
-                            // not; the squeezed circle's: the ellipse).
+                            // not; the blades' polygon; the squeezed
+                            // circle's ellipse).
                             sum += sums[at];
                             weight += weights[at];
                         } else if (l > TREE_LEAF_LEVEL) {

@@ -606,8 +606,9 @@ fn fast_follows_the_shape_on_the_bunny() {
         "{shaped:.2} against accum's round frame's {across:.2} dB"
     );
     // The block tree takes the same pixels (a block whole only within the
-    // shape's inner disk, left only outside its bounding box or beyond a
-    // blade's line): the pixel loop's image but for the order of its float
+    // shape's inner disk or box, its blades' polygon or its ellipse, left
+    // only outside its bounding box, beyond a blade's line or beyond its
+    // ellipse): the pixel loop's image but for the order of its float
     // sums (the EXR's half floats: 2^-11 near 1), under 5 blades, 6 curved
     // ones (which bulge past their lines) and a narrow anamorphic shape.
     let worst = |a: &LinearImage, b: &LinearImage| {

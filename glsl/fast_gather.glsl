@@ -317,6 +317,21 @@ ivec2 row_span(int dy, float t) {
     return ivec2(ceil(max(span.x, -1.0e6)), floor(min(span.y, 1.0e6)));
 }
 
+// The block after block b of level l in depth-first order under a top
+// block of level `top`, when b is not opened: up past last children (odd
+// x and y: as many levels as b.x & b.y has trailing ones), then on to the
+// next sibling: (1, y) after (0, y), (0, y + 1) after (1, y). `done` once
+// the way up comes back to the top block. The way up is computed, not
+// looped: each loop turn counts against llvmpipe's limit of 65,535 per
+// invocation.
+void next_block(inout int l, inout ivec2 b, int top, out bool done) {
+    int up = min(findLSB(~(b.x & b.y)), top - l);
+    l += up;
+    b >>= up;
+    done = l == top;
+    b = (b.x & 1) == 0 ? b + ivec2(1, 0) : b + ivec2(-1, 1);
+}
+
 void main() {
     set_blade_normals();
     ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
@@ -383,89 +398,98 @@ void main() {
                 ivec2 b = ivec2(bx, by);
                 bool done = false;
                 while (!done) {
-                    bool open = false;
-                    ivec2 x0 = b << l;
-                    ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
-                    if (any(greaterThan(x0, hi)) || any(lessThan(x1, lo))) {
-                        // Outside the window (or the padding beyond the
-                        // extent): nothing.
-                    } else {
-                        uint at = tree_index(pc.padded, l, b);
-                        vec4 bound = bounds[at]; // z min, z max, c min, c max
-                        // The nearest and farthest of the block's pixels
-                        // from Q, per axis (integers: the squares are exact).
-                        ivec2 near = max(max(x0 - q, q - x1), ivec2(0));
-                        ivec2 far = max(abs(x0 - q), abs(x1 - q));
-                        float near2 = float(near.x * near.x + near.y * near.y);
-                        float far2 = float(far.x * far.x + far.y * far.y);
-                        bvec2 blades = shaped() && BLADES > 0 ? blade_box(x0 - q, x1 - q, bound) : bvec2(false);
-                        if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
-                                || (shaped() && (!shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy)
-                                                 || (BLADES > 0 ? blades.x : box_outside_ellipse(x0 - q, x1 - q, bound.w))))) {
-                            // No pixel passes: every one is behind Q, or out
-                            // of its own disk's reach (0.25 c² grows with c,
-                            // so the largest c bounds every pixel's test),
-                            // or of the shape's box, or beyond one of its
-                            // blades or its squeezed circle.
-                        } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
-                                && bound.y <= zq
-                                && (!(far2 > 0.25 * bound.z * bound.z * inner2)
-                                    || (shaped()
-                                        && (all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))
-                                            || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z))
-                                            || (BLADES > 0 && blades.y))))) {
-                            // Every pixel passes: inside the window, none
-                            // behind Q, the farthest within the smallest
-                            // disk's reach (a shape's: its inner disk's or
-                            // inner box's, inside every chord, turned or
-                            // not; the blades' polygon; the squeezed
-                            // circle's ellipse).
-                            sum += sums[at];
-                            weight += weights[at];
-                        } else if (l > TREE_LEAF_LEVEL) {
-                            open = true;
+                    // The blocks up to the next leaf that is neither taken
+                    // nor left whole, or the last: llvmpipe runs every
+                    // branch that any of a row of eight lanes takes, and
+                    // a leaf's pixels in the loop of the visits would run
+                    // (masked) at every visit of every lane; here they run
+                    // once all lanes have come to a leaf or the end. Each
+                    // lane's sums are added in the same order as with the
+                    // leaf in the visits' loop: the same bits.
+                    bool leaf = false;
+                    while (!done && !leaf) {
+                        bool open = false;
+                        ivec2 x0 = b << l;
+                        ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
+                        if (any(greaterThan(x0, hi)) || any(lessThan(x1, lo))) {
+                            // Outside the window (or the padding beyond the
+                            // extent): nothing.
                         } else {
-                            // A leaf: its pixels in the window one by one,
-                            // with the two tests of the pixel loop below
-                            // (written out in both: a shared function made
-                            // the pixel loop 10-30 % slower on llvmpipe), as
-                            // a loop over its rows with the columns of a
-                            // fixed count (unrolled), so that leaves add few
-                            // turns to llvmpipe's loop limit.
-                            ivec2 p0 = max(x0, lo), p1 = min(x1, hi);
-                            for (int y = p0.y; y <= p1.y; ++y) {
-                                for (int i = 0; i < (1 << TREE_LEAF_LEVEL); ++i) {
-                                    ivec2 p = ivec2(x0.x + i, y);
-                                    if (p.x < p0.x || p.x > p1.x) {
-                                        continue;
-                                    }
-                                    ivec2 d = p - q;
-                                    vec2 cw = imageLoad(coc_weight, p).xy;
-                                    float zp = imageLoad(gbuffer_eye, p).z;
-                                    bool reaches = shaped()
-                                        ? shape_reaches(d, cw.x, zp)
-                                        : !(float(d.x * d.x + d.y * d.y) > 0.25 * cw.x * cw.x);
-                                    if (reaches && !(zp > zq)) {
-                                        sum += cw.y * imageLoad(gbuffer_color, p);
-                                        weight += cw.y;
-                                    }
+                            uint at = tree_index(pc.padded, l, b);
+                            vec4 bound = bounds[at]; // z min, z max, c min, c max
+                            // The nearest and farthest of the block's pixels
+                            // from Q, per axis (integers: the squares are exact).
+                            ivec2 near = max(max(x0 - q, q - x1), ivec2(0));
+                            ivec2 far = max(abs(x0 - q), abs(x1 - q));
+                            float near2 = float(near.x * near.x + near.y * near.y);
+                            float far2 = float(far.x * far.x + far.y * far.y);
+                            bvec2 blades = shaped() && BLADES > 0 ? blade_box(x0 - q, x1 - q, bound) : bvec2(false);
+                            if (bound.x > zq || near2 > 0.25 * bound.w * bound.w
+                                    || (shaped() && (!shape_box_meets(x0 - q, x1 - q, bound.w, bound.xy)
+                                                     || (BLADES > 0 ? blades.x : box_outside_ellipse(x0 - q, x1 - q, bound.w))))) {
+                                // No pixel passes: every one is behind Q, or out
+                                // of its own disk's reach (0.25 c² grows with c,
+                                // so the largest c bounds every pixel's test),
+                                // or of the shape's box, or beyond one of its
+                                // blades or its squeezed circle.
+                            } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
+                                    && bound.y <= zq
+                                    && (!(far2 > 0.25 * bound.z * bound.z * inner2)
+                                        || (shaped()
+                                            && (all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))
+                                                || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z))
+                                                || (BLADES > 0 && blades.y))))) {
+                                // Every pixel passes: inside the window, none
+                                // behind Q, the farthest within the smallest
+                                // disk's reach (a shape's: its inner disk's or
+                                // inner box's, inside every chord, turned or
+                                // not; the blades' polygon; the squeezed
+                                // circle's ellipse).
+                                sum += sums[at];
+                                weight += weights[at];
+                            } else if (l > TREE_LEAF_LEVEL) {
+                                open = true;
+                            } else {
+                                leaf = true;
+                            }
+                        }
+                        if (open) {
+                            l -= 1;
+                            b *= 2;
+                        } else if (!leaf) {
+                            next_block(l, b, top, done);
+                        }
+                    }
+                    if (leaf) {
+                        // A leaf: its pixels in the window one by one,
+                        // with the two tests of the pixel loop below
+                        // (written out in both: a shared function made
+                        // the pixel loop 10-30 % slower on llvmpipe), as
+                        // a loop over its rows with the columns of a
+                        // fixed count (unrolled), so that leaves add few
+                        // turns to llvmpipe's loop limit.
+                        ivec2 x0 = b << l;
+                        ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
+                        ivec2 p0 = max(x0, lo), p1 = min(x1, hi);
+                        for (int y = p0.y; y <= p1.y; ++y) {
+                            for (int i = 0; i < (1 << TREE_LEAF_LEVEL); ++i) {
+                                ivec2 p = ivec2(x0.x + i, y);
+                                if (p.x < p0.x || p.x > p1.x) {
+                                    continue;
+                                }
+                                ivec2 d = p - q;
+                                vec2 cw = imageLoad(coc_weight, p).xy;
+                                float zp = imageLoad(gbuffer_eye, p).z;
+                                bool reaches = shaped()
+                                    ? shape_reaches(d, cw.x, zp)
+                                    : !(float(d.x * d.x + d.y * d.y) > 0.25 * cw.x * cw.x);
+                                if (reaches && !(zp > zq)) {
+                                    sum += cw.y * imageLoad(gbuffer_color, p);
+                                    weight += cw.y;
                                 }
                             }
                         }
-                    }
-                    if (open) {
-                        l -= 1;
-                        b *= 2;
-                    } else {
-                        // Up past last children (odd x and y: as many
-                        // levels as b.x & b.y has trailing ones), then on
-                        // to the next sibling: (1, y) after (0, y), (0, y + 1)
-                        // after (1, y).
-                        int up = min(findLSB(~(b.x & b.y)), top - l);
-                        l += up;
-                        b >>= up;
-                        done = l == top;
-                        b = (b.x & 1) == 0 ? b + ivec2(1, 0) : b + ivec2(-1, 1);
+                        next_block(l, b, top, done);
                     }
                 }
             }

@@ -227,9 +227,16 @@ void main() {
     vec4 rest_own = vec4(0.0), rest_ring = vec4(0.0);  // color sum, hits
     float own_samples = 0.0, ring_samples = 0.0;
     float inv_k = 1.0 / side;
+    // Row by row: first which of the row's samples lie outside every
+    // candidate (bits by column), then their words alone, in the same
+    // order. llvmpipe runs a branch's body whenever any of a row of eight
+    // lanes takes it, so loads under a test of each sample cost every
+    // sample's; a loop over the set bits runs as often as the lane with
+    // the most.
     for (int y = t_lo.y; y < t_hi.y; ++y) {
         int v = y - block.y;
         int j = v < 0 ? k - 1 : (v >= k ? 0 : v);
+        uint outside = 0u;
         for (int x = t_lo.x; x < t_hi.x; ++x) {
             int u = x - block.x;
             int i = u < 0 ? k - 1 : (u >= k ? 0 : u);
@@ -239,17 +246,21 @@ void main() {
                 vec4 b = boxes[c];
                 inside = inside || (s.x >= b.x && s.x < b.y && s.y >= b.z && s.y < b.w);
             }
-            if (!inside) {
-                uint64_t word = word_at(ivec2(x, y));
-                vec4 seen = word == NOTHING
-                    ? vec4(pc.background.rgb, 0.0)
-                    : vec4(pc.color_scale * splat_color(word_splat(word)), 1.0);
-                bool own = u >= 0 && u < k && v >= 0 && v < k;
-                rest_own += own ? seen : vec4(0.0);
-                own_samples += own ? 1.0 : 0.0;
-                rest_ring += own ? vec4(0.0) : seen;
-                ring_samples += own ? 0.0 : 1.0;
-            }
+            outside |= inside ? 0u : 1u << uint(x - t_lo.x);
+        }
+        while (outside != 0u) {
+            int x = t_lo.x + findLSB(outside);
+            outside &= outside - 1u;
+            int u = x - block.x;
+            uint64_t word = word_at(ivec2(x, y));
+            vec4 seen = word == NOTHING
+                ? vec4(pc.background.rgb, 0.0)
+                : vec4(pc.color_scale * splat_color(word_splat(word)), 1.0);
+            bool own = u >= 0 && u < k && v >= 0 && v < k;
+            rest_own += own ? seen : vec4(0.0);
+            own_samples += own ? 1.0 : 0.0;
+            rest_ring += own ? vec4(0.0) : seen;
+            ring_samples += own ? 0.0 : 1.0;
         }
     }
     vec4 rest_sum = own_samples > 0.0 ? rest_own : rest_ring;

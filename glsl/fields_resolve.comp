@@ -100,21 +100,30 @@ void main() {
         int row = 0;
         for (int dy = -n; dy <= n; ++dy) {
             int h = fields_row_half(reach * reach, dy);
+            // Row by row: first the offsets whose pixel takes part (bits
+            // by column, its depth alone loaded), then those alone, in the
+            // same order: llvmpipe runs a branch's body, its loads too,
+            // whenever any of a row of eight lanes takes it, and a loop over
+            // the bits as often as the lane with the most.
+            uint taking = 0u;
             for (int dx = -h; dx <= h; ++dx) {
                 ivec2 p = q + ivec2(dx, dy);
                 if (all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, pc.extent))) {
                     float z = imageLoad(gbuffer_eye, p).z;
-                    if (!isinf(z) && (set == 1 || z < pc.focus_distance)) {
-                        float r = fields_radius(z);
-                        if (r < FIELDS_B0) {
-                            float s = share(FIELDS_T0_BASE, row, r, FIELDS_B0);
-                            front += imageLoad(gbuffer_color, p) * s;
-                            front_w += s;
-                        }
-                    }
+                    bool takes = !isinf(z) && (set == 1 || z < pc.focus_distance) && fields_radius(z) < FIELDS_B0;
+                    taking |= takes ? 1u << uint(dx + h) : 0u;
                 }
-                ++row;
             }
+            while (taking != 0u) {
+                int i = findLSB(taking);
+                taking &= taking - 1u;
+                ivec2 p = q + ivec2(i - h, dy);
+                float r = fields_radius(imageLoad(gbuffer_eye, p).z);
+                float s = share(FIELDS_T0_BASE, row + i, r, FIELDS_B0);
+                front += imageLoad(gbuffer_color, p) * s;
+                front_w += s;
+            }
+            row += max(2 * h + 1, 0);
         }
     }
     uint band_base = 0u;
@@ -143,27 +152,35 @@ void main() {
             int stride = fields_level_size(0).x;
             for (int dy = -n; dy <= n; ++dy) {
                 int h = fields_row_half(reach * reach, dy);
+                // As the bands' offsets above: first the offsets that hold
+                // a surface, then those alone.
+                uint holding = 0u;
                 for (int dx = -h; dx <= h; ++dx) {
                     ivec2 p = q + ivec2(dx, dy);
                     if (all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, pc.extent))) {
                         ivec2 a = p + pc.anchor;
-                        uint at = uint(a.y * stride + a.x);
-                        vec4 rest = far_rest[at];
-                        if (rest.x != 0.0) {
-                            vec4 c = far_color[at];
-                            if (rest.z > izq) {
-                                float s = share(FIELDS_T1_BASE, row, rest.y, small);
-                                ring += c * s;
-                                ring_w += s;
-                            } else {
-                                float s = share(FIELDS_T1_BASE, row, min(rest.y, rq), small);
-                                back += c * s;
-                                back_w += s;
-                            }
-                        }
+                        holding |= far_rest[uint(a.y * stride + a.x)].x != 0.0 ? 1u << uint(dx + h) : 0u;
                     }
-                    ++row;
                 }
+                while (holding != 0u) {
+                    int i = findLSB(holding);
+                    holding &= holding - 1u;
+                    ivec2 a = q + ivec2(i - h, dy) + pc.anchor;
+                    uint at = uint(a.y * stride + a.x);
+                    vec4 rest = far_rest[at];
+                    vec4 c = far_color[at];
+                    // In front of Q: its own radius; behind: at most Q's.
+                    bool in_front = rest.z > izq;
+                    float s = share(FIELDS_T1_BASE, row + i, in_front ? rest.y : min(rest.y, rq), small);
+                    if (in_front) {
+                        ring += c * s;
+                        ring_w += s;
+                    } else {
+                        back += c * s;
+                        back_w += s;
+                    }
+                }
+                row += max(2 * h + 1, 0);
             }
         } else {
             float spacing = rq / small;

@@ -110,6 +110,13 @@ bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
     // A hundredth of a percent wider: no rounding leaves out a pixel that
     // shape_reaches takes (the box holds the lens centre: it grows).
     vec4 b = 0.5001 * c * pc.shape_box;
+    if (BLADES % 2 == 0) {
+        // A shape symmetric about the lens centre (an even count of
+        // blades, or none): both sides' boxes are one, taken as their
+        // union for the rounding of the shape's bounds.
+        vec4 u = vec4(min(b.x, -b.y), max(b.y, -b.x), min(b.z, -b.w), max(b.w, -b.z));
+        return float(v0.x) <= u.y && float(v1.x) >= u.x && float(v0.y) <= u.w && float(v1.y) >= u.z;
+    }
     // Behind the focus (s = +1): v in −(c/2)·box; in front: (c/2)·box.
     vec4 behind = vec4(-b.y, -b.x, -b.w, -b.z);
     bool meets = false;

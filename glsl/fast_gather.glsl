@@ -62,6 +62,20 @@ layout(push_constant, std430) uniform Push {
 // specialization constant, id 1; src/passes/fast.rs, Fast::gather_for).
 layout(constant_id = 1) const int BLADES = 0;
 
+// M·x of Aperture::base_from_lens (Aperture::base_by_matrix mirrors it):
+// an offset or lens position, its squeeze undone, then turned.
+vec2 base_by_matrix(vec2 x) {
+    vec4 m = pc.base_from_lens;
+    return vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
+}
+
+// Mᵀ·x: a direction of M's image turned back to offsets or lens
+// positions (u·(Mᵀ·x) = (M·u)·x).
+vec2 base_by_matrix_transposed(vec2 x) {
+    vec4 m = pc.base_from_lens;
+    return vec2(m.x * x.x + m.z * x.y, m.y * x.x + m.w * x.y);
+}
+
 // The blades' middle directions turned back to lens positions: u·n_k is
 // (M·u)·d_k (Aperture::blade_middle; set once per invocation in main).
 vec2 blade_normals[BLADES > 0 ? BLADES : 1];
@@ -69,9 +83,7 @@ vec2 blade_normals[BLADES > 0 ? BLADES : 1];
 void set_blade_normals() {
     for (int k = 0; k < BLADES; ++k) {
         float phi = 1.5707964 + (float(k) + 0.5) * (6.2831855 / float(BLADES));
-        vec2 d = vec2(cos(phi), -sin(phi));
-        vec4 m = pc.base_from_lens;
-        blade_normals[k] = vec2(m.x * d.x + m.z * d.y, m.y * d.x + m.w * d.y);
+        blade_normals[k] = base_by_matrix_transposed(vec2(cos(phi), -sin(phi)));
     }
 }
 
@@ -79,13 +91,6 @@ void set_blade_normals() {
 // set with BLADES): their polygon lies within the circle |M·v| <= h, and
 // |v| <= |M·v|, so shape_reaches tests the blades alone.
 layout(constant_id = 11) const bool STRAIGHT = false;
-
-// M·x of Aperture::base_from_lens (Aperture::base_by_matrix mirrors it):
-// an offset or lens position, its squeeze undone, then turned.
-vec2 base_by_matrix(vec2 x) {
-    vec4 m = pc.base_from_lens;
-    return vec2(m.x * x.x + m.y * x.y, m.z * x.x + m.w * x.y);
-}
 
 // Whether every frame of the pipeline is shaped (id 10): a pipeline made
 // for shaped frames alone (Fast::gather_for), whose disk code is compiled
@@ -187,8 +192,7 @@ bool box_outside_ellipse(ivec2 v0, ivec2 v1, float c) {
     float h = 0.50005 * c;
     vec2 mid = 0.5 * vec2(v0 + v1), half_size = 0.5 * vec2(v1 - v0);
     vec2 mm = base_by_matrix(mid);
-    vec4 m = pc.base_from_lens;
-    vec2 g = vec2(m.x * mm.x + m.z * mm.y, m.y * mm.x + m.w * mm.y);
+    vec2 g = base_by_matrix_transposed(mm);
     return dot(mm, mm) - dot(half_size, abs(g)) > h * length(mm);
 }
 
@@ -414,10 +418,11 @@ void main() {
                     // lane's sums are added in the same order as with the
                     // leaf in the visits' loop: the same bits.
                     bool leaf = false;
+                    ivec2 x0, x1; // the block's first and last pixels: at the end, the leaf's
                     while (!done && !leaf) {
                         bool open = false;
-                        ivec2 x0 = b << l;
-                        ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
+                        x0 = b << l;
+                        x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
                         if (any(greaterThan(x0, hi)) || any(lessThan(x1, lo))) {
                             // Outside the window (or the padding beyond the
                             // extent): nothing.
@@ -475,8 +480,6 @@ void main() {
                         // a loop over its rows with the columns of a
                         // fixed count (unrolled), so that leaves add few
                         // turns to llvmpipe's loop limit.
-                        ivec2 x0 = b << l;
-                        ivec2 x1 = min(x0 + (1 << l) - 1, pc.extent - 1);
                         ivec2 p0 = max(x0, lo), p1 = min(x1, hi);
                         for (int y = p0.y; y <= p1.y; ++y) {
                             for (int i = 0; i < (1 << TREE_LEAF_LEVEL); ++i) {

@@ -749,6 +749,39 @@ impl Aperture {
         Vec2::new(m[0] * d.x + m[2] * d.y, m[1] * d.x + m[3] * d.y)
     }
 
+    /// The bounding box of the lens positions the shape passes
+    /// ([`Aperture::blades_pass`]), in lens units: [x min, x max, y min,
+    /// y max]. Straight blades: their polygon's corners, which lie on the
+    /// unit circle between the blades' middle directions. Curved blades
+    /// and the squeezed circle: the ellipse |M·u| ≤ 1, which holds them
+    /// (its half-extent along an axis is the norm of that row of M⁻¹).
+    /// `fast`'s tree leaves a block of offsets outside it, scaled.
+    pub fn lens_bounding_box(&self) -> [f32; 4] {
+        if self.has_straight_blades() {
+            let sector = std::f32::consts::TAU / self.blades as f32;
+            return (0..self.blades)
+                .map(|k| {
+                    let phi = std::f32::consts::FRAC_PI_2 + k as f32 * sector;
+                    self.lens_of(Vec2::new(phi.cos(), -phi.sin()))
+                })
+                .fold(
+                    [
+                        f32::INFINITY,
+                        f32::NEG_INFINITY,
+                        f32::INFINITY,
+                        f32::NEG_INFINITY,
+                    ],
+                    |b, u| [b[0].min(u.x), b[1].max(u.x), b[2].min(u.y), b[3].max(u.y)],
+                );
+        }
+        let (cx, cy) = (self.lens_of(Vec2::X), self.lens_of(Vec2::Y));
+        let (half_x, half_y) = (
+            Vec2::new(cx.x, cy.x).length(),
+            Vec2::new(cx.y, cy.y).length(),
+        );
+        [-half_x, half_x, -half_y, half_y]
+    }
+
     /// M·u of [`Aperture::base_from_lens`], as the GLSL tap test forms it.
     fn base_by_matrix(&self, u: Vec2) -> Vec2 {
         let m = self.base_from_lens();
@@ -954,26 +987,6 @@ impl ShapeRows {
         })
     }
 
-    /// The rows' bounding box in lens units: [x min, x max, y min, y max]
-    /// over the rows their chords hold (the circle's where none does).
-    pub fn bounding_box(&self) -> [f32; 4] {
-        let mut b = [
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        ];
-        for (y0, y1, [lo, hi]) in self.rows() {
-            if lo <= hi {
-                b = [b[0].min(lo), b[1].max(hi), b[2].min(y0), b[3].max(y1)];
-            }
-        }
-        match b[0] <= b[1] {
-            true => b,
-            false => [-1.0, 1.0, -1.0, 1.0],
-        }
-    }
-
     /// The radius of the largest disk about the lens centre that every
     /// lens position inside passes by these chords (the rows' own test,
     /// `shape_row_index` of `glsl/aperture.glsl`: the row of u.y, u.x
@@ -1002,16 +1015,27 @@ impl ShapeRows {
         rows.sort_by(|a, b| a.0.total_cmp(&b.0));
         // A half-height b reaches the rows nearer than b: for each next
         // distance, the rows before it and the widest x they all hold.
+        // A chord is the shape's at its row's centre, and the shape
+        // narrows within a row past it: the rows at distance b, whose
+        // centres lie beyond b, bound it too (the shape's half-width
+        // about x = 0 is concave in y, at least the lesser of two chords
+        // between their centres). A quarter of a row's height groups the
+        // two sides' rows at one distance whatever their rounding.
+        let quarter = 0.5 / self.chords.len() as f32;
         let (mut best, mut best_area) = ([0.0f32; 2], 0.0f32);
         let mut a = f32::INFINITY;
         for i in 0..rows.len() {
             a = a.min(rows[i].1);
             let b = rows.get(i + 1).map_or(1.0, |next| next.0);
-            if i + 1 < rows.len() && rows[i + 1].0 == rows[i].0 {
+            if i + 1 < rows.len() && rows[i + 1].0 <= rows[i].0 + quarter {
                 continue;
             }
+            let at_b = rows[i + 1..]
+                .iter()
+                .take_while(|row| row.0 <= b + quarter)
+                .fold(a, |a, row| a.min(row.1));
             // Within the circle too: the pixel test's |u| ≤ 1.
-            let a_in = a.min((1.0 - b * b).max(0.0).sqrt());
+            let a_in = at_b.min((1.0 - b * b).max(0.0).sqrt());
             let [a_in, b] = [a_in, b].map(|v| (v * (1.0 - 1e-5)).max(0.0));
             if a_in * b > best_area {
                 best_area = a_in * b;
@@ -1534,6 +1558,55 @@ mod tests {
                     inner * ((i % 997) as f32 / 996.0).sqrt(),
                 );
                 assert_rows_pass(&rows, r * Vec2::new(a.cos(), a.sin()));
+            }
+        }
+    }
+
+    /// What `fast`'s tree takes of the rows holds the shape itself, by the
+    /// test its pixels take (`blades_pass`, `shape_reaches` in GLSL): the
+    /// lens positions the shape passes lie within the bounding box (the
+    /// tree leaves a block outside it, a hundredth of a percent wider),
+    /// and the inner disk and the corners of the inner box and its mirror
+    /// (the shape is convex: the box within it) pass, for blades odd and
+    /// even, straight and curved, turned and squeezed.
+    #[test]
+    fn the_rows_bounds_hold_the_shape() {
+        let mut shapes = tested_shapes().to_vec();
+        shapes.push(blades(6, 15.0));
+        shapes.push(Aperture {
+            curvature: 0.5,
+            ..blades(6, 15.0)
+        });
+        for a in shapes {
+            let rows = a.shape_rows(512);
+            let [x_min, x_max, y_min, y_max] = a.lens_bounding_box().map(|v| v * 1.0002);
+            let inner = rows.inner_radius();
+            let [half_w, half_h] = rows.inner_box();
+            for i in 0..20_000 {
+                let angle = std::f32::consts::TAU * i as f32 / 20_000.0;
+                let dir = Vec2::new(angle.cos(), angle.sin());
+                assert!(
+                    a.blades_pass(inner * dir),
+                    "{a:?}: the inner disk {inner} at {angle}"
+                );
+                let (mut inside, mut outside) = (0.0f32, 1.5f32);
+                for _ in 0..40 {
+                    let mid = 0.5 * (inside + outside);
+                    match a.blades_pass(mid * dir) {
+                        true => inside = mid,
+                        false => outside = mid,
+                    }
+                }
+                let u = inside * dir;
+                assert!(
+                    u.x >= x_min && u.x <= x_max && u.y >= y_min && u.y <= y_max,
+                    "{a:?}: {u} outside the bounding box {:?}",
+                    a.lens_bounding_box()
+                );
+            }
+            for corner in [[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]] {
+                let u = Vec2::new(corner[0] * half_w, corner[1] * half_h);
+                assert!(a.blades_pass(u), "{a:?}: the inner box's corner {u}");
             }
         }
     }

@@ -335,12 +335,13 @@ struct ShapeTerms {
     inner: f32,
     /// [`ShapeRows::inner_box`].
     inner_box: [f32; 2],
-    /// [`ShapeRows::bounding_box`].
+    /// [`Aperture::lens_bounding_box`]: of the shape itself, which the
+    /// gathers' taps test, not of its chords.
     bounding_box: [f32; 4],
 }
 
 impl ShapeTerms {
-    fn of(shape: Option<&ShapeRows>) -> ShapeTerms {
+    fn of(aperture: &Aperture, shape: Option<&ShapeRows>) -> ShapeTerms {
         match shape {
             Some(s) => ShapeTerms {
                 shaped: 1,
@@ -349,7 +350,7 @@ impl ShapeTerms {
                 y_max: s.y_max,
                 inner: s.inner_radius(),
                 inner_box: s.inner_box(),
-                bounding_box: s.bounding_box(),
+                bounding_box: aperture.lens_bounding_box(),
             },
             None => ShapeTerms {
                 shaped: 0,
@@ -446,7 +447,7 @@ impl FastImages {
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
         let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "fast")?;
         Ok(FastImages {
-            shape: ShapeTerms::of(shape.as_ref()),
+            shape: ShapeTerms::of(&view.camera.aperture, shape.as_ref()),
             shape_chords,
             background_count: Buffer::new(
                 ctx,

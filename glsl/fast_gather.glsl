@@ -41,9 +41,10 @@ layout(push_constant, std430) uniform Push {
     ivec2 padded;   // the tree's padded extent (fast_tree.glsl)
     // A shaped aperture: a tap reaches Q where its lens position passes
     // the shape (shape_reaches) instead of the disk; the tree takes a block
-    // whole where its pixels lie within the disk of radius shape_inner
+    // whole where its pixels lie within its blades' polygon or its
+    // ellipse, or, for curved blades, the disk of radius shape_inner
     // (ShapeRows::inner_radius) or the box (ShapeRows::inner_box) that
-    // the shape holds, or within its blades' polygon or its ellipse, and
+    // the shape holds, and
     // leaves it where they lie outside the shape's bounding box, scaled by
     // the block's largest c and turned for the pixels in front of the
     // focus, or beyond one of its blades' lines or its ellipse.
@@ -52,7 +53,7 @@ layout(push_constant, std430) uniform Push {
     vec2 shape_inner_box; // ShapeRows::inner_box: half-width, half-height
     float shape_inner;
     float blade_cos;      // cos(π/N) of N blades
-    vec4 shape_box;       // the shape's bounding box: x min, x max, y min, y max
+    vec4 shape_box;       // Aperture::lens_bounding_box: x min, x max, y min, y max
     vec4 base_from_lens;  // Aperture::base_from_lens, row by row
     float curvature;      // of the blades
 } pc;
@@ -87,6 +88,17 @@ void set_blade_normals() {
     }
 }
 
+// The union of the shape's bounding box and its mirror through the lens
+// centre (x min, x max, y min, y max; set once per invocation in main):
+// the box of a shape symmetric about the centre on both sides of the
+// focus (shape_box_meets).
+vec4 shape_union_box;
+
+void set_shape_union_box() {
+    vec4 b = pc.shape_box;
+    shape_union_box = vec4(min(b.x, -b.y), max(b.y, -b.x), min(b.z, -b.w), max(b.w, -b.z));
+}
+
 // Whether the frame's blades are straight (id 11; Aperture::has_straight_blades,
 // set with BLADES): their polygon lies within the circle |M·v| <= h, and
 // |v| <= |M·v|, so shape_reaches tests the blades alone.
@@ -114,14 +126,16 @@ bool shaped() {
 bool shape_box_meets(ivec2 v0, ivec2 v1, float c, vec2 zs) {
     // A hundredth of a percent wider: no rounding leaves out a pixel that
     // shape_reaches takes (the box holds the lens centre: it grows).
-    vec4 b = 0.5001 * c * pc.shape_box;
+    float scale = 0.5001 * c;
     if (BLADES % 2 == 0) {
         // A shape symmetric about the lens centre (an even count of
         // blades, or none): both sides' boxes are one, taken as their
-        // union for the rounding of the shape's bounds.
-        vec4 u = vec4(min(b.x, -b.y), max(b.y, -b.x), min(b.z, -b.w), max(b.w, -b.z));
+        // union for the rounding of the shape's bounds (shape_union_box,
+        // scaled here: the bits of the scaled boxes' union, scale >= 0).
+        vec4 u = scale * shape_union_box;
         return float(v0.x) <= u.y && float(v1.x) >= u.x && float(v0.y) <= u.w && float(v1.y) >= u.z;
     }
+    vec4 b = scale * pc.shape_box;
     // Behind the focus (s = +1): v in −(c/2)·box; in front: (c/2)·box.
     vec4 behind = vec4(-b.y, -b.x, -b.w, -b.z);
     bool meets = false;
@@ -345,6 +359,7 @@ void next_block(inout int l, inout ivec2 b, int top, out bool done) {
 
 void main() {
     set_blade_normals();
+    set_shape_union_box();
     ivec2 q = pc.origin + ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(gl_GlobalInvocationID.xy, uvec2(pc.size)))) {
         return;
@@ -395,6 +410,13 @@ void main() {
     // cover the window.
     int top = r >= TREE_MIN_RADIUS ? min(findMSB(r), pc.levels) : 0;
     float inner2 = shaped() ? pc.shape_inner * pc.shape_inner : 1.0;
+    // Whether a shape's own test of the blocks it holds (straight blades'
+    // polygon, the squeezed circle's ellipse) takes all its inner disk and
+    // inner box do (they lie within it), so that those two are left out:
+    // in the pipelines made for shaped frames they are compiled away,
+    // where llvmpipe ran both at every visit. Curved blades bulge past
+    // their polygon, and their inner disk and box take blocks it does not.
+    bool exact_inside = shaped() && (STRAIGHT || BLADES == 0);
     if (top > 0) {
         ivec2 b_lo = lo >> top, b_hi = hi >> top;
         for (int by = b_lo.y; by <= b_hi.y; ++by) {
@@ -446,10 +468,11 @@ void main() {
                                 // blades or its squeezed circle.
                             } else if (all(greaterThanEqual(x0, lo)) && all(lessThanEqual(x1, hi))
                                     && bound.y <= zq
-                                    && (!(far2 > 0.25 * bound.z * bound.z * inner2)
+                                    && ((!exact_inside
+                                         && (!(far2 > 0.25 * bound.z * bound.z * inner2)
+                                             || (shaped() && all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box)))))
                                         || (shaped()
-                                            && (all(lessThanEqual(vec2(far), 0.5 * bound.z * pc.shape_inner_box))
-                                                || (BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z))
+                                            && ((BLADES == 0 && box_inside_ellipse(x0 - q, x1 - q, bound.z))
                                                 || (BLADES > 0 && blades.y))))) {
                                 // Every pixel passes: inside the window, none
                                 // behind Q, the farthest within the smallest

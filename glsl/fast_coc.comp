@@ -12,8 +12,10 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0, rgba32f) uniform readonly image2D gbuffer_eye;
 layout(binding = 1, rg32f) uniform writeonly image2D coc_weight;
-// A shaped aperture's chords (pc.shaped; Aperture::shape_rows).
-layout(binding = 2, std430) readonly buffer ShapeChords { vec2 shape_chords[]; };
+// A shaped aperture's reach thresholds, ascending (pc.shaped;
+// Aperture::tap_thresholds): the least half-CoC at which each pixel
+// offset reaches through the shape, those up to pc.reach_max.
+layout(binding = 2, std430) readonly buffer TapThresholds { float tap_thresholds[]; };
 // The background's pixel count: every pixel no splat covers has the CoC of
 // z = +inf, so the dispatch before the pass's own (pc.background_only)
 // counts it once, and those pixels skip the count's loop.
@@ -25,27 +27,35 @@ layout(push_constant, std430) uniform Push {
     float aperture_radius;
     float focus_distance;
     uint area_weights;
-    uint shaped;       // 1: the gather's taps follow the chords (fast_gather.glsl)
-    int shape_rows;
-    float shape_y_min; // the shape's vertical extent, lens units
-    float shape_y_max;
+    uint shaped;       // 1: the gather's taps follow the shape (fast_gather.glsl)
+    int tap_count;     // thresholds in tap_thresholds
+    float reach_max;   // the half-CoC they reach to (px)
     uint background_only; // 1: count the background's CoC into background_count
 } pc;
 
 // The pixel centres (integer offsets from a centre) inside the shape
 // scaled to diameter c, by the gather's own test (fast_gather.glsl,
-// shape_reaches): per row dy, the columns within the row's chord.
+// shape_reaches; Aperture::reaches): how many reach thresholds lie at or
+// below c/2, found by halving. Past the table (CoCs wider than the
+// frame's), its count grown with the area, (c/2 / reach_max)².
 float shape_pixel_count(float c) {
-    float r = 0.5 * c;
-    if (r <= 0.0) {
+    float h = 0.5 * c;
+    if (h <= 0.0) {
         return 1.0;
     }
-    float n = 0.0;
-    for (int dy = int(ceil(r * pc.shape_y_min)); dy <= int(floor(r * pc.shape_y_max)); ++dy) {
-        vec2 chord = shape_chords[shape_row_index(float(dy) / r, pc.shape_rows)];
-        n += max(floor(r * chord.y) - ceil(r * chord.x) + 1.0, 0.0);
+    if (h > pc.reach_max) {
+        return float(pc.tap_count) * (h / pc.reach_max) * (h / pc.reach_max);
     }
-    return max(n, 1.0);
+    int lo = 0, hi = pc.tap_count;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (tap_thresholds[mid] <= h) {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    return max(float(lo), 1.0);
 }
 
 // The pixel centres a pixel of CoC diameter c spreads over: the shape's or

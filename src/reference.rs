@@ -24,9 +24,36 @@ pub fn disk_pixel_count(c: f32) -> u32 {
     n.max(1)
 }
 
+/// The pixel offsets a pixel of CoC `c` spreads its light over through
+/// the camera's aperture: the disk's ([`disk_pixel_count`]) or, for a
+/// shape, those that reach by the taps' own test
+/// ([`crate::camera::Aperture::reaches`]; the lattice is symmetric, so
+/// either side of the focus).
+pub fn tap_count(camera: &Camera, c: f32) -> u32 {
+    let aperture = &camera.aperture;
+    if !aperture.is_shaped() {
+        return disk_pixel_count(c);
+    }
+    let h = 0.5 * c;
+    let m = h.max(0.0).ceil() as i64 + 1;
+    let mut n = 0;
+    for dy in -m..=m {
+        for dx in -m..=m {
+            if aperture.reaches(Vec2::new(dx as f32, dy as f32), h, true) {
+                n += 1;
+            }
+        }
+    }
+    n.max(1)
+}
+
 /// Zhao's fast approximation (DESIGN §4), unbounded: every pixel Q of the
-/// output averages, over all G-buffer pixels P with |p − q| ≤ c_P/2 and
-/// z_P ≤ z_Q, P's color weighted by `weights`. No tiles, no window bound.
+/// output averages, over all G-buffer pixels P with |p − q| ≤ c_P/2 (for a
+/// shaped aperture: p − q reaches Q through it, [`Aperture::reaches`]) and
+/// z_P ≤ z_Q, P's color weighted by `weights` (area: over [`tap_count`]).
+/// No tiles, no window bound.
+///
+/// [`Aperture::reaches`]: crate::camera::Aperture::reaches
 pub fn fast(gbuffer: &HostGBuffer, camera: &Camera, weights: FastWeights) -> LinearImage {
     let mut out = LinearImage::new(camera.width, camera.height, [0.0; 4]);
     let pixels: Vec<(u32, u32)> = (0..camera.height)
@@ -51,10 +78,11 @@ pub fn fast_at(
     let (w, h) = (gbuffer.width as i64, gbuffer.height as i64);
     let g = gbuffer.guard as i64;
     let coc: Vec<f32> = gbuffer.eye.iter().map(|e| camera.coc_px(e[2])).collect();
+    let shaped = camera.aperture.is_shaped();
     let weight: Vec<f32> = coc
         .iter()
         .map(|&c| match weights {
-            FastWeights::Area => 1.0 / disk_pixel_count(c) as f32,
+            FastWeights::Area => 1.0 / tap_count(camera, c) as f32,
             FastWeights::Uniform => 1.0,
         })
         .collect();
@@ -70,7 +98,16 @@ pub fn fast_at(
                     let i = (py * w + px) as usize;
                     let (dx, dy) = (px - qx, py - qy);
                     let c = coc[i];
-                    if ((dx * dx + dy * dy) as f32) > 0.25 * c * c || gbuffer.eye[i][2] > zq {
+                    let zp = gbuffer.eye[i][2];
+                    let reaches = match shaped {
+                        true => camera.aperture.reaches(
+                            Vec2::new(dx as f32, dy as f32),
+                            0.5 * c,
+                            zp >= camera.focus_distance,
+                        ),
+                        false => ((dx * dx + dy * dy) as f32) <= 0.25 * c * c,
+                    };
+                    if !reaches || zp > zq {
                         continue;
                     }
                     for (s, v) in sum.iter_mut().zip(&gbuffer.color[i]) {

@@ -584,23 +584,70 @@ impl Aperture {
         if self.blades == 0 {
             return r2 <= h * h;
         }
-        let normal = |k: u32| self.blade_normal(k);
-        let most = if self.blades.is_multiple_of(2) {
-            (0..self.blades / 2)
-                .map(|k| v.dot(normal(k)).abs())
-                .fold(0.0f32, f32::max)
-        } else {
-            let s = if behind { -1.0 } else { 1.0 };
-            (0..self.blades)
-                .map(|k| s * v.dot(normal(k)))
-                .fold(0.0f32, f32::max)
-        };
+        let most = self.blades_most(v, behind);
         if straight {
             return most <= self.blade_cos() * h;
         }
         let r = r2.sqrt();
         let c = self.curvature;
         r2 <= h * h && most * (r - c * h) <= (1.0 - c) * self.blade_cos() * r * h
+    }
+
+    /// m of [`Aperture::reaches`]: the largest s·(v·n_k) over the blades'
+    /// normals (s = −1 behind the focus), at least 0; an even count's
+    /// blades come in opposite pairs, so the largest |v·n_k| of the first
+    /// half, whatever the side.
+    fn blades_most(&self, v: Vec2, behind: bool) -> f32 {
+        let normal = |k: u32| self.blade_normal(k);
+        if self.blades.is_multiple_of(2) {
+            return (0..self.blades / 2)
+                .map(|k| v.dot(normal(k)).abs())
+                .fold(0.0f32, f32::max);
+        }
+        let s = if behind { -1.0 } else { 1.0 };
+        (0..self.blades)
+            .map(|k| s * v.dot(normal(k)))
+            .fold(0.0f32, f32::max)
+    }
+
+    /// The least half-CoC h (pixels) at which a pixel at offset v reaches
+    /// Q through the shape ([`Aperture::reaches`] from behind the focus;
+    /// the lattice of offsets is symmetric, so the count on either side is
+    /// the same): the shape grows with h, so v reaches from here on. The
+    /// squeezed circle's |M·v|; straight blades' m/cos(π/N); curved
+    /// blades', where m·(R − C·h) ≤ (1 − C)·cos(π/N)·R·h begins,
+    /// m·R/(C·m + (1 − C)·cos(π/N)·R), past |v| and R = |M·v|.
+    pub fn reach_threshold(&self, v: Vec2) -> f32 {
+        let r = self.base_by_matrix(v).length();
+        if self.blades == 0 {
+            return r.max(v.length());
+        }
+        let most = self.blades_most(v, true);
+        if self.has_straight_blades() {
+            return most / self.blade_cos();
+        }
+        let c = self.curvature;
+        let curved = match most * r {
+            0.0 => 0.0,
+            mr => mr / (c * most + (1.0 - c) * self.blade_cos() * r),
+        };
+        curved.max(r).max(v.length())
+    }
+
+    /// The reach thresholds ([`Aperture::reach_threshold`]) of every pixel
+    /// offset at or below half-CoC `max_h`, ascending: the count of pixels a
+    /// point of half-CoC h ≤ max_h spreads over is how many lie at or
+    /// below h (`fast_coc.comp` searches them; its gathers' taps take the
+    /// same test).
+    pub fn tap_thresholds(&self, max_h: f32) -> Vec<f32> {
+        let m = max_h.max(0.0).ceil() as i32 + 1;
+        let mut thresholds: Vec<f32> = (-m..=m)
+            .flat_map(|dy| (-m..=m).map(move |dx| Vec2::new(dx as f32, dy as f32)))
+            .map(|v| self.reach_threshold(v))
+            .filter(|&t| t <= max_h)
+            .collect();
+        thresholds.sort_by(f32::total_cmp);
+        thresholds
     }
 
     /// The least distance from the lens centre to the edge of the shape,
@@ -1607,6 +1654,40 @@ mod tests {
             for corner in [[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]] {
                 let u = Vec2::new(corner[0] * half_w, corner[1] * half_h);
                 assert!(a.blades_pass(u), "{a:?}: the inner box's corner {u}");
+            }
+        }
+    }
+
+    /// A pixel of half-CoC h spreads over as many offsets as reach by
+    /// the taps' own test ([`Aperture::reaches`]) as there are reach
+    /// thresholds at or below h, on either side of the focus, for blades
+    /// odd and even, straight and curved, turned and squeezed (the counts
+    /// `fast`'s weights divide by).
+    #[test]
+    fn the_thresholds_count_the_taps_that_reach() {
+        let mut next = {
+            let mut state = 0x2545_f491_4f6c_dd1du64;
+            move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            }
+        };
+        for a in tested_shapes() {
+            let thresholds = a.tap_thresholds(40.0);
+            assert!(thresholds.windows(2).all(|w| w[0] <= w[1]));
+            for _ in 0..60 {
+                let h = 0.3 + 39.5 * next();
+                let counted = thresholds.partition_point(|&t| t <= h);
+                let m = h.ceil() as i32 + 1;
+                for behind in [true, false] {
+                    let reached = (-m..=m)
+                        .flat_map(|dy| (-m..=m).map(move |dx| Vec2::new(dx as f32, dy as f32)))
+                        .filter(|&v| a.reaches(v, h, behind))
+                        .count();
+                    assert_eq!(counted, reached, "{a:?} at h = {h}, behind: {behind}");
+                }
             }
         }
     }

@@ -49,9 +49,8 @@ push_constants! {
         focus_distance: f32,
         area_weights: u32,
         shaped: u32,
-        shape_rows: i32,
-        shape_y_min: f32,
-        shape_y_max: f32,
+        tap_count: i32,
+        reach_max: f32,
         background_only: u32,
     }
 }
@@ -324,13 +323,15 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
     }
 }
 
-/// What the passes push of a shaped aperture's chords (the disk's
-/// defaults where there is no shape).
+/// The widest half-CoC (px) of a frame's table of reach thresholds
+/// (`Aperture::tap_thresholds`): some 206,000 pixel offsets, sorted on the
+/// host per shaped frame.
+const MAX_TABLE_REACH_PX: f32 = 256.0;
+
+/// What the passes push of a shaped aperture (the disk's defaults where
+/// there is no shape).
 struct ShapeTerms {
     shaped: u32,
-    rows: i32,
-    y_min: f32,
-    y_max: f32,
     /// [`ShapeRows::inner_radius`].
     inner: f32,
     /// [`ShapeRows::inner_box`].
@@ -345,18 +346,12 @@ impl ShapeTerms {
         match shape {
             Some(s) => ShapeTerms {
                 shaped: 1,
-                rows: s.chords.len() as i32,
-                y_min: s.y_min,
-                y_max: s.y_max,
                 inner: s.inner_radius(),
                 inner_box: s.inner_box(),
                 bounding_box: aperture.lens_bounding_box(),
             },
             None => ShapeTerms {
                 shaped: 0,
-                rows: 1,
-                y_min: 0.0,
-                y_max: 0.0,
                 inner: 1.0,
                 inner_box: [0.0; 2],
                 bounding_box: [-1.0, 1.0, -1.0, 1.0],
@@ -367,10 +362,14 @@ impl ShapeTerms {
 
 /// The images of one frame of the method.
 struct FastImages {
-    /// A shaped aperture's terms and chords (one unused entry for the
-    /// disk).
+    /// A shaped aperture's terms.
     shape: ShapeTerms,
-    shape_chords: Buffer,
+    /// Its reach thresholds up to `reach_max` px of half-CoC, `tap_count`
+    /// of them ([`Aperture::tap_thresholds`]; one unused entry for the
+    /// disk).
+    tap_thresholds: Buffer,
+    tap_count: i32,
+    reach_max: f32,
     /// The background's pixel count (`fast_coc.comp`), one float.
     background_count: Buffer,
     coc_weight: Image,
@@ -445,10 +444,27 @@ impl FastImages {
         let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
         let storage = vk::ImageUsageFlags::STORAGE;
         let image = |name, format, w, h, usage| Image::new_2d(ctx, name, format, w, h, 1, usage);
-        let (shape, shape_chords) = super::shape_chords(ctx, &view.camera, "fast")?;
+        let aperture = &view.camera.aperture;
+        let shape = aperture
+            .is_shaped()
+            .then(|| aperture.shape_rows(super::SHAPE_ROWS));
+        // The thresholds up to the frame's widest CoC, at most
+        // MAX_TABLE_REACH_PX of half-CoC (past it the count grows with the area).
+        let reach_max = (0.5 * view.max_coc_px + 1.0).clamp(1.0, MAX_TABLE_REACH_PX);
+        let thresholds = match shape {
+            Some(_) => aperture.tap_thresholds(reach_max),
+            None => vec![0.0],
+        };
         Ok(FastImages {
-            shape: ShapeTerms::of(&view.camera.aperture, shape.as_ref()),
-            shape_chords,
+            shape: ShapeTerms::of(aperture, shape.as_ref()),
+            tap_thresholds: Buffer::with_bytes(
+                ctx,
+                "fast tap thresholds",
+                bytemuck::cast_slice(&thresholds),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            )?,
+            tap_count: thresholds.len() as i32,
+            reach_max,
             background_count: Buffer::new(
                 ctx,
                 "fast background count",
@@ -501,7 +517,7 @@ impl FastFrame<'_> {
             let binds = [
                 Bind::StorageImage(input.eye),
                 Bind::StorageImage(&images.coc_weight),
-                Bind::StorageBuffer(&images.shape_chords),
+                Bind::StorageBuffer(&images.tap_thresholds),
                 Bind::StorageBuffer(&images.background_count),
             ];
             let push = |background_only: bool| CocPush {
@@ -511,9 +527,8 @@ impl FastFrame<'_> {
                 focus_distance: camera.focus_distance,
                 area_weights: (options.weights == FastWeights::Area) as u32,
                 shaped: images.shape.shaped,
-                shape_rows: images.shape.rows,
-                shape_y_min: images.shape.y_min,
-                shape_y_max: images.shape.y_max,
+                tap_count: images.tap_count,
+                reach_max: images.reach_max,
                 background_only: background_only as u32,
             };
             // The background's count, once; then every pixel's, the

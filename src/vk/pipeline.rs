@@ -632,9 +632,8 @@ mod tests {
             focus_distance: f32,
             area_weights: u32,
             shaped: u32,
-            shape_rows: i32,
-            shape_y_min: f32,
-            shape_y_max: f32,
+            tap_count: i32,
+            reach_max: f32,
             background_only: u32,
         }
     }
@@ -648,9 +647,8 @@ mod tests {
             focus_distance: f32,
             area_weights: u32,
             shaped: u32,
-            shape_rows: i32,
-            shape_y_min: f32,
-            shape_y_max: f32,
+            tap_count: i32,
+            reach_max: f32,
             background_only: u32,
         }
     }
@@ -664,15 +662,14 @@ mod tests {
             focus_distance: f32,
             area_weights: u32,
             shaped: u32,
-            shape_rows: i32,
-            shape_y_min: f32,
-            shape_y_max: f32,
+            tap_count: i32,
+            reach_max: f32,
         }
     }
 
     crate::push_constants! {
-        /// A field of another size (an i64 where GLSL has a uint; the
-        /// block's last field left out, which would pad the struct).
+        /// A field of another size (an i64 where GLSL has a uint, after
+        /// a pad that aligns it).
         struct Wide {
             extent: [i32; 2],
             f_px: f32,
@@ -681,9 +678,9 @@ mod tests {
             pad: f32,
             area_weights: u64,
             shaped: u32,
-            shape_rows: i32,
-            shape_y_min: f32,
-            shape_y_max: f32,
+            tap_count: i32,
+            reach_max: f32,
+            background_only: u32,
         }
     }
 
@@ -700,7 +697,7 @@ mod tests {
         ] {
             let err = result.expect_err(what).to_string();
             assert!(
-                err.contains("fast_coc") && err.contains("background_only@40+4"),
+                err.contains("fast_coc") && err.contains("background_only@36+4"),
                 "{what}: {err}"
             );
         }

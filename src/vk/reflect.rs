@@ -501,10 +501,9 @@ mod tests {
                 ("focus_distance", 16, 4),
                 ("area_weights", 20, 4),
                 ("shaped", 24, 4),
-                ("shape_rows", 28, 4),
-                ("shape_y_min", 32, 4),
-                ("shape_y_max", 36, 4),
-                ("background_only", 40, 4),
+                ("tap_count", 28, 4),
+                ("reach_max", 32, 4),
+                ("background_only", 36, 4),
             ],
         );
     }

@@ -8,7 +8,7 @@
 //! gather, pixel by pixel or by blocks: the same contributors,
 //! docs/ARCHITECTURE.md).
 
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -123,6 +123,37 @@ pub struct Fast {
     specialized: bool,
     /// `--fast-gather fields`.
     fields: super::fields::Fields,
+    /// The last shaped frame's reach thresholds, which the frames after it
+    /// through the same aperture take while they reach far enough.
+    tap_table: Mutex<Option<TapTable>>,
+}
+
+/// A shaped aperture's reach thresholds ([`Aperture::tap_thresholds`])
+/// up to `reach_max` px of half-CoC.
+#[derive(Clone)]
+struct TapTable {
+    aperture: Aperture,
+    reach_max: f32,
+    thresholds: Arc<Vec<f32>>,
+}
+
+impl TapTable {
+    /// The table for a frame through `aperture` whose widest CoC is
+    /// `max_coc_px`: `last` where it is that aperture's and reaches as far,
+    /// else one made up to the next power of two of the half-CoC (at most
+    /// [`MAX_TABLE_REACH_PX`]), so that an orbit's frames share it.
+    fn for_frame(last: Option<&TapTable>, aperture: &Aperture, max_coc_px: f32) -> TapTable {
+        let needed = (0.5 * max_coc_px + 1.0).clamp(1.0, MAX_TABLE_REACH_PX);
+        if let Some(last) = last.filter(|t| t.aperture == *aperture && t.reach_max >= needed) {
+            return last.clone();
+        }
+        let reach_max = needed.log2().ceil().exp2().min(MAX_TABLE_REACH_PX);
+        TapTable {
+            aperture: *aperture,
+            reach_max,
+            thresholds: Arc::new(aperture.tap_thresholds(reach_max)),
+        }
+    }
 }
 
 impl Fast {
@@ -150,6 +181,7 @@ impl Fast {
             )?,
             fields: super::fields::Fields::new(ctx, sizes)?,
             shaped_gathers: Default::default(),
+            tap_table: Mutex::new(None),
             specialized: true,
         })
     }
@@ -311,7 +343,7 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
                 view,
             )?));
         }
-        let images = FastImages::new(ctx, view, self.options)?;
+        let images = FastImages::new(ctx, view, self.options, &self.pipelines.tap_table)?;
         let gather =
             self.pipelines
                 .gather_for(ctx, &view.camera.aperture, images.tree.is_some())?;
@@ -323,9 +355,9 @@ impl DofMethod for Configured<'_, Fast, FastOptions> {
     }
 }
 
-/// The widest half-CoC (px) of a frame's table of reach thresholds
-/// (`Aperture::tap_thresholds`): some 206,000 pixel offsets, sorted on the
-/// host per shaped frame.
+/// The widest half-CoC (px) of a table of reach thresholds
+/// (`Aperture::tap_thresholds`): some 170,000 pixel offsets, sorted on the
+/// host in 15–25 ms, then kept for the frames after it.
 const MAX_TABLE_REACH_PX: f32 = 256.0;
 
 /// What the passes push of a shaped aperture (the disk's defaults where
@@ -423,7 +455,12 @@ impl FastTree {
 }
 
 impl FastImages {
-    fn new(ctx: &Arc<Context>, view: &FrameView, options: FastOptions) -> Result<FastImages> {
+    fn new(
+        ctx: &Arc<Context>,
+        view: &FrameView,
+        options: FastOptions,
+        tap_table: &Mutex<Option<TapTable>>,
+    ) -> Result<FastImages> {
         let (w, h) = (view.full_width(), view.full_height());
         // The widest window a tile can get (tile_dilate's radius, at most
         // the frame's largest CoC / 2; the fixed window's at least 0.5).
@@ -448,19 +485,23 @@ impl FastImages {
         let shape = aperture
             .is_shaped()
             .then(|| aperture.shape_rows(super::SHAPE_ROWS));
-        // The thresholds up to the frame's widest CoC, at most
-        // MAX_TABLE_REACH_PX of half-CoC (past it the count grows with the area).
-        let reach_max = (0.5 * view.max_coc_px + 1.0).clamp(1.0, MAX_TABLE_REACH_PX);
-        let thresholds = match shape {
-            Some(_) => aperture.tap_thresholds(reach_max),
-            None => vec![0.0],
+        // The thresholds up to the frame's widest CoC (past the table's
+        // reach the count grows with the area).
+        let (reach_max, thresholds) = match shape {
+            Some(_) => {
+                let mut last = tap_table.lock().unwrap_or_else(|e| e.into_inner());
+                let table = TapTable::for_frame(last.as_ref(), aperture, view.max_coc_px);
+                *last = Some(table.clone());
+                (table.reach_max, table.thresholds)
+            }
+            None => (1.0, Arc::new(vec![0.0])),
         };
         Ok(FastImages {
             shape: ShapeTerms::of(aperture, shape.as_ref()),
             tap_thresholds: Buffer::with_bytes(
                 ctx,
                 "fast tap thresholds",
-                bytemuck::cast_slice(&thresholds),
+                bytemuck::cast_slice(thresholds.as_slice()),
                 vk::BufferUsageFlags::STORAGE_BUFFER,
             )?,
             tap_count: thresholds.len() as i32,
@@ -754,6 +795,34 @@ impl DofFrame for FastFrame<'_> {
 mod tests {
     use super::*;
     use crate::vk::check_push_layout;
+
+    /// A shaped frame's table of reach thresholds is the last one where
+    /// the aperture is the same and it reaches as far, else one made to the
+    /// next power of two of the half-CoC: the same counts either way.
+    #[test]
+    fn frames_share_a_table_that_reaches_far_enough() {
+        let six = Aperture {
+            blades: 6,
+            ..Aperture::ROUND
+        };
+        let first = TapTable::for_frame(None, &six, 30.0);
+        assert_eq!(first.reach_max, 16.0);
+        let again = TapTable::for_frame(Some(&first), &six, 20.0);
+        assert!(Arc::ptr_eq(&first.thresholds, &again.thresholds));
+        let wider = TapTable::for_frame(Some(&first), &six, 100.0);
+        assert_eq!(wider.reach_max, 64.0);
+        let five = Aperture { blades: 5, ..six };
+        let other = TapTable::for_frame(Some(&first), &five, 20.0);
+        assert!(!Arc::ptr_eq(&first.thresholds, &other.thresholds));
+        assert_eq!(other.thresholds.len(), five.tap_thresholds(16.0).len());
+        // The wider table counts the narrower one's reach alike.
+        let count = |t: &TapTable, h: f32| t.thresholds.partition_point(|&x| x <= h);
+        for h in [0.5, 3.3, 9.9, 15.7] {
+            assert_eq!(count(&first, h), count(&wider, h));
+        }
+        let huge = TapTable::for_frame(None, &six, 5000.0);
+        assert_eq!(huge.reach_max, MAX_TABLE_REACH_PX);
+    }
 
     #[test]
     fn push_constants_match_the_glsl_blocks() {

@@ -143,7 +143,12 @@ impl TapTable {
     /// else one made up to the next power of two of the half-CoC (at most
     /// [`MAX_TABLE_REACH_PX`]), so that an orbit's frames share it.
     fn for_frame(last: Option<&TapTable>, aperture: &Aperture, max_coc_px: f32) -> TapTable {
-        let needed = (0.5 * max_coc_px + 1.0).clamp(1.0, MAX_TABLE_REACH_PX);
+        // An unbounded scene's widest CoC (infinite or NaN): the cap.
+        let half = 0.5 * max_coc_px + 1.0;
+        let needed = match half.is_nan() {
+            true => MAX_TABLE_REACH_PX,
+            false => half.clamp(1.0, MAX_TABLE_REACH_PX),
+        };
         if let Some(last) = last.filter(|t| t.aperture == *aperture && t.reach_max >= needed) {
             return last.clone();
         }
@@ -820,8 +825,10 @@ mod tests {
         for h in [0.5, 3.3, 9.9, 15.7] {
             assert_eq!(count(&first, h), count(&wider, h));
         }
-        let huge = TapTable::for_frame(None, &six, 5000.0);
-        assert_eq!(huge.reach_max, MAX_TABLE_REACH_PX);
+        for widest in [5000.0, f32::INFINITY, f32::NAN] {
+            let huge = TapTable::for_frame(None, &six, widest);
+            assert_eq!(huge.reach_max, MAX_TABLE_REACH_PX, "{widest}");
+        }
     }
 
     #[test]

@@ -6,7 +6,6 @@
 // (uniform weights, the paper's plain mean).
 #include "lens.glsl"
 #include "disk.glsl"
-#include "aperture.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 

@@ -467,6 +467,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 lod: Lod {
                     px: lod_px,
                     blur: None,
+                    cull_back_faces: false,
                 },
             };
             let what = |method: &str| format!("{} {width}×{height} {method}", model.name());

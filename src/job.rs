@@ -469,6 +469,7 @@ impl RenderJob {
                 // Progress only: an observer's error waits for the next event.
                 let _ = events(JobEvent::Loading { done, total });
             })?;
+            host.check_lod(&self.spec.lod, scene)?;
             let load_ms = t_load.elapsed().as_secs_f64() * 1e3;
             let plan = self.plan(host.framing())?;
             if let Some(video) = &self.video {

@@ -396,17 +396,18 @@ struct RenderArgs {
     /// (channel CoC: its circle of confusion, pixels). docs/SEQUENCES.md.
     #[arg(long, value_name = "z,coc", value_parser = parse_passes)]
     passes: Option<Passes>,
-    /// Level of detail: draw a node of the splat hierarchy as one splat
-    /// when it projects to at most P pixels (0: every point, no culling;
-    /// default 1).
-    #[arg(long, value_name = "P",
-          value_parser = checked_f32(check_lod_px))]
+    /// Level of detail: draw a node of the splat hierarchy as one splat where
+    /// it projects to at most P pixels (0: every point, no traversal; default 1).
+    #[arg(long, value_name = "P", value_parser = checked_f32(check_lod_px))]
     lod_px: Option<f32>,
     /// Blur-aware detail: a node may also stop where it projects to at most
     /// F times its circle of confusion (detail finer than the blur).
-    #[arg(long, value_name = "F",
-          value_parser = checked_f32(check_lod_blur))]
+    #[arg(long, value_name = "F", value_parser = checked_f32(check_lod_blur))]
     lod_blur: Option<f32>,
+    /// Skip points whose normals face away from the whole lens: faster on
+    /// closed scans, but they show at silhouettes and through holes.
+    #[arg(long)]
+    cull_back_faces: bool,
     /// Focus on the nearest surface seen at output pixel X,Y.
     #[arg(long, value_name = "X,Y", value_parser = parse_pixel)]
     focus_pixel: Option<[u32; 2]>,
@@ -441,16 +442,14 @@ struct GBufferArgs {
     /// tile the K×K grid; 1 = one pass per sample, the reference form).
     #[arg(long, value_name = "S", value_parser = checked(check_samples_per_pass))]
     samples_per_pass: Option<u32>,
-    /// How the G-buffer's splats are rasterised: sprites (hardware point
-    /// sprites, the reference), compute (compute shaders into a 64-bit
-    /// visibility buffer, every sample of a pixel in one pass), or auto
-    /// (the default): compute where the device has 64-bit buffer atomics
-    /// and no --samples-per-pass is given, else sprites.
+    /// How the G-buffer's splats are rasterised: sprites (hardware point sprites,
+    /// the reference), compute (compute shaders into a 64-bit visibility buffer,
+    /// every sample of a pixel in one pass), or auto (the default): compute where
+    /// the device has 64-bit buffer atomics and no --samples-per-pass, else sprites.
     #[arg(long, value_enum)]
     raster: Option<Raster>,
-    /// The shape of a splat: square (the default) or disc (the circle of
-    /// the same diameter, anti-aliased through the G-buffer's samples
-    /// alike).
+    /// The shape of a splat: square (the default) or disc (the circle of the
+    /// same diameter, anti-aliased through the G-buffer's samples alike).
     #[arg(long, value_enum, value_name = "SHAPE")]
     splat_shape: Option<SplatShape>,
     /// How the G-buffer weighs a pixel's splats (default: area).
@@ -689,6 +688,7 @@ fn job_spec(args: &RenderArgs) -> Result<JobSpec> {
         lod: Lod {
             px: args.lod_px.unwrap_or(pointlens::options::DEFAULT_LOD_PX),
             blur: args.lod_blur,
+            cull_back_faces: args.cull_back_faces,
         },
         written: Written {
             transparent: args.background == Some(Background::Transparent),

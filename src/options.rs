@@ -801,10 +801,15 @@ pub fn check_lod_blur(f: f32) -> Result<f32> {
     Ok(f)
 }
 
-/// A frame's level of detail: each number in range, and `--lod-blur` only
-/// with a traversal (`--lod-px` above 0).
+/// A frame's level of detail: each number in range, and `--lod-blur` and
+/// `--cull-back-faces` only with a traversal (`--lod-px` above 0).
 pub fn check_lod(lod: &Lod) -> Result<()> {
     check_lod_px(lod.px)?;
+    if lod.cull_back_faces && lod.draws_all() {
+        return Err(Error::InvalidArgument(
+            "--cull-back-faces needs --lod-px above 0 (--lod-px 0 draws every point)".into(),
+        ));
+    }
     if let Some(f) = lod.blur {
         check_lod_blur(f)?;
         if lod.draws_all() {
@@ -835,6 +840,12 @@ pub struct Lod {
     /// Also emit it when its projected diameter is at most this multiple
     /// of the smallest CoC over its depth range (None: off).
     pub blur: Option<f32>,
+    /// `--cull-back-faces`: drop the nodes whose normals face away from
+    /// every point of the lens. The splats are squares facing the camera,
+    /// which the path tracer draws whatever their normals, so this changes
+    /// the image (the silhouettes, and what shows through a scan's holes):
+    /// off by default (docs/decisions/back-face-culling.md).
+    pub cull_back_faces: bool,
 }
 
 /// `--lod-px`'s default: a node of the hierarchy drawn as one splat where
@@ -846,6 +857,7 @@ impl Default for Lod {
         Lod {
             px: DEFAULT_LOD_PX,
             blur: None,
+            cull_back_faces: false,
         }
     }
 }
@@ -855,6 +867,7 @@ impl Lod {
     pub const ALL: Lod = Lod {
         px: 0.0,
         blur: None,
+        cull_back_faces: false,
     };
 
     /// Whether the frame draws every point without a traversal.

@@ -241,6 +241,7 @@ impl Scene {
             lod: LodReport {
                 lod_px: key.lod.px,
                 lod_blur: key.lod.blur,
+                cull_back_faces: key.lod.cull_back_faces,
                 nodes_visited: traversal.nodes_visited,
                 splats_emitted: count as u64,
                 inner_emitted: traversal.inner_emitted,

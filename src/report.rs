@@ -67,6 +67,10 @@ pub struct Upload {
 pub struct LodReport {
     pub lod_px: f32,
     pub lod_blur: Option<f32>,
+    /// Whether the nodes facing away from the lens were dropped
+    /// (`--cull-back-faces`).
+    #[serde(default)]
+    pub cull_back_faces: bool,
     pub nodes_visited: u64,
     pub splats_emitted: u64,
     /// Inner nodes among the emitted splats.
@@ -217,10 +221,13 @@ impl FrameReport {
             }
             return s;
         }
-        let rule = match l.lod_blur {
+        let mut rule = match l.lod_blur {
             Some(f) => format!("lod-px {} lod-blur {f}", l.lod_px),
             None => format!("lod-px {}", l.lod_px),
         };
+        if l.cull_back_faces {
+            rule += ", back faces culled";
+        }
         let cached = if l.cached { " (last frame's)" } else { "" };
         s += &format!(
             "splats: {} emitted ({} inner nodes), {} nodes visited, {rule}{cached}\n",

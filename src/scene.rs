@@ -153,6 +153,12 @@ pub const FLAGS: &[SceneFlag] = &[
         why: Why::AboutPoints,
     },
     SceneFlag {
+        flag: "--cull-back-faces",
+        given: |j, _| j.lod.cull_back_faces,
+        kinds: POINTS,
+        why: Why::AboutPoints,
+    },
+    SceneFlag {
         flag: "--tile-px",
         given: |_, s| s.tile_px.is_some(),
         kinds: POINTS,
@@ -330,6 +336,23 @@ impl HostScene {
                 Ok(HostScene::Cloud(colored(cloud, &ranges)?))
             }
         }
+    }
+
+    /// Refuses `--cull-back-faces` (in `lod`) where the points have no
+    /// normals to cull by: a cloud read without them, a COPC file (its
+    /// points carry none).
+    pub fn check_lod(&self, lod: &Lod, spec: &SceneSpec) -> Result<()> {
+        let has_normals = match self {
+            HostScene::Cloud(cloud) => cloud.normals.is_some(),
+            HostScene::Copc { .. } | HostScene::Gaussians { .. } => false,
+        };
+        if lod.cull_back_faces && !has_normals {
+            return Err(Error::InvalidArgument(format!(
+                "{}: --cull-back-faces needs the points' normals, and the file has none",
+                spec.input.display()
+            )));
+        }
+        Ok(())
     }
 
     /// The kind of this scene.

@@ -250,6 +250,10 @@ fn bad_input_gives_one_line_and_no_output() {
             &["--lod-px", "0", "--lod-blur", "1"],
             "--lod-blur needs --lod-px above 0",
         ),
+        (
+            &["--lod-px", "0", "--cull-back-faces"],
+            "--cull-back-faces needs --lod-px above 0",
+        ),
     ] {
         let args: Vec<&str> = ["render", &b, "-o", &out_s]
             .iter()
@@ -258,6 +262,16 @@ fn bad_input_gives_one_line_and_no_output() {
             .collect();
         assert_fails(&args, phrase, &out);
     }
+    // Points without normals have nothing to cull by (the mug's file).
+    let mug = root()
+        .join("data/pcl_table_scene_mug_rgb.ply")
+        .display()
+        .to_string();
+    assert_fails(
+        &["render", &mug, "-o", &out_s, "--cull-back-faces"],
+        "pcl_table_scene_mug_rgb.ply: --cull-back-faces needs the points' normals, and the file has none",
+        &out,
+    );
     assert_fails(
         &["render", &b, "-o", &out_s, "--focus-distance", "-1"],
         "focus_distance",

@@ -361,6 +361,7 @@ fn a_frame_takes_the_nodes_its_camera_needs() {
         Lod {
             px: 1.0,
             blur: None,
+            cull_back_faces: false,
         },
     )
     .unwrap();
@@ -370,6 +371,7 @@ fn a_frame_takes_the_nodes_its_camera_needs() {
         Lod {
             px: 64.0,
             blur: None,
+            cull_back_faces: false,
         },
     )
     .unwrap();

@@ -318,6 +318,7 @@ fn area_coverage_brings_the_edges_near_k8_and_every_method_follows() {
             lod: Lod {
                 px: 0.0,
                 blur: None,
+                cull_back_faces: false,
             },
         };
         let k8 = RenderOptions { ssaa: 8, ..base };

@@ -241,6 +241,10 @@ fn the_command_line_knows_a_gaussian_scene() {
         (vec!["--raster", "compute"], "--raster is about points"),
         (vec!["--lod-px", "2"], "--lod-px is about points"),
         (
+            vec!["--cull-back-faces"],
+            "--cull-back-faces is about points",
+        ),
+        (
             vec!["--point-budget", "1000"],
             "--point-budget is about points",
         ),

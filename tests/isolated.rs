@@ -91,6 +91,7 @@ fn with_and_without(name: &str, cloud: &PointCloud) -> (f64, usize) {
                 lod: Lod {
                     px: 0.0,
                     blur: None,
+                    cull_back_faces: false,
                 },
             };
             renderer.render(&scene, &options).unwrap().image

@@ -162,10 +162,23 @@ fn a_job_checks_its_outputs_and_options_before_any_cloud() {
                 lod: Lod {
                     px: 0.0,
                     blur: Some(1.0),
+                    cull_back_faces: false,
                 },
                 ..spec(Shot::Single, &png)
             },
             "--lod-blur needs --lod-px above 0",
+        ),
+        (
+            "back faces culled without a traversal",
+            JobSpec {
+                lod: Lod {
+                    px: 0.0,
+                    blur: None,
+                    cull_back_faces: true,
+                },
+                ..spec(Shot::Single, &png)
+            },
+            "--cull-back-faces needs --lod-px above 0",
         ),
     ];
     std::fs::create_dir_all(dir.join("out_1")).unwrap();

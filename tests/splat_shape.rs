@@ -85,18 +85,21 @@ fn compute_and_sprite_discs_agree_on_the_bunny_with_every_method() {
             let compute = renderer.render(&scene, &opts).unwrap().image;
             renderer.set_raster(Raster::Sprites);
             let sprites = renderer.render(&scene, &opts).unwrap().image;
-            let converged = RenderOptions { ssaa: 8, ..opts };
+            let converged = RenderOptions { ssaa: 16, ..opts };
             let converged = renderer.render(&scene, &converged).unwrap().image;
             // The two take other samples (the compute rasteriser's
             // rotated grid, the sprites' grid of cell centres:
-            // tests/compute_raster.rs): against the sprites at K = 8, the
+            // tests/compute_raster.rs): against the sprites at K = 16, the
             // compute discs as close as the sprites' or closer, within
-            // `SAME_DB`, and within 30 dB (measured: compute 38.9–43.4 dB,
-            // sprites 38.2–43.2 dB; a disc's rim is not axis-aligned, so
-            // the rotated grid gains less than on a square's edges).
+            // `SAME_DB`, and within 30 dB (measured: compute 39.3–44.1 dB,
+            // sprites 39.0–44.0 dB; a disc's rim is not axis-aligned, so
+            // the rotated grid gains less than on a square's edges). At
+            // K = 8 the sprites' reference favoured its own grid: `rdb`'s
+            // compute image was 0.3 dB farther from it than the sprites',
+            // and 0.5 dB nearer than theirs to K = 16 of either raster.
             let what = format!("{method:?}");
-            let cc = assert_compute_as_close(&what, "K = 8", &converged, &sprites, &compute);
-            assert!(cc >= 30.0, "{what}: from K = 8 compute {cc:.2} dB");
+            let cc = assert_compute_as_close(&what, "K = 16", &converged, &sprites, &compute);
+            assert!(cc >= 30.0, "{what}: from K = 16 compute {cc:.2} dB");
             let squares = square.render(&square_scene, &opts).unwrap().image;
             let apart = psnr(&compute, &squares).unwrap();
             assert!(

@@ -417,7 +417,7 @@ impl SplatTree {
         &self.levels
     }
 
-    /// Whether the points had normals (else no back-face culling).
+    /// Whether the points had normals (`--cull-back-faces` needs them).
     pub fn has_normals(&self) -> bool {
         self.has_normals
     }

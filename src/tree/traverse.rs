@@ -93,9 +93,8 @@ fn push_piece(pieces: &mut Vec<Piece>, piece: Piece) {
 impl SplatTree {
     /// The splats of one frame (DESIGN §3, Zhao §2): from the root, drop
     /// nodes outside the view frustum widened by their largest CoC (and by
-    /// `widening`), drop
-    /// nodes whose normal cone faces away from every point of the lens,
-    /// emit a node when it is a leaf or its projected diameter is at most
+    /// `widening`), with `lod.cull_back_faces` drop nodes whose normal
+    /// cone faces away from every point of the lens, emit a node when it is a leaf or its projected diameter is at most
     /// `lod.px` (or `lod.blur` × its smallest CoC), otherwise recurse.
     /// With `lod.px` 0, every point in Morton order. Output order is Morton
     /// order, whatever `threads`.
@@ -283,7 +282,7 @@ impl SplatTree {
         if coc_px.is_some_and(|c| outside_frustum(view, e, r, c)) {
             return Test::Cull;
         }
-        if self.has_normals && back_facing(view, centre, r, s.color[3], cone_rad) {
+        if self.culls_back_faces(view) && back_facing(view, centre, r, s.color[3], cone_rad) {
             return Test::Cull;
         }
         if leaf {
@@ -307,6 +306,12 @@ impl SplatTree {
         Test::Recurse
     }
 
+    /// Whether the traversal drops the nodes that face away from the lens:
+    /// asked for (`--cull-back-faces`), and the points have normals.
+    fn culls_back_faces(&self, view: &View) -> bool {
+        self.has_normals && view.lod.cull_back_faces
+    }
+
     /// Whether recursing into inner node `i` of `level` (splat `s`, wholly
     /// in front of the lens, at eye-space centre `e`, normal cone
     /// `cone_rad`) would emit every leaf beneath it and nothing else, so
@@ -315,8 +320,8 @@ impl SplatTree {
     /// - the sphere lies inside the image's frustum unwidened (every test
     ///   beneath widens it by at least 1 px, and every sphere beneath lies
     ///   in this one);
-    /// - with normals, every normal of the cone faces the eye from every
-    ///   point of the sphere (so no cone beneath faces away from the whole
+    /// - culling back faces, every normal of the cone faces the eye from
+    ///   every point of the sphere (so no cone beneath faces away from the whole
     ///   lens);
     /// - no inner node beneath is small enough to be emitted: the smallest
     ///   one's size at the sphere's far depth exceeds the LOD threshold
@@ -336,7 +341,7 @@ impl SplatTree {
         if !inside_frustum(view, e, r) {
             return false;
         }
-        if self.has_normals {
+        if self.culls_back_faces(view) {
             let to_eye = view.camera.eye - centre;
             let d = to_eye.length();
             if d <= r {
@@ -546,8 +551,8 @@ mod tests {
     }
 
     /// Taking a subtree's leaves whole gives the splats, in order, that
-    /// testing each of its nodes gives: every tree (with and without
-    /// normals), camera (the sphere whole in view, filling it, cut by the
+    /// testing each of its nodes gives: every tree (without normals, and
+    /// with them culling back faces), camera (the sphere whole in view, filling it, cut by the
     /// frame's edges, through a pinhole and a wide lens), LOD rule and
     /// widening, whatever the threads; and it does take runs whole (fewer
     /// nodes tested) where the sphere is wholly in view.
@@ -561,6 +566,8 @@ mod tests {
                 normals: normals.as_deref(),
             };
             let tree = SplatTree::build(points, LeafSize::SpacingTimes(1.5), 2);
+            // With normals, the walk that culls back faces.
+            let cull = tree.has_normals();
             let cameras = [
                 camera(Vec3::new(0.3, 0.2, 6.0), 640, 0.0),
                 camera(Vec3::new(0.3, 0.2, 6.0), 1920, 0.2),
@@ -571,18 +578,22 @@ mod tests {
                 Lod {
                     px: 1.0,
                     blur: None,
+                    cull_back_faces: cull,
                 },
                 Lod {
                     px: 0.3,
                     blur: None,
+                    cull_back_faces: cull,
                 },
                 Lod {
                     px: 4.0,
                     blur: None,
+                    cull_back_faces: cull,
                 },
                 Lod {
                     px: 1.0,
                     blur: Some(1.0),
+                    cull_back_faces: cull,
                 },
             ];
             let widenings = [

@@ -545,3 +545,56 @@ fn splats_wider_than_the_frame_are_warned_of() {
         "{err}"
     );
 }
+
+/// The README's synopsis ("## Use") names every flag each command takes,
+/// as `--help` lists them (but help, the global -v/-q, and --output,
+/// written -o there): one list of flags, which the synopsis follows.
+#[test]
+fn the_readme_synopsis_names_every_flag() {
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let usage = readme
+        .split("## Use")
+        .nth(1)
+        .and_then(|s| s.split("```").nth(1))
+        .expect("README.md has a ## Use section with a code block");
+    let mut missing = Vec::new();
+    for command in ["render", "compare", "bench", "info", "convert", "synth"] {
+        // The command's line and the lines continuing it.
+        let head = format!("pointlens {command} ");
+        let mut lines = usage.lines().skip_while(|l| !l.starts_with(&head));
+        let first = lines.next().unwrap_or_else(|| panic!("no '{head}' line"));
+        let synopsis: String = std::iter::once(first)
+            .chain(lines.take_while(|l| l.starts_with(' ')))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let help = pointlens(&[command, "--help"]);
+        assert!(help.status.success(), "{command} --help");
+        let help = String::from_utf8_lossy(&help.stdout).into_owned();
+        let flags = help.lines().filter_map(|l| {
+            let l = l.trim_start();
+            let l = l
+                .strip_prefix("-")
+                .filter(|r| !r.starts_with('-'))
+                .map_or(l, |r| r.split_once(", ").map_or(l, |(_, rest)| rest));
+            let flag = l.strip_prefix("--")?;
+            let end = flag
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+                .unwrap_or(flag.len());
+            Some(format!("--{}", &flag[..end]))
+        });
+        for flag in flags {
+            let global = ["--help", "--verbose", "--quiet", "--output"].contains(&flag.as_str());
+            let named = synopsis.match_indices(&flag).any(|(i, _)| {
+                !synopsis[i + flag.len()..]
+                    .starts_with(|c: char| c.is_ascii_alphanumeric() || c == '-')
+            });
+            if !global && !named {
+                missing.push(format!("{command} {flag}"));
+            }
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "not in README.md's synopsis: {missing:?}"
+    );
+}

@@ -404,8 +404,8 @@ struct RenderArgs {
     /// F times its circle of confusion (detail finer than the blur).
     #[arg(long, value_name = "F", value_parser = checked_f32(check_lod_blur))]
     lod_blur: Option<f32>,
-    /// Skip points whose normals face away from the whole lens: faster on
-    /// closed scans, but they show at silhouettes and through holes.
+    /// Skip points whose normals face away from the whole lens: fewer splats
+    /// on closed scans, but they show at silhouettes and through holes.
     #[arg(long)]
     cull_back_faces: bool,
     /// Focus on the nearest surface seen at output pixel X,Y.

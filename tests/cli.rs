@@ -547,8 +547,8 @@ fn splats_wider_than_the_frame_are_warned_of() {
 }
 
 /// The README's synopsis ("## Use") names every flag each command takes,
-/// as `--help` lists them (but help, the global -v/-q, and --output,
-/// written -o there): one list of flags, which the synopsis follows.
+/// as `--help` lists them (but help, version, -v and -q, and --output,
+/// written so there): one list of flags, which the synopsis follows.
 #[test]
 fn the_readme_synopsis_names_every_flag() {
     let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
@@ -557,39 +557,65 @@ fn the_readme_synopsis_names_every_flag() {
         .nth(1)
         .and_then(|s| s.split("```").nth(1))
         .expect("README.md has a ## Use section with a code block");
+    // An option's line of clap's help: "  -o, --output <OUT>" or
+    // "      --camera <CAM.json>" (the examples are indented further).
+    let flag_of = |line: &str| -> Option<String> {
+        let rest = line.strip_prefix("      --").or_else(|| {
+            line.strip_prefix("  -")?
+                .split_once(", --")
+                .map(|(_, long)| long)
+        })?;
+        let end = rest
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+            .unwrap_or(rest.len());
+        Some(format!("--{}", &rest[..end]))
+    };
     let mut missing = Vec::new();
-    for command in ["render", "compare", "bench", "info", "convert", "synth"] {
+    // (the command, the fewest options its --help has: a parse that finds
+    // none cannot pass)
+    for (command, fewest) in [
+        ("", 5),
+        ("render", 60),
+        ("compare", 4),
+        ("bench", 20),
+        ("info", 5),
+        ("convert", 5),
+        ("synth", 7),
+    ] {
         // The command's line and the lines continuing it.
-        let head = format!("pointlens {command} ");
+        let head = match command {
+            "" => "pointlens [".to_string(),
+            c => format!("pointlens {c} "),
+        };
         let mut lines = usage.lines().skip_while(|l| !l.starts_with(&head));
         let first = lines.next().unwrap_or_else(|| panic!("no '{head}' line"));
         let synopsis: String = std::iter::once(first)
             .chain(lines.take_while(|l| l.starts_with(' ')))
             .collect::<Vec<_>>()
             .join("\n");
-        let help = pointlens(&[command, "--help"]);
-        assert!(help.status.success(), "{command} --help");
+        let args: Vec<&str> = [command, "--help"]
+            .into_iter()
+            .filter(|a| !a.is_empty())
+            .collect();
+        let help = std::process::Command::new(env!("CARGO_BIN_EXE_pointlens"))
+            .args(&args)
+            .env_remove("CLICOLOR_FORCE")
+            .env("NO_COLOR", "1")
+            .output()
+            .unwrap();
+        assert!(help.status.success(), "{args:?}");
         let help = String::from_utf8_lossy(&help.stdout).into_owned();
-        let flags = help.lines().filter_map(|l| {
-            let l = l.trim_start();
-            let l = l
-                .strip_prefix("-")
-                .filter(|r| !r.starts_with('-'))
-                .map_or(l, |r| r.split_once(", ").map_or(l, |(_, rest)| rest));
-            let flag = l.strip_prefix("--")?;
-            let end = flag
-                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
-                .unwrap_or(flag.len());
-            Some(format!("--{}", &flag[..end]))
-        });
+        let flags: Vec<String> = help.lines().filter_map(flag_of).collect();
+        assert!(flags.len() >= fewest, "{args:?}: {flags:?}");
         for flag in flags {
-            let global = ["--help", "--verbose", "--quiet", "--output"].contains(&flag.as_str());
+            let global = ["--help", "--version", "--verbose", "--quiet", "--output"]
+                .contains(&flag.as_str());
             let named = synopsis.match_indices(&flag).any(|(i, _)| {
                 !synopsis[i + flag.len()..]
                     .starts_with(|c: char| c.is_ascii_alphanumeric() || c == '-')
             });
             if !global && !named {
-                missing.push(format!("{command} {flag}"));
+                missing.push(format!("pointlens {command} {flag}"));
             }
         }
     }

@@ -205,6 +205,31 @@ fn back_facing_cones_are_culled_when_asked_and_clouds_without_normals_are_not() 
     // (a, b, 0) iff b − y − 0.2 > 0. The centre of the lens sees the back
     // of the points above y = −0.2; a lens of radius 1.5 sees every
     // point's front from its rim (y ≤ 1 < 1.3), so none may be culled.
+    // A single point (a tree without inner nodes) is tested alike.
+    let one = |cull_back_faces: bool| {
+        let cloud = PointCloud {
+            positions: vec![Vec3::new(0.0, 0.0, 2.0)],
+            colors: vec![Vec3::splat(0.5)],
+            normals: Some(vec![Vec3::Z]),
+            has_colors: true,
+            attributes: vec![],
+            ..Default::default()
+        };
+        let tree = SplatTree::build(points(&cloud), LeafSize::World(0.02), THREADS);
+        let lod = Lod {
+            px: 1e-4,
+            blur: None,
+            cull_back_faces,
+        };
+        tree.traverse(&plane_camera(0.0), lod, Widening::default(), THREADS)
+            .splats
+            .len()
+    };
+    assert_eq!(
+        (one(false), one(true)),
+        (1, 0),
+        "a single point facing away"
+    );
     let tilted = Vec3::new(0.0, 1.0, 0.1);
     let from_centre = count(Some(tilted), 0.0);
     assert!(from_centre < all * 2 / 3, "{from_centre} of {all}");

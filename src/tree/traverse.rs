@@ -112,10 +112,23 @@ impl SplatTree {
     fn traverse_with(&self, view: View, threads: usize) -> Traversal {
         let started = Instant::now();
         let lod = view.lod;
-        if lod.draws_all() || self.levels.is_empty() {
+        if lod.draws_all() {
             return Traversal {
                 splats: self.leaves.clone(),
                 nodes_visited: 0,
+                inner_emitted: 0,
+                ms: ms_since(started),
+            };
+        }
+        if self.levels.is_empty() {
+            // No inner node (a single point, or none): each leaf tested.
+            let splats: Vec<Splat> = (0..self.leaves.len())
+                .filter(|&i| matches!(self.test(&view, 0, i), Test::Emit))
+                .map(|i| self.leaves[i])
+                .collect();
+            return Traversal {
+                splats,
+                nodes_visited: self.leaves.len() as u64,
                 inner_emitted: 0,
                 ms: ms_since(started),
             };
@@ -552,7 +565,7 @@ mod tests {
 
     /// Taking a subtree's leaves whole gives the splats, in order, that
     /// testing each of its nodes gives: every tree (without normals, and
-    /// with them culling back faces), camera (the sphere whole in view, filling it, cut by the
+    /// with them, culling back faces or not), camera (the sphere whole in view, filling it, cut by the
     /// frame's edges, through a pinhole and a wide lens), LOD rule and
     /// widening, whatever the threads; and it does take runs whole (fewer
     /// nodes tested) where the sphere is wholly in view.
@@ -566,7 +579,7 @@ mod tests {
                 normals: normals.as_deref(),
             };
             let tree = SplatTree::build(points, LeafSize::SpacingTimes(1.5), 2);
-            // With normals, the walk that culls back faces.
+            // With normals, the walk that culls back faces too.
             let cull = tree.has_normals();
             let cameras = [
                 camera(Vec3::new(0.3, 0.2, 6.0), 640, 0.0),
@@ -596,6 +609,20 @@ mod tests {
                     cull_back_faces: cull,
                 },
             ];
+            // With normals, each rule also without the cull (the default).
+            let lods: Vec<Lod> = lods
+                .into_iter()
+                .flat_map(|l| match l.cull_back_faces {
+                    true => vec![
+                        Lod {
+                            cull_back_faces: false,
+                            ..l
+                        },
+                        l,
+                    ],
+                    false => vec![l],
+                })
+                .collect();
             let widenings = [
                 Widening::default(),
                 Widening {
@@ -604,7 +631,7 @@ mod tests {
                 },
             ];
             for (c, cam) in cameras.iter().enumerate() {
-                for lod in lods {
+                for &lod in &lods {
                     for widening in widenings {
                         let each = tree.traverse_each_node(cam, lod, widening, 2);
                         for threads in [1, 3] {

@@ -434,6 +434,7 @@ impl RenderJob {
     ) -> Result<Outcome> {
         let kind = crate::input::kind_of(&scene.input);
         scene::check_flags(kind, &self.spec, scene)?;
+        scene::check_lod_before_reading(kind, &self.spec.lod, scene)?;
         // Checked again by every frame; here before the file is read.
         if scene.edl.is_some() {
             crate::options::check_edl_with(&self.spec.method)?;

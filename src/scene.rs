@@ -262,6 +262,32 @@ pub fn check_flags(kind: SceneKind, job: &crate::job::JobSpec, scene: &SceneSpec
     }
 }
 
+/// Refuses `--cull-back-faces` (in `lod`) before the file is read where
+/// its kind or its header says its points have no normals (a COPC, LAS or
+/// LAZ file; a PLY file without `nx ny nz`); [`HostScene::check_lod`]
+/// checks again once it is read.
+pub fn check_lod_before_reading(kind: SceneKind, lod: &Lod, spec: &SceneSpec) -> Result<()> {
+    if !lod.cull_back_faces {
+        return Ok(());
+    }
+    let may = match kind {
+        SceneKind::Cloud => input::may_have_normals(&spec.input)?,
+        SceneKind::Copc | SceneKind::Gaussians => false,
+    };
+    match may {
+        true => Ok(()),
+        false => Err(no_normals(spec)),
+    }
+}
+
+/// `--cull-back-faces` refused: the points of `spec`'s file have no normals.
+fn no_normals(spec: &SceneSpec) -> Error {
+    Error::InvalidArgument(format!(
+        "{}: --cull-back-faces needs the points' normals, and the file has none",
+        spec.input.display()
+    ))
+}
+
 /// A scene read from its file, on the host.
 // One a job, held once: the variants' sizes do not matter.
 #[allow(clippy::large_enum_variant)]
@@ -346,13 +372,10 @@ impl HostScene {
             HostScene::Cloud(cloud) => cloud.normals.is_some(),
             HostScene::Copc { .. } | HostScene::Gaussians { .. } => false,
         };
-        if lod.cull_back_faces && !has_normals {
-            return Err(Error::InvalidArgument(format!(
-                "{}: --cull-back-faces needs the points' normals, and the file has none",
-                spec.input.display()
-            )));
+        match lod.cull_back_faces && !has_normals {
+            true => Err(no_normals(spec)),
+            false => Ok(()),
         }
-        Ok(())
     }
 
     /// The kind of this scene.

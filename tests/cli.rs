@@ -272,6 +272,21 @@ fn bad_input_gives_one_line_and_no_output() {
         "pcl_table_scene_mug_rgb.ply: --cull-back-faces needs the points' normals, and the file has none",
         &out,
     );
+    // Refused by the header, before the file is read: a PLY file without
+    // normals whose payload is cut short says so, not that it is short.
+    let short = dir.join("short.ply");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\n\
+        property float x\nproperty float y\nproperty float z\nend_header\n"
+        .to_vec();
+    bytes.extend([0u8; 100]);
+    std::fs::write(&short, bytes).unwrap();
+    let short_s = short.display().to_string();
+    assert_fails(
+        &["render", &short_s, "-o", &out_s, "--cull-back-faces"],
+        "short.ply: --cull-back-faces needs the points' normals",
+        &out,
+    );
+    assert_fails(&["render", &short_s, "-o", &out_s], "truncated", &out);
     assert_fails(
         &["render", &b, "-o", &out_s, "--focus-distance", "-1"],
         "focus_distance",

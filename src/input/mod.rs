@@ -224,6 +224,16 @@ pub fn kind_of(path: &Path) -> InputKind {
     }
 }
 
+/// Whether the points of the cloud at `path` may have normals, known
+/// before it is read: a PLY file's header says; LAS and LAZ carry none;
+/// what is not a regular file may (its reading tells).
+pub fn may_have_normals(path: &Path) -> Result<bool> {
+    if is_las(path) {
+        return Ok(false);
+    }
+    Ok(ply::declares_normals(path)?.unwrap_or(true))
+}
+
 /// Whether `path` holds a LAS or LAZ file: by its first four bytes where it
 /// is a regular file, else by its extension.
 pub fn is_las(path: &Path) -> bool {

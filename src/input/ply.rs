@@ -187,6 +187,16 @@ pub fn declared_points(path: &Path) -> Result<Option<(u64, bool, u64)>> {
     Ok(Some((vertex.count as u64, ascii, payload_len)))
 }
 
+/// Whether a PLY file's header declares vertex normals (`nx ny nz`), read
+/// without the payload; None for what is not a regular file.
+pub fn declares_normals(path: &Path) -> Result<Option<bool>> {
+    let Opened::Regular { header, .. } = open_ply(path, 64 << 10)? else {
+        return Ok(None);
+    };
+    let (_, layout) = vertex_element(&header, path)?;
+    Ok(Some(layout.normals))
+}
+
 /// Vertices of a [`VertexChunks`] chunk.
 pub struct Chunk {
     /// File coordinates, as the file holds them.

@@ -94,8 +94,9 @@ impl SplatTree {
     /// The splats of one frame (DESIGN §3, Zhao §2): from the root, drop
     /// nodes outside the view frustum widened by their largest CoC (and by
     /// `widening`), with `lod.cull_back_faces` drop nodes whose normal
-    /// cone faces away from every point of the lens, emit a node when it is a leaf or its projected diameter is at most
-    /// `lod.px` (or `lod.blur` × its smallest CoC), otherwise recurse.
+    /// cone faces away from every point of the lens, emit a node when it
+    /// is a leaf or its projected diameter is at most `lod.px` (or
+    /// `lod.blur` × its smallest CoC), otherwise recurse.
     /// With `lod.px` 0, every point in Morton order. Output order is Morton
     /// order, whatever `threads`.
     pub fn traverse(
@@ -334,8 +335,8 @@ impl SplatTree {
     ///   beneath widens it by at least 1 px, and every sphere beneath lies
     ///   in this one);
     /// - culling back faces, every normal of the cone faces the eye from
-    ///   every point of the sphere (so no cone beneath faces away from the whole
-    ///   lens);
+    ///   every point of the sphere (so no cone beneath faces away from the
+    ///   whole lens);
     /// - no inner node beneath is small enough to be emitted: the smallest
     ///   one's size at the sphere's far depth exceeds the LOD threshold
     ///   and, for `lod.blur`, the largest CoC over the sphere's depths
@@ -565,10 +566,11 @@ mod tests {
 
     /// Taking a subtree's leaves whole gives the splats, in order, that
     /// testing each of its nodes gives: every tree (without normals, and
-    /// with them, culling back faces or not), camera (the sphere whole in view, filling it, cut by the
-    /// frame's edges, through a pinhole and a wide lens), LOD rule and
-    /// widening, whatever the threads; and it does take runs whole (fewer
-    /// nodes tested) where the sphere is wholly in view.
+    /// with them, culling back faces or not), camera (the sphere whole in
+    /// view, filling it, cut by the frame's edges, through a pinhole and a
+    /// wide lens), LOD rule and widening, whatever the threads; and it does
+    /// take runs whole (fewer nodes tested) where the sphere is wholly in
+    /// view.
     #[test]
     fn runs_of_leaves_taken_whole_are_what_each_node_gives() {
         for normals in [false, true] {

@@ -13,6 +13,7 @@
 // origin, scan_origin, bins, pairs, f_px, aperture_radius, focus_distance.
 #include "lens.glsl"
 #include "concentric.glsl"
+#include "aperture.glsl"
 
 void main() {
     ivec2 p = pc.scan_origin + ivec2(gl_GlobalInvocationID.xy);
@@ -26,8 +27,29 @@ void main() {
     int n2 = pc.bins * pc.bins;
     float c = coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
     if (pc.pairs == 0u) {
+        if (APERTURE_CODE && pc.cat_lens != 0u) {
+            // The cat's eye of a round aperture: bin b of the pixel Q that
+            // P's ray lands on stands for lens position u_b pressed into
+            // the part of the lens Q sees (cat_eye_lens), so that every
+            // bin of a pixel lies where it sees. Q is found by one
+            // fixed-point step from P's own circle: the circle's centre is
+            // affine in the pixel (−2S/|frame/2| per pixel), so the first
+            // landing's circle is P's moved by its offset.
+            float k = 0.5 * signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
+            vec2 own = cat_eye_centre(pc.window_origin + po, pc.frame_size, pc.cat_eye);
+            CatLens at_p = cat_lens_of(own);
+            float moved = 2.0 * pc.cat_eye * k / length(0.5 * vec2(pc.frame_size));
+            for (int b = 0; b < n2; ++b) {
+                vec2 u = lens_u[b];
+                vec2 landing = own - moved * cat_lens_at(at_p, u);
+                vec2 offset = k * cat_eye_lens(u, landing);
+                offer(po + ivec2(floor(offset + 0.5)), b, depth_bits, source);
+            }
+            return;
+        }
         for (int b = 0; b < n2; ++b) {
-            vec2 offset = lens_offset_px(z, lens_u[b], pc.f_px, pc.aperture_radius, pc.focus_distance);
+            vec2 u = lens_u[b];
+            vec2 offset = lens_offset_px(z, u, pc.f_px, pc.aperture_radius, pc.focus_distance);
             offer(po + ivec2(floor(offset + 0.5)), b, depth_bits, source);
         }
         return;

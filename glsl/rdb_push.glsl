@@ -13,6 +13,11 @@ layout(push_constant, std430) uniform Push {
     float f_px;
     float aperture_radius;
     float focus_distance;
+    ivec2 window_origin; // frame pixel of output pixel (0, 0) (a poster's tile)
+    ivec2 frame_size;  // the whole frame, pixels
+    float cat_eye;     // S (0: off)
+    uint cat_lens;     // 1: the bins' lens positions pressed into each
+                       // pixel's cat's eye (cat_eye_lens; a round aperture)
 } pc;
 #else
 layout(push_constant, std430) uniform Push {
@@ -26,5 +31,6 @@ layout(push_constant, std430) uniform Push {
     ivec2 frame_size;  // the whole frame, pixels
     float cat_eye;     // S (0: off): a bin whose lens position the pixel's
                        // cat's eye clips is left out (glsl/aperture.glsl)
+    uint cat_lens;     // as the scatter's
 } pc;
 #endif

@@ -25,11 +25,15 @@ void main() {
     vec4 sum = vec4(0.0);
     float n = 0.0;
     vec2 cat = cat_eye_centre(pc.window_origin + q, pc.frame_size, pc.cat_eye);
+    // Its bins pressed into its cat's eye (rdb_offers.glsl), or not.
+    CatLens pressed = cat_lens_of(cat);
     // A bin stands for one of N² cells of the lens.
     float half_cell = lens_cell_half_width(float(pc.bins * pc.bins));
     for (int b = 0; b < n2; ++b) {
         uint64_t word = bins64[bin_index(b, n2, t, pc.tile_size)];
-        float w = !APERTURE_CODE || pc.cat_eye == 0.0 ? 1.0 : cat_eye_cell_weight(lens_u[b], cat, half_cell);
+        float w = !APERTURE_CODE || pc.cat_eye == 0.0 ? 1.0
+            : pc.cat_lens != 0u ? cat_eye_pressed_weight(pressed, lens_u[b], cat, half_cell)
+            : cat_eye_cell_weight(lens_u[b], cat, half_cell);
         if (bin_filled(word, pc.step) && w > 0.0) {
             uint source = bin_source(word);
             ivec2 p = ivec2(int(source % uint(pc.extent.x)), int(source / uint(pc.extent.x)));

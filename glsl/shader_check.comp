@@ -1,7 +1,8 @@
 #version 460
 // Evaluates the GLSL includes that mirror CPU formulas (lens.glsl: the thin
 // lens of DESIGN §2; concentric.glsl: the concentric map of DESIGN §5;
-// aperture.glsl: the cat's eye's blur reach) on a list of inputs, so that
+// aperture.glsl: the cat's eye's blur reach, its pressed lens and an RDB
+// bin's weight) on a list of inputs, so that
 // tests/shaders.rs can compare them with src/camera. Not used by the
 // renderer.
 #include "lens.glsl"
@@ -15,7 +16,9 @@ layout(local_size_x = 64) in;
 layout(binding = 0, std430) readonly buffer Inputs { vec4 inputs[]; };
 // Per case: (coc_px(z), lens_offset_px(z, u), signed_coc_px(z)),
 // (concentric_disk(a), concentric_square(u)), (cat_eye_blur_reach, 0, 0, 0),
-// zeros.
+// (cat_eye_lens(u, centre), cat_eye_pressed_weight of u pressed into
+// centre at a pixel whose circle is centred at 0.9·centre (cells of
+// half-width 0.1), cat_lens_area of centre).
 layout(binding = 1, std430) writeonly buffer Outputs { vec4 outputs[]; };
 
 layout(push_constant, std430) uniform Push {
@@ -43,5 +46,9 @@ void main() {
     float reach = cat_eye_blur_reach(reach_in.x, reach_in.y, cat_in.xy, reach_in.w, cat_in.zw,
                                      reach_in.z > 0.5);
     outputs[4 * i + 2] = vec4(reach, 0.0, 0.0, 0.0);
-    outputs[4 * i + 3] = vec4(0.0);
+    vec2 centre = cat_in.xy;
+    CatLens pressed = cat_lens_of(centre);
+    outputs[4 * i + 3] = vec4(cat_eye_lens(map_in.zw, centre),
+                              cat_eye_pressed_weight(pressed, map_in.zw, 0.9 * centre, 0.1),
+                              cat_lens_area(pressed));
 }

@@ -514,10 +514,12 @@ fn cat_analytic(camera: Camera, q: Vec2) -> Vec<f64> {
 /// the frame's centre (a smaller disc: every rim pixel's circle cuts its
 /// outer side) and one halfway to a corner (the two circles' lens).
 /// Measured, against the cat's eye's image and (in brackets) the round
-/// one: RDB (each bin weighed per receiving pixel by the part of its lens
-/// cell the circle passes; 9×9 bins, compared in 8×8 blocks) off centre
-/// 0.024 (0.839), round renders 0.016; at the centre 0.021 (0.273; 0.279
-/// when a bin passed or not by its centre). Layered (each fragment's rows
+/// one: RDB (its 9×9 bins pressed into each receiving pixel's cat's eye,
+/// each weighed by the part of its pressed cell inside both circles;
+/// compared in 8×8 blocks) off centre 0.037 (0.863), round renders 0.016;
+/// at the centre 0.024 (0.298); the disk's bins weighed by the part of
+/// their cells inside the circle instead, 0.024 (0.839) and 0.021 (0.273;
+/// 0.279 when a bin passed or not by its centre). Layered (each fragment's rows
 /// clipped by the receiving pixels' circle, exact; normalised per
 /// fragment, not per receiving pixel) 0.066 (1.156) off centre, 0.043
 /// (0.387) at the centre. Accum 4096 (each lens sample weighed per

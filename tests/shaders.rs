@@ -1,8 +1,9 @@
 //! The GLSL includes that mirror CPU formulas agree with them: `lens.glsl`
 //! (the thin lens of DESIGN §2) with `camera::Camera`, `concentric.glsl`
 //! (the concentric map of DESIGN §5) with `camera::concentric_disk` and
-//! `concentric_square`, `aperture.glsl`'s `cat_eye_blur_reach` with
-//! `camera::Aperture::cat_eye_blur_reach`. `glsl/shader_check.comp` evaluates the GLSL side on
+//! `concentric_square`, `aperture.glsl`'s `cat_eye_blur_reach`,
+//! `cat_eye_lens`, `cat_lens_area` and `cat_eye_pressed_weight` with
+//! `camera::Aperture`'s. `glsl/shader_check.comp` evaluates the GLSL side on
 //! lavapipe for a few thousand inputs.
 
 mod common;
@@ -10,7 +11,7 @@ mod common;
 use common::with_gpu;
 use glam::{Vec2, Vec3};
 use gpu_allocator::MemoryLocation;
-use pointlens::camera::{concentric_disk, concentric_square, rdb_bin, Camera};
+use pointlens::camera::{concentric_disk, concentric_square, rdb_bin, Aperture, Camera};
 use pointlens::push_constants;
 use pointlens::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Frame};
 
@@ -98,7 +99,7 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
         fovy_deg: 40.0,
         aperture_radius: 0.05,
         focus_distance: 2.0,
-        aperture: pointlens::camera::Aperture::ROUND,
+        aperture: Aperture::ROUND,
     };
     let mut next = uniform(7);
     let mut inputs = Vec::new();
@@ -168,6 +169,34 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
     assert!(
         zero_reach > n as u32 / 50 && some_reach > n as u32 / 2,
         "cat_eye_blur_reach: {zero_reach} zero, {some_reach} positive of {n}"
+    );
+    // The cat's eye's pressed lens and an RDB bin's weight: + − × ÷, max,
+    // a length and a square root: 1e-5; the weights a ramp across 2·h of
+    // lens radius (h = 0.1·√area), compared where h is at least 0.02
+    // (past touching circles it shrinks to nothing: a step).
+    let (mut worst_lens, mut worst_weight, mut weighed) = (0.0f32, 0.0f32, 0);
+    for case in 0..n {
+        let [_, _, dx, dy] = inputs[4 * case + 1];
+        let [cx, cy, _, _] = inputs[4 * case + 2];
+        let [lx, ly, weight, area] = outputs[4 * case + 3];
+        let (u, centre) = (Vec2::new(dx, dy), Vec2::new(cx, cy));
+        let cpu_lens = Aperture::cat_eye_lens(u, centre);
+        worst_lens = worst_lens.max((Vec2::new(lx, ly) - cpu_lens).length());
+        let cpu_area = Aperture::cat_eye_lens_area(centre);
+        worst_lens = worst_lens.max((area - cpu_area).abs());
+        if cpu_area >= 0.04 {
+            let cpu_weight = Aperture::cat_eye_pressed_weight(u, centre, 0.9 * centre, 0.1);
+            worst_weight = worst_weight.max((weight - cpu_weight).abs());
+            weighed += 1;
+        }
+    }
+    assert!(
+        worst_lens <= 1e-5,
+        "cat_eye_lens: worst difference {worst_lens}"
+    );
+    assert!(
+        worst_weight <= 1e-4 && weighed > n / 10,
+        "cat_eye_pressed_weight: worst difference {worst_weight} over {weighed} cases"
     );
     // Tolerances: the lens formulas use only + − × ÷ and abs, so both sides
     // agree but for the GPU's division (2.5 ulp allowed): 1e-6 relative.

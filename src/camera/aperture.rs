@@ -904,12 +904,65 @@ impl Aperture {
         0.886_227 / (count as f32).sqrt()
     }
 
+    /// Whether RDB presses its bins' lens positions into each pixel's
+    /// cat's eye ([`Aperture::cat_eye_lens`]): with the cat's eye on a
+    /// round aperture (a shape's bins lie in the shape, which the pressed
+    /// ellipse would not follow).
+    pub fn presses_cat_eye_lens(&self) -> bool {
+        self.cat_eye > 0.0 && self.is_unit_disk()
+    }
+
+    /// The lens position that lens position u of the unit disk stands for
+    /// at a pixel whose cat's eye circle is centred at `centre`: the disk
+    /// pressed into the ellipse that holds the two circles' meet, centred
+    /// δ/2 along e = centre/δ, half-axes 1 − δ/2 along e and √(1 − δ²/4)
+    /// across (`cat_eye_lens` of `glsl/aperture.glsl`).
+    pub fn cat_eye_lens(u: Vec2, centre: Vec2) -> Vec2 {
+        let delta = centre.length();
+        if delta == 0.0 {
+            return u;
+        }
+        let e = centre / delta;
+        let across = Vec2::new(-e.y, e.x);
+        let half_along = (1.0 - 0.5 * delta).max(0.0);
+        let half_across = (1.0 - 0.25 * delta * delta).max(0.0).sqrt();
+        (0.5 * delta + half_along * u.dot(e)) * e + (half_across * u.dot(across)) * across
+    }
+
     /// The part of the lens cell of half-width `half_cell` about u inside
     /// the circle of the pixel's cat's eye centred at `centre`: a ramp
     /// across the circle, 1 a half cell inside, 0 a half cell outside
     /// (RDB's bins and accum's samples weigh so, `glsl/aperture.glsl`).
     pub fn cat_eye_cell_weight(u: Vec2, centre: Vec2, half_cell: f32) -> f32 {
         ((1.0 - (u - centre).length()) / (2.0 * half_cell) + 0.5).clamp(0.0, 1.0)
+    }
+
+    /// The area of a cell of [`Aperture::cat_eye_lens`] over its cell of
+    /// the unit disk: the pressed ellipse's half-axes' product.
+    pub fn cat_eye_lens_area(centre: Vec2) -> f32 {
+        let delta = centre.length();
+        (1.0 - 0.5 * delta).max(0.0) * (1.0 - 0.25 * delta * delta).max(0.0).sqrt()
+    }
+
+    /// The weight of an RDB bin of lens position u (the disk's, of cell
+    /// half-width `half_cell`) pressed ([`Aperture::cat_eye_lens`]) into
+    /// the cat's eye centred at `pressed_into`, at a pixel whose circle is
+    /// centred at `centre`: the part of the pressed cell (half-width h =
+    /// `half_cell` times √[`Aperture::cat_eye_lens_area`]) inside both that
+    /// circle and the lens, a ramp across each, 1 − r (r the distance from
+    /// the circle's centre) taken as (1 − r²)/2, which it is to within
+    /// (1 − r)²/2 where the ramp is not flat (`cat_eye_pressed_weight` of
+    /// `glsl/aperture.glsl`).
+    pub fn cat_eye_pressed_weight(
+        u: Vec2,
+        pressed_into: Vec2,
+        centre: Vec2,
+        half_cell: f32,
+    ) -> f32 {
+        let at = Self::cat_eye_lens(u, pressed_into);
+        let h = (half_cell * Self::cat_eye_lens_area(pressed_into).sqrt()).max(1.0e-6);
+        let ramp = |r2: f32| ((1.0 - r2) * (0.25 / h) + 0.5).clamp(0.0, 1.0);
+        ramp((at - centre).length_squared()) * ramp(at.length_squared())
     }
 
     /// The weight of lens sample u (of cell half-width `half_cell`) in the
@@ -1689,6 +1742,60 @@ mod tests {
                     assert_eq!(counted, reached, "{a:?} at h = {h}, behind: {behind}");
                 }
             }
+        }
+    }
+
+    /// The unit disk pressed into a pixel's cat's eye holds the part of
+    /// the lens that pixel sees (the lens's circle and the cat's eye's
+    /// meet), for circles from concentric to touching, and fills most of
+    /// it: its area over the meet's, 1 at the centre, 1.11 where the
+    /// centres lie a radius apart; each cell's area scales by
+    /// `cat_eye_lens_area`.
+    #[test]
+    fn the_pressed_lens_holds_what_a_pixel_sees() {
+        for (k, delta) in [0.0f32, 0.3, 1.0, 1.5, 1.9].into_iter().enumerate() {
+            let angle = 0.7 + k as f32;
+            let centre = delta * Vec2::new(angle.cos(), angle.sin());
+            let area = Aperture::cat_eye_lens_area(centre);
+            // The meet's boundary (both circles' arcs) within the pressed
+            // ellipse: its preimage within the unit disk.
+            let (mut meet, mut inside) = (0u32, 0u32);
+            for i in 0..400 {
+                for j in 0..400 {
+                    let u = Vec2::new(i as f32 / 199.5 - 1.0, j as f32 / 199.5 - 1.0);
+                    if u.length() > 1.0 || !Aperture::cat_eye_passes(u, centre) {
+                        continue;
+                    }
+                    meet += 1;
+                    // Invert the press: along e and across it.
+                    let back = match delta {
+                        0.0 => u,
+                        _ => {
+                            let e = centre / delta;
+                            let across = Vec2::new(-e.y, e.x);
+                            let a = (u.dot(e) - 0.5 * delta) / (1.0 - 0.5 * delta);
+                            let b = u.dot(across) / (1.0 - 0.25 * delta * delta).sqrt();
+                            a * e + b * across
+                        }
+                    };
+                    assert!(
+                        back.length() <= 1.0 + 1e-4,
+                        "δ = {delta}: {u} pressed from {back}"
+                    );
+                    inside += 1;
+                    let there = Aperture::cat_eye_lens(back, centre);
+                    assert!(
+                        (there - u).length() < 1e-4,
+                        "δ = {delta}: {there} against {u}"
+                    );
+                }
+            }
+            assert_eq!(meet, inside);
+            let ratio = area * std::f32::consts::PI / (meet as f32 * (2.0 / 399.0f32).powi(2));
+            assert!(
+                (1.0..1.2).contains(&ratio),
+                "δ = {delta}: the ellipse over the meet {ratio}"
+            );
         }
     }
 

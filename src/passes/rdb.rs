@@ -21,7 +21,7 @@ use super::{check_square_loop, Configured, DofFrame, DofInput, DofMethod, FrameV
 use crate::error::{Error, Result};
 use crate::options::{check_rdb_bins, RdbAtomics, RdbMode, RdbOptions};
 use crate::push_constants;
-use crate::vk::{groups, Access, Bind, Binding, Buffer, ComputePipeline, Context, Frame, Image};
+use crate::vk::{groups, Access, Bind, Binding, Buffer, Context, Frame, Image};
 
 static SCATTER: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdb_scatter.comp.spv"));
 static RESOLVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/rdb_resolve.comp.spv"));
@@ -43,6 +43,12 @@ push_constants! {
         f_px: f32,
         aperture_radius: f32,
         focus_distance: f32,
+        window_origin: [i32; 2],
+        frame_size: [i32; 2],
+        cat_eye: f32,
+        /// 1: the bins' lens positions pressed into each pixel's cat's eye
+        /// ([`Aperture::cat_eye_lens`]; a round aperture's).
+        cat_lens: u32,
     }
 }
 
@@ -59,12 +65,14 @@ push_constants! {
         window_origin: [i32; 2],
         frame_size: [i32; 2],
         cat_eye: f32,
+        /// As the scatter's.
+        cat_lens: u32,
     }
 }
 
 /// The pipelines of the method, and the 64-bit bins kept between frames.
 pub struct Rdb {
-    scatter: ComputePipeline<ScatterPush>,
+    scatter: Specialized<ScatterPush>,
     resolve: Specialized<ResolvePush>,
     /// The 64-bit form, on devices with 64-bit buffer atomics.
     packed: Option<Packed>,
@@ -72,7 +80,7 @@ pub struct Rdb {
 
 /// The 64-bit form: its pipelines and its bins.
 struct Packed {
-    scatter: ComputePipeline<ScatterPush>,
+    scatter: Specialized<ScatterPush>,
     resolve: Specialized<ResolvePush>,
     /// Made by the first frame that needs them (or a bigger one), then kept;
     /// a frame holds the lock from `prepare` until it is dropped, after its
@@ -84,11 +92,19 @@ struct Packed {
 fn packed_pipelines(
     ctx: &Arc<Context>,
     sizes: KernelSizes,
-) -> Result<(ComputePipeline<ScatterPush>, Specialized<ResolvePush>)> {
+) -> Result<(Specialized<ScatterPush>, Specialized<ResolvePush>)> {
     let (img, buf) = (Binding::StorageImage, Binding::StorageBuffer);
     let layout = sizes.rdb_constants();
     Ok((
-        ComputePipeline::specialized(ctx, "rdb_scatter64", SCATTER64, &[img, buf, buf], &layout)?,
+        Specialized::with_base(
+            ctx,
+            "rdb_scatter64",
+            SCATTER64,
+            &[img, buf, buf],
+            &layout,
+            "round",
+            (super::APERTURE_CODE_ID, 0),
+        )?,
         Specialized::with_base(
             ctx,
             "rdb_resolve64",
@@ -305,10 +321,13 @@ impl<'m> RdbImages<'m> {
 }
 
 impl Rdb {
-    /// [`super::Methods::set_round_pipelines`] for both forms' resolves.
+    /// [`super::Methods::set_round_pipelines`] for both forms' scatters
+    /// and resolves.
     pub(super) fn set_round_pipelines(&mut self, enabled: bool) {
+        self.scatter.set_enabled(enabled);
         self.resolve.set_enabled(enabled);
         if let Some(packed) = &mut self.packed {
+            packed.scatter.set_enabled(enabled);
             packed.resolve.set_enabled(enabled);
         }
     }
@@ -317,7 +336,7 @@ impl Rdb {
     pub fn new(ctx: &Arc<Context>, sizes: KernelSizes) -> Result<Rdb> {
         let img = Binding::StorageImage;
         Ok(Rdb {
-            scatter: ComputePipeline::new(
+            scatter: Specialized::round(
                 ctx,
                 "rdb_scatter",
                 SCATTER,
@@ -486,6 +505,13 @@ impl DofFrame for RdbFrame<'_> {
 }
 
 impl RdbFrame<'_> {
+    /// Whether the bins' lens positions are pressed into each pixel's cat's
+    /// eye ([`Aperture::presses_cat_eye_lens`]): in centre mode, whose
+    /// bins are lens positions (pairs mode bins a pixel's offset).
+    fn presses_cat_eye_lens(&self, camera: &crate::camera::Camera) -> bool {
+        self.method.options.mode == RdbMode::Centre && camera.aperture.presses_cat_eye_lens()
+    }
+
     /// The scatter's push constants for `scan`, with `step` (the 32-bit
     /// form's pass, the 64-bit form's tag).
     fn scatter_push(&self, input: &DofInput<'_>, scan: &TileScan, step: u32) -> ScatterPush {
@@ -503,6 +529,10 @@ impl RdbFrame<'_> {
             f_px: camera.f_px(),
             aperture_radius: camera.aperture_radius,
             focus_distance: camera.focus_distance,
+            window_origin: [input.view.window.x as i32, input.view.window.y as i32],
+            frame_size: [camera.width as i32, camera.height as i32],
+            cat_eye: camera.aperture.cat_eye,
+            cat_lens: u32::from(self.presses_cat_eye_lens(camera)),
         }
     }
 
@@ -523,6 +553,7 @@ impl RdbFrame<'_> {
                 input.view.camera.height as i32,
             ],
             cat_eye: input.view.camera.aperture.cat_eye,
+            cat_lens: u32::from(self.presses_cat_eye_lens(&input.view.camera)),
         }
     }
 
@@ -580,7 +611,7 @@ impl RdbFrame<'_> {
             rec.memory_barrier(Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ_WRITE);
             let push = self.scatter_push(input, scan, tag);
             rec.dispatch(
-                &p.scatter,
+                p.scatter.for_aperture(&input.view.camera.aperture),
                 &[
                     Bind::StorageImage(input.eye),
                     Bind::StorageBuffer(buffer),
@@ -661,7 +692,7 @@ impl RdbFrame<'_> {
                     )]);
                 }
                 rec.dispatch(
-                    &p.scatter,
+                    p.scatter.for_aperture(&input.view.camera.aperture),
                     &[
                         Bind::StorageImage(input.eye),
                         Bind::StorageImage(depth),

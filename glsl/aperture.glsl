@@ -41,8 +41,8 @@ float cat_eye_blur_reach(float shape_reach, float cat_eye, vec2 centre, float ha
 // The unit disk pressed into the part of the lens a pixel whose cat's eye
 // circle is centred at `centre` sees (Aperture::cat_eye_lens): into the
 // ellipse that holds the two circles' meet, its centre δ/2 along the axis
-// e = centre/δ (δ = |centre|; e = x at δ = 0, where the press is the
-// identity), its half-axes 1 − δ/2 along e and √(1 − δ²/4) across. A
+// e = centre/δ (δ = |centre|; e = x where δ² ≤ 1e-30, where the press is
+// the identity to float precision), its half-axes 1 − δ/2 along e and √(1 − δ²/4) across. A
 // cell's area is scaled by their product. The terms of one centre, for
 // many lens positions:
 struct CatLens {
@@ -57,7 +57,7 @@ CatLens cat_lens_of(vec2 centre) {
     float inverse = inversesqrt(max(delta2, 1.0e-30));
     float delta = delta2 * inverse;
     CatLens l;
-    l.e = delta2 > 0.0 ? centre * inverse : vec2(1.0, 0.0);
+    l.e = delta2 > 1.0e-30 ? centre * inverse : vec2(1.0, 0.0);
     l.half_delta = 0.5 * delta;
     l.half_along = max(1.0 - 0.5 * delta, 0.0);
     l.half_across = sqrt(max(1.0 - 0.25 * delta * delta, 0.0));

@@ -6,11 +6,14 @@
 // smallest depth (float bits; z > 0, so bit order is numeric order), and
 // among the sources at that depth the smallest index: deterministic.
 //   centre mode: bin b of Q receives P when P moved by its lens offset for
-//     the bin's centre u_b lands on Q (q = p + floor(offset + 0.5)).
+//     the bin's centre u_b lands on Q (q = p + floor(offset + 0.5)); with
+//     the cat's eye of a round aperture (pc.cat_lens), u_b pressed into
+//     the part of the lens Q sees (below).
 //   pairs mode: for every Q inside P's CoC, only the bin holding
 //     u = sign · 2 (q − p) / c receives P; c < 2 fills every bin of P itself.
 // Needs, before the include: gbuffer_eye, lens_u[], and pc with extent,
-// origin, scan_origin, bins, pairs, f_px, aperture_radius, focus_distance.
+// origin, scan_origin, bins, pairs, f_px, aperture_radius, focus_distance,
+// window_origin, frame_size, cat_eye and cat_lens.
 #include "lens.glsl"
 #include "concentric.glsl"
 #include "aperture.glsl"
@@ -34,7 +37,11 @@ void main() {
             // bin of a pixel lies where it sees. Q is found by one
             // fixed-point step from P's own circle: the circle's centre is
             // affine in the pixel (−2S/|frame/2| per pixel), so the first
-            // landing's circle is P's moved by its offset.
+            // landing's circle is P's moved by its offset. The ellipse
+            // bulges past the lens's circle by up to √(9/8) − 1 of its
+            // radius, where the resolve's ramp still weighs a bin a little;
+            // its lens position is kept to the circle, so that no offset
+            // passes c/2, which the guard band and the tiles' apron hold.
             float k = 0.5 * signed_coc_px(z, pc.f_px, pc.aperture_radius, pc.focus_distance);
             vec2 own = cat_eye_centre(pc.window_origin + po, pc.frame_size, pc.cat_eye);
             CatLens at_p = cat_lens_of(own);
@@ -42,7 +49,8 @@ void main() {
             for (int b = 0; b < n2; ++b) {
                 vec2 u = lens_u[b];
                 vec2 landing = own - moved * cat_lens_at(at_p, u);
-                vec2 offset = k * cat_eye_lens(u, landing);
+                vec2 pressed = cat_eye_lens(u, landing);
+                vec2 offset = k * (pressed * min(1.0, inversesqrt(max(dot(pressed, pressed), 1.0e-30))));
                 offer(po + ivec2(floor(offset + 0.5)), b, depth_bits, source);
             }
             return;

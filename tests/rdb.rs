@@ -234,14 +234,17 @@ fn tiled_equals_untiled_bitwise() {
         let renderer = Renderer::new(ctx).unwrap();
         let scan = load_ply(&root().join("data/pcl_table_scene_mug_rgb.ply")).unwrap();
         let scene = renderer.upload(&scan, SplatSize::Spacing).unwrap();
-        let cam = mug_camera(61, 45);
-        for (bins, mode, budget) in [
-            (5, RdbMode::Centre, 100_000),
+        // The cat's eye at S = 1: RDB's bins pressed into each pixel's.
+        let mut cat_eye = mug_camera(61, 45);
+        cat_eye.aperture.cat_eye = 1.0;
+        for (bins, mode, budget, cam) in [
+            (5, RdbMode::Centre, 100_000, mug_camera(61, 45)),
             // --rdb-memory-mb 1
-            (16, RdbMode::Centre, 1 << 20),
-            (9, RdbMode::Pairs, 1 << 20),
+            (16, RdbMode::Centre, 1 << 20, mug_camera(61, 45)),
+            (9, RdbMode::Pairs, 1 << 20, mug_camera(61, 45)),
             // Tiles of a few pixels, far smaller than their apron.
-            (4, RdbMode::Centre, 128 * 30),
+            (4, RdbMode::Centre, 128 * 30, mug_camera(61, 45)),
+            (9, RdbMode::Centre, 128 * 30, cat_eye),
         ] {
             let method = Method::rdb(bins, mode);
             let whole = renderer.render(&scene, &options(cam, method)).unwrap();
@@ -261,7 +264,7 @@ fn tiled_equals_untiled_bitwise() {
                     .map_or(0, |p| p.count)
             };
             assert_eq!(tiles(&whole), 1, "{bins}×{bins} {mode:?}: untiled");
-            let expected = TilePlan::new(61, 45, bins, budget, u64::MAX).unwrap();
+            let expected = TilePlan::new(cam.width, cam.height, bins, budget, u64::MAX).unwrap();
             assert!(expected.tiles.len() > 1);
             assert_eq!(
                 tiles(&tiled) as usize,

@@ -3,7 +3,8 @@
 //! (the concentric map of DESIGN §5) with `camera::concentric_disk` and
 //! `concentric_square`, `aperture.glsl`'s `cat_eye_blur_reach`,
 //! `cat_eye_lens`, `cat_lens_area` and `cat_eye_pressed_weight` with
-//! `camera::Aperture`'s. `glsl/shader_check.comp` evaluates the GLSL side on
+//! `camera::Aperture`'s `cat_eye_blur_reach`, `cat_eye_lens`,
+//! `cat_eye_lens_area` and `cat_eye_pressed_weight`. `glsl/shader_check.comp` evaluates the GLSL side on
 //! lavapipe for a few thousand inputs.
 
 mod common;
@@ -135,7 +136,13 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
         let shape_reach = [1.0, 0.866_025_4, 0.25 + 0.75 * next()][i % 3];
         let cat_eye = if i % 7 == 0 { 1.0 } else { next() };
         let behind = (i % 2) as f32;
-        let centre = -2.0 * cat_eye * d;
+        // Centres at the frame's centre (none) and next to it (the
+        // press's axis below float precision) among them.
+        let centre = match i {
+            3 => Vec2::ZERO,
+            4 => Vec2::new(3.0e-20, -1.0e-20),
+            _ => -2.0 * cat_eye * d,
+        };
         inputs.push([centre.x, centre.y, coc.x, coc.y]);
         inputs.push([shape_reach, cat_eye, behind, 400.0]);
     }
@@ -181,6 +188,9 @@ fn lens_concentric_and_aperture_includes_agree_with_the_cpu() {
         let [lx, ly, weight, area] = outputs[4 * case + 3];
         let (u, centre) = (Vec2::new(dx, dy), Vec2::new(cx, cy));
         let cpu_lens = Aperture::cat_eye_lens(u, centre);
+        if case == 3 || case == 4 {
+            assert_eq!(cpu_lens, u, "no press at centre {centre}");
+        }
         worst_lens = worst_lens.max((Vec2::new(lx, ly) - cpu_lens).length());
         let cpu_area = Aperture::cat_eye_lens_area(centre);
         worst_lens = worst_lens.max((area - cpu_area).abs());

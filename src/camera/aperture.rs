@@ -916,12 +916,14 @@ impl Aperture {
     /// at a pixel whose cat's eye circle is centred at `centre`: the disk
     /// pressed into the ellipse that holds the two circles' meet, centred
     /// δ/2 along e = centre/δ, half-axes 1 − δ/2 along e and √(1 − δ²/4)
-    /// across (`cat_eye_lens` of `glsl/aperture.glsl`).
+    /// across (`cat_eye_lens` of `glsl/aperture.glsl`); u itself where
+    /// δ² ≤ 1e-30. The ellipse holds the meet and bulges past the lens's
+    /// circle by up to √(9/8) − 1 of its radius (at δ = 1).
     pub fn cat_eye_lens(u: Vec2, centre: Vec2) -> Vec2 {
-        let delta = centre.length();
-        if delta == 0.0 {
+        if centre.length_squared() <= 1.0e-30 {
             return u;
         }
+        let delta = centre.length();
         let e = centre / delta;
         let across = Vec2::new(-e.y, e.x);
         let half_along = (1.0 - 0.5 * delta).max(0.0);

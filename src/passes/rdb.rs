@@ -47,7 +47,7 @@ push_constants! {
         frame_size: [i32; 2],
         cat_eye: f32,
         /// 1: the bins' lens positions pressed into each pixel's cat's eye
-        /// ([`Aperture::cat_eye_lens`]; a round aperture's).
+        /// ([`crate::camera::Aperture::cat_eye_lens`]; a round aperture's).
         cat_lens: u32,
     }
 }
@@ -506,7 +506,7 @@ impl DofFrame for RdbFrame<'_> {
 
 impl RdbFrame<'_> {
     /// Whether the bins' lens positions are pressed into each pixel's cat's
-    /// eye ([`Aperture::presses_cat_eye_lens`]): in centre mode, whose
+    /// eye ([`crate::camera::Aperture::presses_cat_eye_lens`]): in centre mode, whose
     /// bins are lens positions (pairs mode bins a pixel's offset).
     fn presses_cat_eye_lens(&self, camera: &crate::camera::Camera) -> bool {
         self.method.options.mode == RdbMode::Centre && camera.aperture.presses_cat_eye_lens()

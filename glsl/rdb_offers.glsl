@@ -56,8 +56,7 @@ void main() {
             return;
         }
         for (int b = 0; b < n2; ++b) {
-            vec2 u = lens_u[b];
-            vec2 offset = lens_offset_px(z, u, pc.f_px, pc.aperture_radius, pc.focus_distance);
+            vec2 offset = lens_offset_px(z, lens_u[b], pc.f_px, pc.aperture_radius, pc.focus_distance);
             offer(po + ivec2(floor(offset + 0.5)), b, depth_bits, source);
         }
         return;

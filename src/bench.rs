@@ -1,6 +1,7 @@
 //! `pointlens bench`: frame timings of a matrix of methods × models ×
 //! resolutions, each model seen through a fixed camera, with optional
-//! quality against the accumulation reference (Zhao's Table 1, extended).
+//! quality against the accumulation reference (Zhao's Table 1, extended)
+//! and of each cell's G-buffer against the pixel integral of its splats.
 //!
 //! A cell is one (model, resolution, method). It gets `warmup` untimed
 //! frames, then `runs` timed ones; each timed frame yields per-pass GPU
@@ -31,6 +32,12 @@ use clap::ValueEnum;
 
 /// Lens samples of the quality reference (`--quality`).
 pub const REFERENCE_SAMPLES: u32 = 256;
+
+/// K of the G-buffer reference (`--quality`): the pinhole image of every
+/// splat by the means of K × K samples, whose rotated grid sees a
+/// square's edge in steps of 1/K² of a pixel; the pixel integral of the
+/// squares, as Mitsuba's pinhole render of them is, without its noise.
+pub const GBUFFER_REFERENCE_SSAA: u32 = 16;
 
 /// The matrix `bench` runs when none is given, chosen by the device: the
 /// full one (Zhao's Table 1 extended) on a GPU, one that finishes in a few
@@ -116,6 +123,12 @@ impl BenchMethod {
             Method::Accum(o) => o.samples,
             Method::Pinhole | Method::Fast(_) | Method::Rdb(_) | Method::Layered(_) => 1,
         }
+    }
+
+    /// Whether the method's image is one G-buffer through its lens: every
+    /// method's but accum's, whose lens positions each take their own.
+    pub fn blurs_one_gbuffer(&self) -> bool {
+        !matches!(self.method, Method::Accum(_))
     }
 
     /// Parses a comma-separated list.
@@ -342,8 +355,28 @@ impl CocRange {
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct Quality {
+    /// Infinite for identical images, which JSON writes as null.
+    #[serde(deserialize_with = "infinite_where_null")]
     pub psnr_db: f64,
     pub ssim: f64,
+}
+
+/// A PSNR as JSON holds it: null where it was infinite (serde_json writes
+/// a float that is not finite as null).
+fn infinite_where_null<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+}
+
+impl Quality {
+    /// `image` against `reference`.
+    fn of(reference: &LinearImage, image: &LinearImage) -> Result<Quality> {
+        Ok(Quality {
+            psnr_db: psnr(reference, image)?,
+            ssim: ssim(reference, image)?,
+        })
+    }
 }
 
 /// One (model, resolution, method) cell.
@@ -394,6 +427,13 @@ pub struct Cell {
     pub png_encode_ms: Stats,
     /// Against accum with 256 samples (`--quality`), else null.
     pub quality: Option<Quality>,
+    /// The cell's G-buffer against the G-buffer reference (`--quality`;
+    /// [`GBUFFER_REFERENCE_SSAA`]): the pinhole image at the cell's K,
+    /// LOD, raster, splat shape and coverage. Null for accum, whose lens
+    /// positions each take a G-buffer of their own, and without
+    /// `--quality` (and in reports written before it).
+    #[serde(default)]
+    pub gbuffer_quality: Option<Quality>,
 }
 
 /// Everything `bench` measured.
@@ -417,6 +457,10 @@ pub struct BenchReport {
     #[serde(default = "samples")]
     pub coverage: String,
     pub quality_reference: Option<String>,
+    /// What the cells' G-buffers are measured against (`--quality`; absent
+    /// from reports written before).
+    #[serde(default)]
+    pub gbuffer_reference: Option<String>,
     /// What a measured frame reads back and encodes: `png`, the device's
     /// sRGB 8-bit pixels encoded as PNG, as `render` writes a PNG (empty
     /// in reports written before: linear pixels read back, encoded on the
@@ -434,7 +478,16 @@ pub type Progress<'a> = &'a mut dyn FnMut(u64, u64, &str);
 pub fn frame_count(options: &BenchOptions) -> u64 {
     let per_method = (options.warmup + options.runs) as u64;
     let per_lod = per_method * options.methods.len() as u64;
-    let per_resolution = per_lod * options.lod_px.len() as u64 + options.quality as u64;
+    // With --quality: the two references, and a pinhole frame of each
+    // cell's G-buffer but accum's.
+    let gbuffers = options
+        .methods
+        .iter()
+        .filter(|m| m.blurs_one_gbuffer())
+        .count() as u64;
+    let per_quality = 2 + gbuffers * options.lod_px.len() as u64;
+    let per_resolution =
+        per_lod * options.lod_px.len() as u64 + options.quality as u64 * per_quality;
     per_resolution * (options.resolutions.len() * options.models.len()) as u64
 }
 
@@ -487,6 +540,28 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
             } else {
                 None
             };
+            let gbuffer_reference = if options.quality {
+                progress(done, total, &what("G-buffer reference (pinhole, K = 16)"));
+                done += 1;
+                // Every splat by its samples, on the run's raster (the
+                // sprites round a splat's place and size, the compute
+                // raster does not).
+                renderer.set_raster(crate::options::frame_raster(
+                    options.raster,
+                    options.samples_per_pass,
+                    None,
+                )?);
+                renderer.set_coverage(Some(Coverage::Samples));
+                let reference = RenderOptions {
+                    samples_per_pass: None,
+                    ..frame(Method::Pinhole, GBUFFER_REFERENCE_SSAA, 0.0)
+                };
+                let r = renderer.render(&scene, &reference)?;
+                renderer.set_coverage(options.coverage);
+                Some(r.image)
+            } else {
+                None
+            };
             renderer.set_raster(options.raster);
             for (&lod_px, m) in options
                 .lod_px
@@ -512,10 +587,23 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     lod,
                 } = measure_cell(&renderer, &scene, &options_m, options, &m.name, &mut step)?;
                 let quality = match (&reference, &image) {
-                    (Some(reference), Some(image)) => Some(Quality {
-                        psnr_db: psnr(reference, image)?,
-                        ssim: ssim(reference, image)?,
-                    }),
+                    (Some(reference), Some(image)) => Some(Quality::of(reference, image)?),
+                    _ => None,
+                };
+                // The cell's G-buffer as an image: the pinhole frame of its
+                // K, LOD and coverage (the method's own keeps its samples
+                // where its lens blurs every splat past a few pixels,
+                // which this does not).
+                let gbuffer_quality = match &gbuffer_reference {
+                    Some(reference) if m.blurs_one_gbuffer() => {
+                        step(&format!("{} G-buffer (pinhole)", m.name));
+                        let pinhole = RenderOptions {
+                            method: Method::Pinhole,
+                            ..options_m
+                        };
+                        let image = renderer.render(&scene, &pinhole)?.image;
+                        Some(Quality::of(reference, &image)?)
+                    }
                     _ => None,
                 };
                 cells.push(Cell {
@@ -544,6 +632,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     upload,
                     png_encode_ms: Stats::of(&encode),
                     quality,
+                    gbuffer_quality,
                 });
             }
         }
@@ -681,6 +770,12 @@ fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) ->
         quality_reference: options
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
+        gbuffer_reference: options.quality.then(|| {
+            format!(
+                "pinhole image of every splat at K = {GBUFFER_REFERENCE_SSAA} by samples (the squares' pixel integral, their edges in steps of 1/{} of a pixel)",
+                GBUFFER_REFERENCE_SSAA * GBUFFER_REFERENCE_SSAA
+            )
+        }),
         output: "png".into(),
         cells,
     }
@@ -738,10 +833,20 @@ impl BenchReport {
             self.warmup
         );
         let quality = self.quality_reference.is_some();
+        let gbuffer = self.gbuffer_reference.is_some();
+        if let (Some(frames), Some(gbuffers)) = (&self.quality_reference, &self.gbuffer_reference) {
+            s += &format!("PSNR and SSIM against {frames}; each G-buffer's pinhole image against the {gbuffers}\n\n");
+        }
         s += "| model | points | resolution | method | lod px | splats | traversal | CoC px (points; background) | frame wall | GPU total | host | first frame | DOF passes | tree build | PNG encode |";
-        s += if quality { " PSNR dB | SSIM |\n" } else { "\n" };
+        s += if quality { " PSNR dB | SSIM |" } else { "" };
+        s += if gbuffer {
+            " G-buffer PSNR dB |\n"
+        } else {
+            "\n"
+        };
         s += "|---|---:|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|";
-        s += if quality { "---:|---:|\n" } else { "\n" };
+        s += if quality { "---:|---:|" } else { "" };
+        s += if gbuffer { "---:|\n" } else { "\n" };
         for c in &self.cells {
             let method = self.label(c);
             let dof: f64 = c
@@ -780,6 +885,12 @@ impl BenchReport {
             } else if quality {
                 s += " | |";
             }
+            if gbuffer {
+                s += &match &c.gbuffer_quality {
+                    Some(q) => format!(" {} |", fmt_db(q.psnr_db)),
+                    None => " – |".into(),
+                };
+            }
             s += "\n";
         }
         s
@@ -790,16 +901,19 @@ impl BenchReport {
     /// encoding and the cell's first frame.
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
-            "model,points,width,height,method,ssaa,samples,lod_px,splats,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim\n",
+            "model,points,width,height,method,ssaa,samples,lod_px,splats,coc_min_px,coc_max_px,coc_background_px,measure,count,min_ms,median_ms,max_ms,psnr_db,ssim,gbuffer_psnr_db\n",
         );
         for c in &self.cells {
             let (p, q) = match &c.quality {
                 Some(q) => (fmt_db(q.psnr_db), format!("{:.6}", q.ssim)),
                 None => (String::new(), String::new()),
             };
+            let g = c
+                .gbuffer_quality
+                .map_or(String::new(), |q| fmt_db(q.psnr_db));
             let mut row = |measure: &str, count: u32, st: Stats| {
                 s += &format!(
-                    "{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4},{:.4},{},{}\n",
+                    "{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{},{},{:.4},{:.4},{:.4},{},{},{}\n",
                     csv_field(&c.model),
                     c.points,
                     c.width,
@@ -818,7 +932,8 @@ impl BenchReport {
                     st.median,
                     st.max,
                     p,
-                    q
+                    q,
+                    g
                 );
             };
             row("frame_wall", 1, c.frame_wall_ms);

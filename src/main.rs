@@ -161,7 +161,9 @@ struct BenchArgs {
     #[command(flatten)]
     gbuffer: GBufferArgs,
     /// Also PSNR and SSIM of each cell against accum with 256 lens samples
-    /// (of every point: `--lod-px 0`).
+    /// (of every point: `--lod-px 0`), and the PSNR of its G-buffer (the
+    /// pinhole image of its K, LOD and coverage) against every splat's
+    /// pinhole image at K = 16 by samples.
     #[arg(long)]
     quality: bool,
     /// Comma-separated `--lod-px` values to measure, each a column of the

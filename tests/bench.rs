@@ -212,15 +212,16 @@ fn bench_writes_every_field_as_json_csv_chart_and_table() {
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    assert_eq!(header.len(), 19);
+    assert_eq!(header.len(), 20);
     assert_eq!(header[12], "measure");
+    assert_eq!(header[19], "gbuffer_psnr_db");
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     let expected: usize = cells
         .iter()
         .map(|c| 10 + c["passes"].as_array().unwrap().len())
         .sum();
     assert_eq!(rows.len(), expected);
-    assert!(rows.iter().all(|r| r.len() == 19), "{text}");
+    assert!(rows.iter().all(|r| r.len() == 20), "{text}");
     let walls = rows.iter().filter(|r| r[12] == "frame_wall").count();
     assert_eq!(walls, cells.len());
     // Every cell drew through the splat hierarchy at the default --lod-px.
@@ -324,6 +325,119 @@ fn bench_without_ssaa_takes_each_methods_default_k() {
         "{table}"
     );
     assert!(read_image(&chart).is_ok());
+}
+
+/// `--quality` measures each cell's G-buffer (its pinhole image at the
+/// cell's K, LOD and coverage) against the pixel integral of every splat
+/// (K = 16 by samples): one image for every method of a run but accum, a
+/// K = 1 G-buffer far from it and the area's close, the reference's own
+/// settings identical to it (an infinite PSNR, which the saved report keeps).
+#[test]
+fn bench_quality_measures_each_gbuffer_against_the_pixel_integral() {
+    let dir = scratch("bench-gbuffer");
+    let run = |name: &str, flags: &[&str]| -> (Value, String, std::path::PathBuf) {
+        let json = dir.join(format!("{name}.json"));
+        let mut args = vec![
+            "bench",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--methods",
+            "pinhole,fast,layered2,accum4",
+            "--models",
+            "bunny",
+            "--lod-px",
+            "0",
+            "--runs",
+            "1",
+            "--warmup",
+            "0",
+            "--quality",
+            "--raster",
+            "compute",
+            "--device",
+            "llvmpipe",
+            "--validate",
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        args.extend_from_slice(flags);
+        let o = pointlens(&args);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {stderr}");
+        assert!(!stderr.to_lowercase().contains("validation"), "{stderr}");
+        let report: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        (
+            report,
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            json,
+        )
+    };
+    // The G-buffer PSNR of each cell (None for accum), from the JSON.
+    let gbuffers = |report: &Value| -> Vec<Option<f64>> {
+        assert!(
+            report["gbuffer_reference"]
+                .as_str()
+                .unwrap()
+                .contains("K = 16"),
+            "{report}"
+        );
+        report["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| match &c["gbuffer_quality"] {
+                Value::Null => None,
+                q => Some(q["psnr_db"].as_f64().unwrap_or(f64::INFINITY)),
+            })
+            .collect()
+    };
+    let (samples, _, _) = run("k1", &["--ssaa", "1", "--coverage", "samples"]);
+    // The default coverage: by area for every method that takes it.
+    let (area, table, _) = run("k3", &["--ssaa", "3"]);
+    let (k1, k3) = (gbuffers(&samples), gbuffers(&area));
+    assert_eq!(k1[3], None, "accum has no one G-buffer");
+    assert_eq!(k3[3], None, "accum has no one G-buffer");
+    // Every other method of a run has the same G-buffer: one image.
+    for g in [&k1, &k3] {
+        assert!(g[0].is_some() && g[0] == g[1] && g[1] == g[2], "{g:?}");
+    }
+    let (k1, k3) = (k1[0].unwrap(), k3[0].unwrap());
+    // Measured on lavapipe (deterministic renders), 2026-11-29: 20.7 dB
+    // at K = 1 by samples, 34.1 at K = 3 by area; held within 0.5 dB on
+    // the side that would show the reference or the G-buffer changed.
+    assert!(k1.is_finite() && k1 < 21.2, "K = 1 by samples: {k1} dB");
+    assert!(k3.is_finite() && k3 > 33.6, "K = 3 by area: {k3} dB");
+    // The table has the column, a dash for accum.
+    assert!(table.contains("G-buffer PSNR dB"), "{table}");
+    assert!(row_of(&table, "accum4").ends_with("| – |"), "{table}");
+    assert!(
+        row_of(&table, "pinhole").ends_with(&format!("| {k3:.2} |")),
+        "{table}"
+    );
+
+    // The reference's own settings: the same image, an infinite PSNR,
+    // null in the JSON and read back as "inf".
+    let (same, table, json) = run("k16", &["--ssaa", "16", "--coverage", "samples"]);
+    assert_eq!(gbuffers(&same)[0], Some(f64::INFINITY), "{same}");
+    assert!(row_of(&table, "pinhole").ends_with("| inf |"), "{table}");
+    let again = pointlens(&["bench", "--from-json", json.to_str().unwrap()]);
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert_eq!(String::from_utf8_lossy(&again.stdout), table);
+}
+
+/// The table's row of method `m`.
+fn row_of(table: &str, m: &str) -> String {
+    table
+        .lines()
+        .find(|l| l.contains(&format!("| {m} |")))
+        .unwrap_or_else(|| panic!("{m}: {table}"))
+        .to_string()
 }
 
 #[test]
@@ -583,6 +697,47 @@ fn bench_fails_on_any_validation_message() {
         err.to_string().contains("validation reported 1 message"),
         "{err}"
     );
+}
+
+/// The progress bar's count: every frame `run` renders, the quality's
+/// references and G-buffers included, one step each.
+#[test]
+fn bench_counts_every_frame_it_renders() {
+    common::with_gpu(|ctx| {
+        let options = BenchOptions {
+            methods: ["pinhole", "fast", "accum2"]
+                .map(|m| BenchMethod::parse(m).unwrap())
+                .to_vec(),
+            models: vec![BenchModel::Synthetic],
+            resolutions: vec![(8, 6), (6, 4)],
+            points: 100,
+            runs: 2,
+            warmup: 1,
+            ssaa: None,
+            samples_per_pass: None,
+            raster: pointlens::options::Raster::Compute,
+            splat_shape: pointlens::options::SplatShape::Square,
+            coverage: None,
+            quality: true,
+            lod_px: vec![1.0, 0.0],
+            data_dir: common::root().join("data"),
+        };
+        let total = bench::frame_count(&options);
+        // Per resolution: 3 methods × 2 LODs × 3 frames, the two
+        // references, the G-buffers of pinhole and fast at each LOD.
+        assert_eq!(total, 2 * (18 + 2 + 4));
+        let mut calls = Vec::new();
+        let report = bench::run(ctx, &options, &mut |done, all, _| calls.push((done, all)))
+            .expect("a clean run");
+        assert!(calls.iter().all(|&(_, all)| all == total));
+        assert!(calls
+            .iter()
+            .enumerate()
+            .all(|(i, &(done, _))| done == i as u64));
+        assert_eq!(calls.last(), Some(&(total, total)), "{calls:?}");
+        let gbuffers = report.cells.iter().filter(|c| c.gbuffer_quality.is_some());
+        assert_eq!(gbuffers.count(), 8);
+    });
 }
 
 #[test]

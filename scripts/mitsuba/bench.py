@@ -9,7 +9,10 @@ into camera-facing emitting squares for Mitsuba. Then, alternating in every
 round, pointlens renders each method (one process per frame, its frame wall
 time from `--timings-json`) and Mitsuba renders each sample count (steady
 render time, after a first render that includes the JIT). Every image is
-compared with Mitsuba at the reference sample count by `pointlens compare`.
+compared with Mitsuba at the reference sample count by `pointlens compare`,
+and each setting's G-buffer (the pinhole image of its K, coverage, raster
+and level of detail; accum has none) with the convention check's Mitsuba
+pinhole image (--pinhole-spp).
 
 With --aperture "FLAGS" (pointlens's aperture flags, e.g. "--aperture-blades
 6 --aperture-rotation-deg 15"), the flags go to `--print-camera` and to
@@ -251,6 +254,19 @@ def methods(args, scene):
     if not args.ssaa:
         return [(name, flags + raster) for name, flags in m]
     return [(f"{name}-ssaa{k}", flags + raster + ["--ssaa", str(k)]) for k in args.ssaa for name, flags in m]
+
+
+def gbuffer_flags(flags):
+    """The flags of a setting that make its G-buffer (K, coverage, raster,
+    level of detail), to render it as a pinhole image; None for accum,
+    whose lens positions each take a G-buffer of their own."""
+    if flags[flags.index("--method") + 1] == "accum":
+        return None
+    out = []
+    for k, flag in enumerate(flags):
+        if flag in ("--ssaa", "--coverage", "--raster", "--lod-px"):
+            out += [flag, flags[k + 1]]
+    return out
 
 
 def scene_flags(args, scene):
@@ -610,11 +626,22 @@ class Bench:
             ss.write_exr(self.mi, ref, img)
             info["reference_render_ms"] = s * 1e3
             rows = []
-            for name, _ in meths[scene]:
+            gbuffers = {}
+            for name, flags in meths[scene]:
                 runs = pl[scene][name]
                 q = self.compare(d / f"pointlens_{name}.exr", ref)
+                # Its G-buffer as a pinhole image against Mitsuba's pinhole
+                # image (the convention check's): one per set of G-buffer
+                # flags, shared by the methods that give the same.
+                g = gbuffer_flags(flags)
+                if g is not None and tuple(g) not in gbuffers:
+                    out = d / f"pointlens_gbuffer_{len(gbuffers)}.exr"
+                    self.render_pointlens(scene, f"G-buffer of {name}", ["--method", "pinhole", *g], out,
+                                          d / "camera_pinhole.json", aperture=False)
+                    gbuffers[tuple(g)] = self.compare(out, d / "mitsuba_pinhole_check.exr")["psnr"]
                 ms = [x["frame_wall_ms"] for x in runs]
                 rows.append({"renderer": "pointlens", "setting": name, "psnr": q["psnr"], "ssim": q["ssim"],
+                             "gbuffer_psnr": gbuffers[tuple(g)] if g is not None else None,
                              "time_ms": statistics.median(ms), "time_min_ms": min(ms), "time_max_ms": max(ms),
                              "n": len(ms), "first_ms": None,
                              "gpu_total_ms": statistics.median(x["gpu_total_ms"] for x in runs),
@@ -773,7 +800,7 @@ def environment(a, mi, dr, results):
 
 def write_csv(path, results):
     cols = ["scene", "renderer", "setting", "time_ms", "time_min_ms", "time_max_ms", "n", "first_ms",
-            "psnr", "ssim", "mitsuba_spp_same_psnr", "mitsuba_ms_same_psnr", "ratio", "same_psnr_note",
+            "psnr", "ssim", "gbuffer_psnr", "mitsuba_spp_same_psnr", "mitsuba_ms_same_psnr", "ratio", "same_psnr_note",
             "gpu_total_ms", "load_ms", "splat_sizes_ms", "upload_wall_ms", "process_ms"]
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
@@ -870,8 +897,8 @@ def markdown(results):
                      f"centroid offset {pc['centroid_offset_px']['dx']:+.3f}, {pc['centroid_offset_px']['dy']:+.3f} px).")
         lines.append("")
         lines.append("| renderer | setting | time ms: median (min–max), n | first render (JIT) ms | PSNR dB | SSIM "
-                     "| Mitsuba for the same PSNR | Mitsuba time / pointlens time |")
-        lines.append("|---|---|---:|---:|---:|---:|---:|---:|")
+                     "| G-buffer PSNR dB | Mitsuba for the same PSNR | Mitsuba time / pointlens time |")
+        lines.append("|---|---|---:|---:|---:|---:|---:|---:|---:|")
         for r in info["rows"]:
             t = f"{ms(r['time_ms'])} ({ms(r['time_min_ms'])}–{ms(r['time_max_ms'])}), {r['n']}"
             if r["renderer"] == "pointlens":
@@ -879,11 +906,12 @@ def markdown(results):
                 note = " (extrap.)" if r["same_psnr_note"] else ""
                 same = f"{spp:.1f} spp, {ms(r['mitsuba_ms_same_psnr'])} ms{note}" if spp else "—"
                 ratio = f"{r['ratio']:.2f}{'*' if note else ''}" if r["ratio"] else "—"
+                gb = f"{r['gbuffer_psnr']:.2f}" if r.get("gbuffer_psnr") is not None else "—"
                 lines.append(f"| pointlens | {r['setting']} | {t} | — | {r['psnr']:.2f} | {r['ssim']:.4f} "
-                             f"| {same} | {ratio} |")
+                             f"| {gb} | {same} | {ratio} |")
             else:
                 lines.append(f"| Mitsuba | {r['setting']} | {t} | {ms(r['first_ms'])} | {r['psnr']:.2f} "
-                             f"| {r['ssim']:.4f} | | |")
+                             f"| {r['ssim']:.4f} | | | |")
         if any(r.get("same_psnr_note") for r in info["rows"]):
             lines.append("")
             lines.append("(extrap.), *: beyond the Mitsuba curve's sample counts, extrapolated along its "

@@ -34,9 +34,10 @@ use clap::ValueEnum;
 pub const REFERENCE_SAMPLES: u32 = 256;
 
 /// K of the G-buffer reference (`--quality`): the pinhole image of every
-/// splat by the means of K × K samples, whose rotated grid sees a
-/// square's edge in steps of 1/K² of a pixel; the pixel integral of the
-/// squares, as Mitsuba's pinhole render of them is, without its noise.
+/// splat by the means of K × K samples on the run's raster. The compute
+/// raster's rotated grid sees a square's edge in steps of 1/K² of a
+/// pixel: the pixel integral of the squares, as Mitsuba's pinhole render
+/// of them is, without its noise (the sprites' grid in steps of 1/K).
 pub const GBUFFER_REFERENCE_SSAA: u32 = 16;
 
 /// The matrix `bench` runs when none is given, chosen by the device: the
@@ -478,17 +479,25 @@ pub type Progress<'a> = &'a mut dyn FnMut(u64, u64, &str);
 pub fn frame_count(options: &BenchOptions) -> u64 {
     let per_method = (options.warmup + options.runs) as u64;
     let per_lod = per_method * options.methods.len() as u64;
-    // With --quality: the two references, and a pinhole frame of each
-    // cell's G-buffer but accum's.
+    // With --quality: accum's reference; and where a method but accum's
+    // is measured, the G-buffers' and a pinhole frame of each such cell's.
     let gbuffers = options
         .methods
         .iter()
         .filter(|m| m.blurs_one_gbuffer())
         .count() as u64;
-    let per_quality = 2 + gbuffers * options.lod_px.len() as u64;
+    let per_quality =
+        1 + measures_gbuffers(options) as u64 * (1 + gbuffers * options.lod_px.len() as u64);
     let per_resolution =
         per_lod * options.lod_px.len() as u64 + options.quality as u64 * per_quality;
     per_resolution * (options.resolutions.len() * options.models.len()) as u64
+}
+
+/// Whether the run measures its cells' G-buffers: with `--quality`, where
+/// a method but accum (whose lens positions each take a G-buffer) is in
+/// the matrix.
+fn measures_gbuffers(options: &BenchOptions) -> bool {
+    options.quality && options.methods.iter().any(BenchMethod::blurs_one_gbuffer)
 }
 
 /// Runs the matrix on `ctx`.
@@ -540,7 +549,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
             } else {
                 None
             };
-            let gbuffer_reference = if options.quality {
+            let gbuffer_reference = if measures_gbuffers(options) {
                 progress(done, total, &what("G-buffer reference (pinhole, K = 16)"));
                 done += 1;
                 // Every splat by its samples, on the run's raster (the
@@ -563,6 +572,8 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 None
             };
             renderer.set_raster(options.raster);
+            // The cells whose G-buffers are measured: (index, K, LOD).
+            let mut gbuffers = Vec::new();
             for (&lod_px, m) in options
                 .lod_px
                 .iter()
@@ -590,22 +601,9 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     (Some(reference), Some(image)) => Some(Quality::of(reference, image)?),
                     _ => None,
                 };
-                // The cell's G-buffer as an image: the pinhole frame of its
-                // K, LOD and coverage (the method's own keeps its samples
-                // where its lens blurs every splat past a few pixels,
-                // which this does not).
-                let gbuffer_quality = match &gbuffer_reference {
-                    Some(reference) if m.blurs_one_gbuffer() => {
-                        step(&format!("{} G-buffer (pinhole)", m.name));
-                        let pinhole = RenderOptions {
-                            method: Method::Pinhole,
-                            ..options_m
-                        };
-                        let image = renderer.render(&scene, &pinhole)?.image;
-                        Some(Quality::of(reference, &image)?)
-                    }
-                    _ => None,
-                };
+                if gbuffer_reference.is_some() && m.blurs_one_gbuffer() {
+                    gbuffers.push((cells.len(), ssaa, lod_px));
+                }
                 cells.push(Cell {
                     model: model.name(),
                     points: cloud.len(),
@@ -632,8 +630,25 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     upload,
                     png_encode_ms: Stats::of(&encode),
                     quality,
-                    gbuffer_quality,
+                    gbuffer_quality: None,
                 });
+            }
+            // Each cell's G-buffer as an image: the pinhole frame of its K,
+            // LOD and coverage (the method's own keeps its samples where
+            // its lens blurs every splat past a few pixels, which this does
+            // not); after the timed cells, whose splats it would otherwise
+            // replace between them (a `Scene` keeps the last view's alone).
+            if let Some(reference) = &gbuffer_reference {
+                for (cell, ssaa, lod_px) in gbuffers.drain(..) {
+                    let c = &mut cells[cell];
+                    let label = format!("{} G-buffer (pinhole, lod-px {lod_px})", c.method);
+                    progress(done, total, &what(&label));
+                    done += 1;
+                    let image = renderer
+                        .render(&scene, &frame(Method::Pinhole, ssaa, lod_px))?
+                        .image;
+                    c.gbuffer_quality = Some(Quality::of(reference, &image)?);
+                }
             }
         }
     }
@@ -770,15 +785,30 @@ fn report(ctx: &Context, options: &BenchOptions, ssaa: u32, cells: Vec<Cell>) ->
         quality_reference: options
             .quality
             .then(|| format!("accum with {REFERENCE_SAMPLES} lens samples")),
-        gbuffer_reference: options.quality.then(|| {
-            format!(
-                "pinhole image of every splat at K = {GBUFFER_REFERENCE_SSAA} by samples (the squares' pixel integral, their edges in steps of 1/{} of a pixel)",
-                GBUFFER_REFERENCE_SSAA * GBUFFER_REFERENCE_SSAA
-            )
-        }),
+        gbuffer_reference: measures_gbuffers(options).then(|| gbuffer_reference(ctx, options)),
         output: "png".into(),
         cells,
     }
+}
+
+/// What the run's G-buffers are measured against: every splat's pinhole
+/// image at [`GBUFFER_REFERENCE_SSAA`] by samples on the run's raster.
+fn gbuffer_reference(ctx: &Context, options: &BenchOptions) -> String {
+    let k = GBUFFER_REFERENCE_SSAA;
+    let raster = crate::options::frame_raster(
+        options.raster,
+        options.samples_per_pass,
+        Some(ctx.info.buffer_int64_atomics),
+    );
+    let what = match (raster, options.splat_shape) {
+        (Ok(Raster::Compute), SplatShape::Square) => format!(
+            "the squares' pixel integral: the rotated grid sees their edges in steps of 1/{} of a pixel",
+            k * k
+        ),
+        (Ok(Raster::Compute), SplatShape::Disc) => "the compute raster's discs".into(),
+        _ => format!("the sprites' {k} × {k} grid"),
+    };
+    format!("pinhole image of every splat at K = {k} by samples ({what})")
 }
 
 /// Per-pass statistics over the runs, passes in recording order.

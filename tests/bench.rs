@@ -737,6 +737,20 @@ fn bench_counts_every_frame_it_renders() {
         assert_eq!(calls.last(), Some(&(total, total)), "{calls:?}");
         let gbuffers = report.cells.iter().filter(|c| c.gbuffer_quality.is_some());
         assert_eq!(gbuffers.count(), 8);
+        assert!(report.gbuffer_reference.is_some());
+        // accum alone: its reference, no G-buffer's.
+        let accum = BenchOptions {
+            methods: vec![BenchMethod::parse("accum2").unwrap()],
+            ..options
+        };
+        let total = bench::frame_count(&accum);
+        assert_eq!(total, 2 * (6 + 1));
+        let mut last = None;
+        let report = bench::run(ctx, &accum, &mut |done, all, _| last = Some((done, all)))
+            .expect("a clean run");
+        assert_eq!(last, Some((total, total)));
+        assert!(report.gbuffer_reference.is_none());
+        assert!(report.cells.iter().all(|c| c.gbuffer_quality.is_none()));
     });
 }
 

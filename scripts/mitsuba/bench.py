@@ -11,8 +11,8 @@ time from `--timings-json`) and Mitsuba renders each sample count (steady
 render time, after a first render that includes the JIT). Every image is
 compared with Mitsuba at the reference sample count by `pointlens compare`,
 and each setting's G-buffer (the pinhole image of its K, coverage, raster
-and level of detail; accum has none) with the convention check's Mitsuba
-pinhole image (--pinhole-spp).
+and level of detail; accum has none) with Mitsuba's pinhole image at the
+reference's sample count.
 
 With --aperture "FLAGS" (pointlens's aperture flags, e.g. "--aperture-blades
 6 --aperture-rotation-deg 15"), the flags go to `--print-camera` and to
@@ -314,9 +314,10 @@ class Bench:
     def device_flags(self):
         return ["--device", self.args.device] if self.args.device else []
 
-    def render_pointlens(self, scene, name, flags, out_exr, camera, aperture=True):
+    def render_pointlens(self, scene, name, flags, out_exr, camera, aperture=True, warm=True):
         """A pointlens frame; with --aperture, its flags after the method's
-        unless `aperture` is False (the pinhole check)."""
+        unless `aperture` is False (the pinhole check); with --warm-cold,
+        its steady frames too unless `warm` is False."""
         flags = flags + (self.args.aperture_flags if aperture else [])
         tj = out_exr.with_suffix(".timings.json")
         started = time.perf_counter()
@@ -327,7 +328,7 @@ class Bench:
         process_s = time.perf_counter() - started
         t = json.loads(tj.read_text())
         steady = None
-        if self.args.warm_cold:
+        if self.args.warm_cold and warm:
             # The same camera twelve times in one process: frames 9-12 are
             # steady: pipelines and scene warm, and the host's image
             # buffers reused (on an H200's host a 1080p EXR frame's
@@ -440,7 +441,7 @@ class Bench:
         # left is the conventions (the methods below run as users run them,
         # at the default level of detail).
         self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--lod-px", "0"], pl_pin,
-                              d / "camera_pinhole.json", aperture=False)
+                              d / "camera_pinhole.json", aperture=False, warm=False)
         mscene, minfo = ss.build_scene(self.mi, pin, positions, diameters, colors, shape=a.splat_shape)
         img, _ = self.mitsuba_render(mscene, a.pinhole_spp, 7)
         mi_pin = d / "mitsuba_pinhole_check.exr"
@@ -465,7 +466,7 @@ class Bench:
         # pixel against Mitsuba's area integral): it shrinks with K.
         pl_pin8 = d / "pointlens_pinhole_check_ssaa8.exr"
         self.render_pointlens(scene, "pinhole", ["--method", "pinhole", "--ssaa", "8", "--lod-px", "0"], pl_pin8,
-                              d / "camera_pinhole.json", aperture=False)
+                              d / "camera_pinhole.json", aperture=False, warm=False)
         check["psnr_pointlens_ssaa8"] = self.compare(pl_pin8, mi_pin)["psnr"]
         info["pinhole_check"] = check
         del mscene
@@ -475,6 +476,19 @@ class Bench:
         info["mitsuba_build_ms"] = minfo["build_s"] * 1e3
         info["squares"] = minfo
         return d, info, mscene, (positions, diameters, colors)
+
+    def pinhole_reference(self, scene):
+        """Mitsuba's pinhole image of the scene's splats at the reference's
+        sample count (what the G-buffers are measured against)."""
+        a = self.args
+        d, _, _, (positions, diameters, colors) = self.prepared[scene]
+        log(f"{scene}: Mitsuba pinhole reference, {a.ref_spp} spp")
+        pin = json.loads((d / "camera_pinhole.json").read_text())
+        mscene, _ = ss.build_scene(self.mi, pin, positions, diameters, colors, shape=a.splat_shape)
+        img, _ = self.mitsuba_render(mscene, a.ref_spp, 1000)
+        out = d / f"mitsuba_pinhole_{a.ref_spp}spp.exr"
+        ss.write_exr(self.mi, out, img)
+        return out
 
     def build_dof_scene(self, cam, positions, diameters, colors):
         """The Mitsuba scene of the timed renders and the reference:
@@ -560,7 +574,7 @@ class Bench:
         a = self.args
         self.work.mkdir(parents=True, exist_ok=True)
         self.out.mkdir(parents=True, exist_ok=True)
-        prepared = {}
+        prepared = self.prepared = {}
         for scene in a.scenes:
             prepared[scene] = self.prepare(scene)
         first = prepared[a.scenes[0]]
@@ -627,18 +641,21 @@ class Bench:
             info["reference_render_ms"] = s * 1e3
             rows = []
             gbuffers = {}
+            pin_ref = None
             for name, flags in meths[scene]:
                 runs = pl[scene][name]
                 q = self.compare(d / f"pointlens_{name}.exr", ref)
                 # Its G-buffer as a pinhole image against Mitsuba's pinhole
-                # image (the convention check's): one per set of G-buffer
-                # flags, shared by the methods that give the same.
+                # image at the reference's sample count: one per set of
+                # G-buffer flags, shared by the methods that give the same.
                 g = gbuffer_flags(flags)
                 if g is not None and tuple(g) not in gbuffers:
+                    if pin_ref is None:
+                        pin_ref = self.pinhole_reference(scene)
                     out = d / f"pointlens_gbuffer_{len(gbuffers)}.exr"
                     self.render_pointlens(scene, f"G-buffer of {name}", ["--method", "pinhole", *g], out,
-                                          d / "camera_pinhole.json", aperture=False)
-                    gbuffers[tuple(g)] = self.compare(out, d / "mitsuba_pinhole_check.exr")["psnr"]
+                                          d / "camera_pinhole.json", aperture=False, warm=False)
+                    gbuffers[tuple(g)] = self.compare(out, pin_ref)["psnr"]
                 ms = [x["frame_wall_ms"] for x in runs]
                 rows.append({"renderer": "pointlens", "setting": name, "psnr": q["psnr"], "ssim": q["ssim"],
                              "gbuffer_psnr": gbuffers[tuple(g)] if g is not None else None,
@@ -897,7 +914,8 @@ def markdown(results):
                      f"centroid offset {pc['centroid_offset_px']['dx']:+.3f}, {pc['centroid_offset_px']['dy']:+.3f} px).")
         lines.append("")
         lines.append("| renderer | setting | time ms: median (min–max), n | first render (JIT) ms | PSNR dB | SSIM "
-                     "| G-buffer PSNR dB | Mitsuba for the same PSNR | Mitsuba time / pointlens time |")
+                     f"| G-buffer PSNR dB (pinhole, {env['ref_spp']} spp) | Mitsuba for the same PSNR "
+                     "| Mitsuba time / pointlens time |")
         lines.append("|---|---|---:|---:|---:|---:|---:|---:|---:|")
         for r in info["rows"]:
             t = f"{ms(r['time_ms'])} ({ms(r['time_min_ms'])}–{ms(r['time_max_ms'])}), {r['n']}"

@@ -533,47 +533,15 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                 },
             };
             let what = |method: &str| format!("{} {width}×{height} {method}", model.name());
-            let reference = if options.quality {
-                progress(done, total, &what("reference (accum 256)"));
+            let mut step = |label: &str| {
+                progress(done, total, &what(label));
                 done += 1;
-                let reference = Method::Accum(AccumOptions {
-                    samples: REFERENCE_SAMPLES,
-                });
-                // Every point: what the LOD's cost is measured against,
-                // by the samples of each lens position (accum's own).
-                renderer.set_raster(Raster::Sprites);
-                renderer.set_coverage(None);
-                let r = renderer.render(&scene, &frame(reference, ssaa, 0.0))?;
-                renderer.set_coverage(options.coverage);
-                Some(r.image)
-            } else {
-                None
             };
-            let gbuffer_reference = if measures_gbuffers(options) {
-                progress(done, total, &what("G-buffer reference (pinhole, K = 16)"));
-                done += 1;
-                // Every splat by its samples, on the run's raster (the
-                // sprites round a splat's place and size, the compute
-                // raster does not).
-                renderer.set_raster(crate::options::frame_raster(
-                    options.raster,
-                    options.samples_per_pass,
-                    None,
-                )?);
-                renderer.set_coverage(Some(Coverage::Samples));
-                let reference = RenderOptions {
-                    samples_per_pass: None,
-                    ..frame(Method::Pinhole, GBUFFER_REFERENCE_SSAA, 0.0)
-                };
-                let r = renderer.render(&scene, &reference)?;
-                renderer.set_coverage(options.coverage);
-                Some(r.image)
-            } else {
-                None
-            };
+            let (reference, gbuffer_reference) =
+                quality_references(&mut renderer, &scene, options, &frame, ssaa, &mut step)?;
             renderer.set_raster(options.raster);
             // The cells whose G-buffers are measured: (index, K, LOD).
-            let mut gbuffers = Vec::new();
+            let mut pending = Vec::new();
             for (&lod_px, m) in options
                 .lod_px
                 .iter()
@@ -602,7 +570,7 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     _ => None,
                 };
                 if gbuffer_reference.is_some() && m.blurs_one_gbuffer() {
-                    gbuffers.push((cells.len(), ssaa, lod_px));
+                    pending.push((cells.len(), ssaa, lod_px));
                 }
                 cells.push(Cell {
                     model: model.name(),
@@ -633,22 +601,13 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
                     gbuffer_quality: None,
                 });
             }
-            // Each cell's G-buffer as an image: the pinhole frame of its K,
-            // LOD and coverage (the method's own keeps its samples where
-            // its lens blurs every splat past a few pixels, which this does
-            // not); after the timed cells, whose splats it would otherwise
-            // replace between them (a `Scene` keeps the last view's alone).
             if let Some(reference) = &gbuffer_reference {
-                for (cell, ssaa, lod_px) in gbuffers.drain(..) {
-                    let c = &mut cells[cell];
-                    let label = format!("{} G-buffer (pinhole, lod-px {lod_px})", c.method);
-                    progress(done, total, &what(&label));
+                let mut step = |label: &str| {
+                    progress(done, total, &what(label));
                     done += 1;
-                    let image = renderer
-                        .render(&scene, &frame(Method::Pinhole, ssaa, lod_px))?
-                        .image;
-                    c.gbuffer_quality = Some(Quality::of(reference, &image)?);
-                }
+                };
+                let (r, f) = (&renderer, &frame);
+                measure_gbuffers(r, &scene, reference, f, &mut cells, pending, &mut step)?;
             }
         }
     }
@@ -656,6 +615,81 @@ pub fn run(ctx: &Arc<Context>, options: &BenchOptions, progress: Progress) -> Re
     drop(renderer);
     ctx.check_validation()?;
     Ok(report(ctx, options, ssaa, cells))
+}
+
+/// Measures each `pending` cell's G-buffer (index, K, LOD) against
+/// `reference`, through `renderer` and `scene`, `frame` making the frames
+/// (method, K, LOD): the pinhole frame of its K, LOD and coverage (the
+/// method's own keeps its samples where its lens blurs every splat past a
+/// few pixels, which this does not). After the timed cells, whose splats
+/// they would otherwise replace between them (a `Scene` keeps the last
+/// view's alone); `step` before each.
+fn measure_gbuffers(
+    renderer: &Renderer,
+    scene: &Scene,
+    reference: &LinearImage,
+    frame: &dyn Fn(Method, u32, f32) -> RenderOptions,
+    cells: &mut [Cell],
+    pending: Vec<(usize, u32, f32)>,
+    step: &mut dyn FnMut(&str),
+) -> Result<()> {
+    for (cell, ssaa, lod_px) in pending {
+        let c = &mut cells[cell];
+        step(&format!("{} G-buffer", c.method));
+        let image = renderer
+            .render(scene, &frame(Method::Pinhole, ssaa, lod_px))?
+            .image;
+        c.gbuffer_quality = Some(Quality::of(reference, &image)?);
+    }
+    Ok(())
+}
+
+/// The references of `--quality` of one model at one resolution, whose
+/// frames `frame` makes (method, K, LOD): accum's image with
+/// [`REFERENCE_SAMPLES`] lens samples at K = `ssaa`, and where the run
+/// measures G-buffers every splat's pinhole image at
+/// [`GBUFFER_REFERENCE_SSAA`] by samples; `step` before each. The renderer's
+/// raster is the run's after them, and its coverage.
+fn quality_references(
+    renderer: &mut Renderer,
+    scene: &Scene,
+    options: &BenchOptions,
+    frame: &dyn Fn(Method, u32, f32) -> RenderOptions,
+    ssaa: u32,
+    step: &mut dyn FnMut(&str),
+) -> Result<(Option<LinearImage>, Option<LinearImage>)> {
+    let mut frames = None;
+    if options.quality {
+        step("reference (accum 256)");
+        let reference = Method::Accum(AccumOptions {
+            samples: REFERENCE_SAMPLES,
+        });
+        // Every point: what the LOD's cost is measured against, by the
+        // samples of each lens position (accum's own).
+        renderer.set_raster(Raster::Sprites);
+        renderer.set_coverage(None);
+        frames = Some(renderer.render(scene, &frame(reference, ssaa, 0.0))?.image);
+    }
+    let mut gbuffers = None;
+    if measures_gbuffers(options) {
+        step("G-buffer reference (pinhole, K = 16)");
+        // Every splat by its samples, on the run's raster (the sprites
+        // round a splat's place and size, the compute raster does not).
+        renderer.set_raster(crate::options::frame_raster(
+            options.raster,
+            options.samples_per_pass,
+            None,
+        )?);
+        renderer.set_coverage(Some(Coverage::Samples));
+        let reference = RenderOptions {
+            samples_per_pass: None,
+            ..frame(Method::Pinhole, GBUFFER_REFERENCE_SSAA, 0.0)
+        };
+        gbuffers = Some(renderer.render(scene, &reference)?.image);
+    }
+    renderer.set_raster(options.raster);
+    renderer.set_coverage(options.coverage);
+    Ok((frames, gbuffers))
 }
 
 /// Refuses a matrix that cannot run: no timed run, a `--lod-px` out of

@@ -160,10 +160,8 @@ struct BenchArgs {
     ssaa: Option<u32>,
     #[command(flatten)]
     gbuffer: GBufferArgs,
-    /// Also PSNR and SSIM of each cell against accum with 256 lens samples
-    /// (of every point: `--lod-px 0`), and the PSNR of its G-buffer (the
-    /// pinhole image of its K, LOD and coverage) against every splat's
-    /// pinhole image at K = 16 by samples.
+    /// Also PSNR and SSIM of each cell against accum with 256 lens samples (every point), and
+    /// the PSNR of its G-buffer's pinhole image against every splat's at K = 16 by samples.
     #[arg(long)]
     quality: bool,
     /// Comma-separated `--lod-px` values to measure, each a column of the

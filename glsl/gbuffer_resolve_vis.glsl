@@ -60,6 +60,16 @@ vec4 target_sample(ivec2 q) {
 #ifdef AREA_MARKS
 #define AREA_LIST_BINDING 5
 #include "gbuffer_area.glsl"
+// The raster's flags of the tiles its splats reach (area_tiles.glsl).
+layout(binding = 6, std430) readonly buffer Touched { uint touched[]; };
+#include "area_tiles.glsl"
+
+// Whether no splat reaches pixel p's tile: its window's words are all
+// background.
+bool untouched(ivec2 p) {
+    ivec2 t = (p - ivec2(0, pc.target_first_row)) / AREA_TILE_PX;
+    return touched[t.y * area_tiles_per_row(pc.extent.x) + t.x] == 0u;
+}
 
 #include "lens.glsl"
 
@@ -109,9 +119,10 @@ void main() {
 #ifdef AREA_MARKS
     // Marked: the pixel's samples and the ring of its neighbours' nearest
     // samples around them (within the target) do not all hold one word,
-    // and not all of their depths blur past the limit.
+    // and not all of their depths blur past the limit. In a tile no splat
+    // reaches, all are background: none is read.
     ivec2 p = ivec2(gl_GlobalInvocationID.xy) + ivec2(0, pc.first_row);
-    if (any(greaterThanEqual(p, pc.extent))) {
+    if (any(greaterThanEqual(p, pc.extent)) || untouched(p)) {
         return;
     }
     ivec2 block, lo, hi;

@@ -74,6 +74,27 @@ const float PEEL_THICKNESS = 1.0;
 // for every splat with target pixels in its box, read by the area pass
 // (gbuffer_area.comp) for the splats its words name.
 layout(binding = 3, std430) writeonly buffer Squares { vec4 squares[]; };
+// Per tile of the marking (area_tiles.glsl), 1 where a drawn splat's box
+// reaches it; cleared before the pass. Written with the squares.
+layout(binding = 4, std430) writeonly buffer Touched { uint touched[]; };
+#include "area_tiles.glsl"
+
+// Flags the tiles that the target pixels [lo, hi] (inclusive, a splat's
+// box), one target pixel past them, reach: a pixel whose window holds one
+// of them lies in one of those tiles. Every writer writes the same value.
+void touch_tiles(ivec2 lo, ivec2 hi, int k) {
+    int tile = AREA_TILE_PX * k;
+    int width_px = int(pc.extent.x) / k;
+    ivec2 last = (ivec2(width_px, int(pc.extent.y) / k) - 1) / AREA_TILE_PX;
+    ivec2 first_tile = max(lo - 1, ivec2(0)) / tile;
+    ivec2 last_tile = min((hi + 1) / tile, last);
+    int per_row = area_tiles_per_row(width_px);
+    for (int y = first_tile.y; y <= last_tile.y; ++y) {
+        for (int x = first_tile.x; x <= last_tile.x; ++x) {
+            touched[y * per_row + x] = 1u;
+        }
+    }
+}
 #endif
 
 // Squares of more target pixels go to the large list (mirrors
@@ -216,6 +237,7 @@ void main() {
 #ifndef SPLAT_PEEL
         if (writes_squares()) {
             squares[i] = vec4(s.p, s.size_px, s.z);
+            touch_tiles(ivec2(xs.x, ys.x), ivec2(xs.y, ys.y), k);
         }
 #endif
         if (n > LARGE_PIXELS) {

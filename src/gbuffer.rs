@@ -193,6 +193,14 @@ impl GBufferPasses {
         self.resolve.set_whole_passes(enabled);
     }
 
+    /// Whether the marking resolve of the area coverage skips the tiles no
+    /// splat reaches: [`crate::render::Renderer::set_untouched_tiles_skipped`].
+    pub fn set_untouched_tiles_skipped(&mut self, on: bool) {
+        if let Some((raster, _)) = &mut self.compute {
+            raster.set_skips_untouched(on);
+        }
+    }
+
     /// The passes drawing splats of `shape`.
     pub fn new(ctx: &Arc<Context>, shape: SplatShape) -> Result<GBufferPasses> {
         let supported = ctx.info.gbuffer_sample_counts.as_raw();
@@ -493,8 +501,8 @@ impl GBuffer {
                 assert_eq!(plan.samples_per_pass, 1, "a compute plan is upscaled");
                 FirstTargets::Compute(Visibility::new(
                     ctx,
-                    scale * w,
-                    scale * (band + 2 * band_halo_rows(plan.bands)),
+                    (scale * w, scale * (band + 2 * band_halo_rows(plan.bands))),
+                    scale,
                     compute_splats,
                     area,
                 )?)

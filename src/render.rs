@@ -585,6 +585,13 @@ impl Renderer {
         self.peel_cull = on;
     }
 
+    /// Whether the area coverage's marking resolve skips the tiles of
+    /// 8 × 8 pixels that no splat reaches, whose windows hold background
+    /// alone (default on; the same image bit for bit: off only to compare).
+    pub fn set_untouched_tiles_skipped(&mut self, on: bool) {
+        self.gbuffer.set_untouched_tiles_skipped(on);
+    }
+
     /// Whether the output pass writes a device-local buffer that a copy
     /// moves into the host-visible one (`Some(true)`), or writes the
     /// host-visible one itself (`Some(false)`); None, the default: staged

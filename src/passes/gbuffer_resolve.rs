@@ -260,7 +260,7 @@ impl GBufferResolve {
                         ctx,
                         "gbuffer_resolve_vis_marks",
                         VIS_MARKS_SPIRV,
-                        &[buffer, image, image, image, buffer, buffer],
+                        &[buffer, image, image, image, buffer, buffer, buffer],
                     )?,
                 )),
                 false => None,
@@ -413,6 +413,7 @@ impl GBufferResolve {
                         );
                         marked.record_clear(rec);
                         binds.push(Bind::StorageBuffer(marked.buffer()));
+                        binds.push(Bind::StorageBuffer(target.touched()));
                         marks
                     }
                     None => plain,

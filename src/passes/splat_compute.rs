@@ -59,12 +59,25 @@ pub fn large_chunks(max_point_size: f32) -> u32 {
 pub const WORD_BYTES: u64 = 8;
 /// Bytes of one splat's square in [`Visibility::squares`].
 pub const SQUARE_BYTES: u64 = 16;
+/// G-buffer pixels a side of a tile of [`Visibility::touched`] (mirrors
+/// `glsl/area_tiles.glsl`).
+pub const AREA_TILE_PX: u32 = 8;
+
+/// Tiles of [`Visibility::touched`] of a target of `width` × `height`
+/// G-buffer pixels.
+fn area_tiles(width: u32, height: u32) -> u64 {
+    width.div_ceil(AREA_TILE_PX) as u64 * height.div_ceil(AREA_TILE_PX) as u64
+}
 
 pub struct ComputeRaster {
     pipeline: ComputePipeline<SplatComputePush>,
     /// The depth peel of the layered method's later layers (the shader
     /// with `SPLAT_PEEL`).
     peel: ComputePipeline<SplatComputePush>,
+    /// Whether the marking resolve skips the tiles no splat reaches (the
+    /// default): else every tile starts flagged, as the test that they
+    /// give the same bytes renders.
+    skips_untouched: bool,
 }
 
 /// The buffers of one target of `width` × `height` pixels: its visibility
@@ -72,11 +85,9 @@ pub struct ComputeRaster {
 pub struct Visibility {
     /// One per target pixel (a sample).
     pub words: Buffer,
-    /// Per splat index, the square the pass drew (centre and edge in
-    /// target pixels, eye depth: 4 floats), for the area resolve; one
-    /// unwritten square where the G-buffer resolves by its samples, none
-    /// in a depth peel's target (the peel writes none).
-    squares: Option<Buffer>,
+    /// What a first layer's pass writes for the area coverage; none in a
+    /// depth peel's target (the peel writes none).
+    area: Option<Box<AreaBuffers>>,
     /// Whether the pass writes the squares (the area resolve reads them).
     writes_squares: bool,
     large: Buffer,
@@ -84,26 +95,53 @@ pub struct Visibility {
     height: u32,
 }
 
+/// What the compute raster writes for the area coverage: one of each where
+/// the G-buffer resolves by its samples (never written).
+struct AreaBuffers {
+    /// Per splat index, the square the pass drew (centre and edge in
+    /// target pixels, eye depth: 4 floats), for the area pass.
+    squares: Buffer,
+    /// Per tile of [`AREA_TILE_PX`]² G-buffer pixels, 1 where a drawn
+    /// splat's box, one target pixel past it, reaches it, else 0: read by
+    /// the marking resolve, which reads no word in a tile no splat
+    /// reaches.
+    touched: Buffer,
+}
+
 impl Visibility {
-    /// The buffers of a first layer's `width` × `height` target for up
-    /// to `splats` splats, with their squares where `squares` (the area
-    /// resolve reads them; else the pass writes none and holds one).
+    /// The buffers of a first layer's `width` × `height` target of `cells`
+    /// target pixels per G-buffer pixel along each axis, for up to
+    /// `splats` splats, with their squares and the tiles they reach where
+    /// `squares` (the area resolve reads them; else the pass writes none
+    /// and holds one of each).
     pub fn new(
         ctx: &Arc<Context>,
-        width: u32,
-        height: u32,
+        (width, height): (u32, u32),
+        cells: u32,
         splats: u32,
         squares: bool,
     ) -> Result<Visibility> {
         let mut target = Visibility::peel(ctx, width, height, splats)?;
-        let held = if squares { splats.max(1) } else { 1 };
-        target.squares = Some(Buffer::new(
-            ctx,
-            "raster squares",
-            SQUARE_BYTES * held as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?);
+        let (held, tiles) = match squares {
+            true => (splats.max(1), area_tiles(width / cells, height / cells)),
+            false => (1, 1),
+        };
+        target.area = Some(Box::new(AreaBuffers {
+            squares: Buffer::new(
+                ctx,
+                "raster squares",
+                SQUARE_BYTES * held as u64,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::GpuOnly,
+            )?,
+            touched: Buffer::new(
+                ctx,
+                "raster touched tiles",
+                4 * tiles,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuOnly,
+            )?,
+        }));
         target.writes_squares = squares;
         Ok(target)
     }
@@ -119,7 +157,7 @@ impl Visibility {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
         Ok(Visibility {
             words: Buffer::new(ctx, "visibility", bytes, usage, MemoryLocation::GpuOnly)?,
-            squares: None,
+            area: None,
             writes_squares: false,
             large: Buffer::new(
                 ctx,
@@ -153,8 +191,24 @@ impl Visibility {
     /// The buffer bound as the first layer's squares: written where
     /// [`Visibility::writes_squares`], else one square never written.
     fn squares_bind(&self) -> &Buffer {
-        let squares = self.squares.as_ref();
-        squares.expect("a first layer's target holds the squares")
+        &self.area_bind().squares
+    }
+
+    /// The tiles the splats reach, of a first layer's target that writes
+    /// its squares ([`Visibility::touched`]).
+    pub fn touched(&self) -> &Buffer {
+        assert!(self.writes_squares, "a target without squares");
+        self.touched_bind()
+    }
+
+    /// The buffer bound as the first layer's touched tiles (as the squares).
+    fn touched_bind(&self) -> &Buffer {
+        &self.area_bind().touched
+    }
+
+    fn area_bind(&self) -> &AreaBuffers {
+        let area = self.area.as_deref();
+        area.expect("a first layer's target holds the area's buffers")
     }
 }
 
@@ -170,9 +224,16 @@ impl ComputeRaster {
         };
         let image = Binding::StorageImage;
         Ok(ComputeRaster {
-            pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b, b])?,
+            pipeline: ComputePipeline::new(ctx, "splat_compute", spirv, &[b, b, b, b, b])?,
             peel: ComputePipeline::new(ctx, "splat_compute_peel", peel, &[b, b, b, image])?,
+            skips_untouched: true,
         })
+    }
+
+    /// Whether the marking resolve skips the tiles no splat reaches
+    /// (default true; the same image bit for bit: false only to compare).
+    pub fn set_skips_untouched(&mut self, on: bool) {
+        self.skips_untouched = on;
     }
 
     /// Records one raster pass as pass `name`: `count` splats of `splats`
@@ -235,6 +296,7 @@ impl ComputeRaster {
             }
             None => {
                 binds.push(Bind::StorageBuffer(target.squares_bind()));
+                binds.push(Bind::StorageBuffer(target.touched_bind()));
                 &self.pipeline
             }
         };
@@ -248,6 +310,9 @@ impl ComputeRaster {
                 rec.barriers(&[(image, Access::COMPUTE_READ_WRITE, Access::COMPUTE_READ)]);
             }
             rec.fill_u32(&target.words, u32::MAX);
+            if let (None, Some(area)) = (previous, &target.area) {
+                rec.fill_u32(&area.touched, !self.skips_untouched as u32);
+            }
             rec.update_u32(&target.large, &[0, large_chunks(push.max_point_size), 1, 0]);
             rec.memory_barrier(Access::FILL, Access::COMPUTE_READ_WRITE);
             let small = base
@@ -310,6 +375,8 @@ mod tests {
         assert!(
             peel_disc.contains("#define SPLAT_PEEL") && peel_disc.contains("#define SPLAT_DISC")
         );
+        let tiles = include_str!("../../glsl/area_tiles.glsl");
+        assert!(tiles.contains(&format!("const int AREA_TILE_PX = {AREA_TILE_PX};")));
         let shader = include_str!("../../glsl/splat_compute_main.glsl");
         assert!(shader.contains(&format!("const uint LARGE_PIXELS = {LARGE_PIXELS}u;")));
         assert!(shader.contains(&format!("const uint CHUNK_PIXELS = {CHUNK_PIXELS}u;")));

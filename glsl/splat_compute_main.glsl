@@ -76,12 +76,13 @@ const float PEEL_THICKNESS = 1.0;
 layout(binding = 3, std430) writeonly buffer Squares { vec4 squares[]; };
 // Per tile of the marking (area_tiles.glsl), 1 where a drawn splat's box
 // reaches it; cleared before the pass. Written with the squares.
-layout(binding = 4, std430) writeonly buffer Touched { uint touched[]; };
+layout(binding = 4, std430) buffer Touched { uint touched[]; };
 #include "area_tiles.glsl"
 
 // Flags the tiles that the target pixels [lo, hi] (inclusive, a splat's
 // box), one target pixel past them, reach: a pixel whose window holds one
-// of them lies in one of those tiles. Every writer writes the same value.
+// of them lies in one of those tiles. An atomic, as other splats flag the
+// same tiles at once.
 void touch_tiles(ivec2 lo, ivec2 hi, int k) {
     int tile = AREA_TILE_PX * k;
     int width_px = int(pc.extent.x) / k;
@@ -91,7 +92,7 @@ void touch_tiles(ivec2 lo, ivec2 hi, int k) {
     int per_row = area_tiles_per_row(width_px);
     for (int y = first_tile.y; y <= last_tile.y; ++y) {
         for (int x = first_tile.x; x <= last_tile.x; ++x) {
-            touched[y * per_row + x] = 1u;
+            atomicOr(touched[y * per_row + x], 1u);
         }
     }
 }

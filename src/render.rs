@@ -453,6 +453,9 @@ pub struct Renderer {
     /// Whether frames take the pipelines made without code they do not
     /// run ([`Renderer::set_specialized_pipelines`]).
     specialized_pipelines: bool,
+    /// Whether the marking resolve skips the tiles no splat reaches
+    /// ([`Renderer::set_untouched_tiles_skipped`]).
+    untouched_tiles_skipped: bool,
 }
 
 impl Renderer {
@@ -473,6 +476,7 @@ impl Renderer {
             tile_px: None,
             staged_output: None,
             specialized_pipelines: true,
+            untouched_tiles_skipped: true,
         })
     }
 
@@ -490,6 +494,8 @@ impl Renderer {
         }
         self.gbuffer = GBufferPasses::new(&self.ctx, shape)?;
         self.gbuffer.set_whole_passes(self.specialized_pipelines);
+        self.gbuffer
+            .set_untouched_tiles_skipped(self.untouched_tiles_skipped);
         self.splat_shape = shape;
         Ok(())
     }
@@ -589,6 +595,7 @@ impl Renderer {
     /// 8 × 8 pixels that no splat reaches, whose windows hold background
     /// alone (default on; the same image bit for bit: off only to compare).
     pub fn set_untouched_tiles_skipped(&mut self, on: bool) {
+        self.untouched_tiles_skipped = on;
         self.gbuffer.set_untouched_tiles_skipped(on);
     }
 

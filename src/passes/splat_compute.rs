@@ -355,9 +355,13 @@ mod tests {
         // pixels, then the target's rows and pixels; and the mask of cell
         // columns, K ≤ 16 iterations, on the square's first and last
         // rows, once per G-buffer pixel of them in the peel: at most two
-        // per target pixel) within half of llvmpipe's per-invocation
-        // limit.
-        let worst = 6 * LARGE_PIXELS as u64 + 2 * 16;
+        // per target pixel), and before them the tiles of the area's
+        // marking its box reaches (at most 34 a side: a square of 255
+        // pixels, lavapipe's largest, dilated by a target pixel, over
+        // tiles of 8; a larger box than LARGE_PIXELS draws nothing in
+        // this stage) within half of llvmpipe's per-invocation limit.
+        let tiles_a_side = (255u64 + 2).div_ceil(AREA_TILE_PX as u64) + 1;
+        let worst = 6 * LARGE_PIXELS as u64 + 2 * 16 + tiles_a_side * (tiles_a_side + 1);
         assert!(worst <= LLVMPIPE_LOOP_ITERATIONS / 2, "{worst}");
     }
 

@@ -9,6 +9,7 @@ mod common;
 use common::{differing, pass_count, root, with_gpu};
 use glam::Vec3;
 use pointlens::bench::BenchModel;
+use pointlens::cloud::PointCloud;
 use pointlens::image_io::LinearImage;
 use pointlens::metrics::psnr;
 use pointlens::options::{Coverage, Lod, Method, Raster};
@@ -31,6 +32,32 @@ fn render(
 
 /// The G-buffer's color is half floats: 0.3 is stored 0.29980.
 const HALF_STEP: f32 = 2.5e-4;
+
+/// The bunny on the compute raster: the renderer, the cloud and its scene.
+fn bunny(ctx: &std::sync::Arc<pointlens::vk::Context>) -> (Renderer, PointCloud, Scene) {
+    let mut renderer = Renderer::new(ctx).unwrap();
+    renderer.set_raster(Raster::Compute);
+    let cloud = BenchModel::Bunny.load(&root().join("data"), 0).unwrap();
+    let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+    (renderer, cloud, scene)
+}
+
+/// The bunny's pinhole frame at `width` × `height`: every splat, K = 3,
+/// over a blue background.
+fn bunny_pinhole(cloud: &PointCloud, width: u32, height: u32) -> RenderOptions {
+    RenderOptions {
+        camera: BenchModel::Bunny.camera(cloud, width, height).unwrap(),
+        method: Method::Pinhole,
+        ssaa: 3,
+        samples_per_pass: None,
+        background: Vec3::new(0.05, 0.1, 0.2),
+        lod: Lod {
+            px: 0.0,
+            blur: None,
+            cull_back_faces: false,
+        },
+    }
+}
 
 /// One white splat 40.6 px wide at the centre (48, 36) of a 96×72 frame:
 /// its square spans [27.7, 68.3) × [15.7, 56.3), so the pixels along its
@@ -304,23 +331,8 @@ fn a_frame_of_one_splat_keeps_its_samples_bit_for_bit() {
 #[test]
 fn area_coverage_brings_the_edges_near_k8_and_every_method_follows() {
     with_gpu(|ctx| {
-        let mut renderer = Renderer::new(ctx).unwrap();
-        renderer.set_raster(Raster::Compute);
-        let model = BenchModel::Bunny;
-        let cloud = model.load(&root().join("data"), 0).unwrap();
-        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
-        let base = RenderOptions {
-            camera: model.camera(&cloud, 320, 240).unwrap(),
-            method: Method::Pinhole,
-            ssaa: 3,
-            samples_per_pass: None,
-            background: Vec3::new(0.05, 0.1, 0.2),
-            lod: Lod {
-                px: 0.0,
-                blur: None,
-                cull_back_faces: false,
-            },
-        };
+        let (mut renderer, cloud, scene) = bunny(ctx);
+        let base = bunny_pinhole(&cloud, 320, 240);
         let k8 = RenderOptions { ssaa: 8, ..base };
         let converged = render(&mut renderer, &scene, &k8, Some(Coverage::Samples));
         let samples = render(&mut renderer, &scene, &base, Some(Coverage::Samples));
@@ -399,25 +411,10 @@ fn an_asked_for_area_coverage_that_cannot_act_is_refused() {
 #[test]
 fn skipping_the_tiles_no_splat_reaches_changes_no_byte() {
     with_gpu(|ctx| {
-        let mut renderer = Renderer::new(ctx).unwrap();
-        renderer.set_raster(Raster::Compute);
-        let model = BenchModel::Bunny;
-        let cloud = model.load(&root().join("data"), 0).unwrap();
-        let scene = renderer.upload(&cloud, SplatSize::Spacing).unwrap();
+        let (mut renderer, cloud, scene) = bunny(ctx);
         let fast = Method::Fast(Default::default());
         for (width, height) in [(320, 240), (203, 151)] {
-            let base = RenderOptions {
-                camera: model.camera(&cloud, width, height).unwrap(),
-                method: Method::Pinhole,
-                ssaa: 3,
-                samples_per_pass: None,
-                background: Vec3::new(0.05, 0.1, 0.2),
-                lod: Lod {
-                    px: 0.0,
-                    blur: None,
-                    cull_back_faces: false,
-                },
-            };
+            let base = bunny_pinhole(&cloud, width, height);
             for (method, budget) in [
                 (Method::Pinhole, u64::MAX),
                 (Method::Pinhole, width as u64 * height as u64 * 9 * 8 / 3),

@@ -22,6 +22,11 @@
 #include "layered_push.glsl"
 #include "layered_fixed.glsl"
 #include "layered_slices.glsl"
+#include "workgroup_order.glsl"
+
+// The workgroups the device runs at once, from as many parts of the
+// slice's list (src/passes/kernel_sizes.rs, SPREAD_STREAMS_ID).
+layout(constant_id = 12) const uint WORKGROUP_STREAMS = 1u;
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
@@ -220,10 +225,12 @@ vec3 cat_circle(ivec2 p, float r, bool front) {
 // whether it did, with the box it wrote differences in.
 bool spread_fragment(out ivec4 box) {
     // This workgroup's tile of 8×8 pixels and layer: entry
-    // layer * tiles + tile of the slice's list (as prepare's workgroups).
+    // layer * tiles + tile of the slice's list (as prepare's workgroups),
+    // in the order of the device's streams.
     uvec2 grid = (uvec2(pc.extent) + 7u) / 8u;
     uint tiles = grid.x * grid.y;
-    uint entry = slice_lists[uint(pc.slice) * tiles * uint(pc.layers) + gl_WorkGroupID.x];
+    uint listed = streamed_entry(gl_WorkGroupID.x, gl_NumWorkGroups.x, WORKGROUP_STREAMS);
+    uint entry = slice_lists[uint(pc.slice) * tiles * uint(pc.layers) + listed];
     uint tile = entry % tiles;
     ivec3 at = ivec3(ivec2(tile % grid.x, tile / grid.x) * 8 + ivec2(gl_LocalInvocationID.xy), entry / tiles);
     if (any(greaterThanEqual(at.xy, pc.extent))) {

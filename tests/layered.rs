@@ -481,19 +481,26 @@ fn culling_the_peel_s_splats_changes_no_layered_image() {
     });
 }
 
-/// The composite's two cuts of a row (`passes::kernel_sizes`): a
-/// workgroup sharing each row, its invocations' sums scanned and carried
-/// from step to step along the row, writes the bytes of an invocation per
-/// row, the form a CPU device takes. The sums are integers
-/// (`glsl/layered_fixed.glsl`), so no order of them rounds differently.
-/// Workgroups of 8 and 24 take a 168-column row (the frame and its guard)
-/// in several steps, 64 in one; the frame has middle slices, whose rows
-/// sum only the columns their spread touched.
+/// The cuts of the composite and the spread (`passes::kernel_sizes`)
+/// write the bytes of the form a CPU device takes: the composite's rows
+/// shared by a workgroup, its invocations' sums scanned and carried from
+/// step to step along the row, as an invocation per row; the spread's list
+/// taken in 2, 3 or 7 streams (`glsl/workgroup_order.glsl`) as in its
+/// order. The sums are integers (`glsl/layered_fixed.glsl`), so no order
+/// of them rounds differently, and a tile the streams left out or took
+/// twice would change them. Workgroups of 8 and 24 take a 168-column row
+/// (the frame and its guard) in several steps, 64 in one; the frame has
+/// middle slices, whose rows sum only the columns their spread touched.
 #[test]
-fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
+fn every_cut_of_the_composite_and_the_spread_writes_the_same_bytes() {
     use pointlens::passes::kernel_sizes::KernelSizes;
     with_gpu(|ctx| {
-        assert_eq!(KernelSizes::for_device(&ctx.info), KernelSizes::ALONE);
+        let device = KernelSizes::for_device(&ctx.info);
+        let in_order = KernelSizes {
+            workgroup_streams: 1,
+            ..device
+        };
+        assert_eq!(in_order, KernelSizes::ALONE);
         let mut renderer = Renderer::new(ctx).unwrap();
         let cloud = BenchModel::Bunny
             .load(&common::root().join("data"), 0)
@@ -517,15 +524,20 @@ fn the_composite_s_shared_rows_write_the_rows_alone_bytes() {
                 alone.image.pixels.iter().any(|p| *p != first),
                 "{method:?}: one colour"
             );
-            for row_threads in [8, 24, 64] {
-                renderer.set_kernel_sizes(KernelSizes {
-                    row_threads,
-                    ..KernelSizes::ALONE
-                });
-                let shared = renderer.render(&scene, &options).unwrap().image;
+            let rows = [8, 24, 64].map(|row_threads| KernelSizes {
+                row_threads,
+                ..KernelSizes::ALONE
+            });
+            let streams = [2, 3, 7].map(|workgroup_streams| KernelSizes {
+                workgroup_streams,
+                ..KernelSizes::ALONE
+            });
+            for sizes in rows.into_iter().chain(streams) {
+                renderer.set_kernel_sizes(sizes);
+                let cut = renderer.render(&scene, &options).unwrap().image;
                 assert!(
-                    common::image_bits(&shared) == alone_bits,
-                    "{method:?}: rows shared by {row_threads} differ"
+                    common::image_bits(&cut) == alone_bits,
+                    "{method:?}: {sizes:?} differs"
                 );
             }
         }

@@ -25,6 +25,10 @@ pub const BANDS_GROUP: u32 = 64;
 /// The first band level a GPU's cut shares: texels of 8×8 pixels, one a
 /// workgroup's invocation.
 pub const BANDS_SHARED_LEVEL: u32 = 3;
+/// The constant `WORKGROUP_STREAMS` of `glsl/layered_spread.comp`.
+pub const SPREAD_STREAMS_ID: u32 = 12;
+/// The most threads llvmpipe runs (its `LP_MAX_THREADS`).
+pub const CPU_THREADS_MAX: u32 = 16;
 
 /// The cut of each pass that has more than one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,6 +47,14 @@ pub struct KernelSizes {
     /// texel at every level). The shared sums add in another order: the
     /// images differ in their floats' last bits.
     pub bands_shared_level: Option<u32>,
+    /// The workgroups the device runs at once in dispatch order, from
+    /// whose as many parts of its list `layered.spread` takes its
+    /// workgroups in turn (`glsl/workgroup_order.glsl`): a CPU device's
+    /// threads, so that its workgroups running at once spread tiles far
+    /// apart and their atomic adds do not fight over the same cache lines;
+    /// 1 (the list's order) on a GPU. The same bits whatever the count:
+    /// the sums are integers.
+    pub workgroup_streams: u32,
 }
 
 impl KernelSizes {
@@ -52,6 +64,7 @@ impl KernelSizes {
         row_threads: 1,
         rdb_bin_major: false,
         bands_shared_level: None,
+        workgroup_streams: 1,
     };
 
     /// The sizes for `device`. A CPU device runs a workgroup's invocations
@@ -68,23 +81,31 @@ impl KernelSizes {
     /// The two-field gather's coarse band texels (8×8 to 64×64 pixels)
     /// take a workgroup each on a GPU (`fast.fields_bands`: 3.1-3.8 of
     /// `fast`'s 7.1-8.7 ms there).
+    /// A CPU device's workgroups run on as many threads as it has cores
+    /// (llvmpipe's, up to 16): [`KernelSizes::workgroup_streams`].
     pub fn for_device(device: &DeviceInfo) -> KernelSizes {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
         KernelSizes::for_limits(
             device.device_type,
             device.subgroup_size,
             device.max_compute_workgroup_invocations,
+            cores.min(CPU_THREADS_MAX),
         )
     }
 
     /// [`KernelSizes::for_device`] from the device's type, subgroup size
-    /// and most invocations of a workgroup.
+    /// and most invocations of a workgroup, and a CPU device's threads.
     fn for_limits(
         device_type: PhysicalDeviceType,
         subgroup_size: u32,
         max_invocations: u32,
+        cpu_threads: u32,
     ) -> KernelSizes {
         match device_type {
-            PhysicalDeviceType::CPU => KernelSizes::ALONE,
+            PhysicalDeviceType::CPU => KernelSizes {
+                workgroup_streams: cpu_threads.max(1),
+                ..KernelSizes::ALONE
+            },
             _ => KernelSizes::for_gpu(subgroup_size, max_invocations),
         }
     }
@@ -98,6 +119,7 @@ impl KernelSizes {
                 .min(max_invocations.max(1)),
             rdb_bin_major: true,
             bands_shared_level: Some(BANDS_SHARED_LEVEL),
+            workgroup_streams: 1,
         }
     }
 
@@ -115,6 +137,11 @@ impl KernelSizes {
     /// The RDB's 64-bit passes' specialization constants (id, value).
     pub fn rdb_constants(&self) -> [(u32, u32); 1] {
         [(RDB_BIN_MAJOR_ID, self.rdb_bin_major as u32)]
+    }
+
+    /// The spread's specialization constants (id, value).
+    pub fn spread_constants(&self) -> [(u32, u32); 1] {
+        [(SPREAD_STREAMS_ID, self.workgroup_streams.max(1))]
     }
 
     /// The specialization constants (id, value) of the bands' pipeline
@@ -142,7 +169,7 @@ mod tests {
 
     #[test]
     fn a_cpu_keeps_rows_alone_and_a_gpu_shares_them_by_its_subgroups() {
-        let sizes = |t, subgroup, most| KernelSizes::for_limits(t, subgroup, most).row_threads;
+        let sizes = |t, subgroup, most| KernelSizes::for_limits(t, subgroup, most, 2).row_threads;
         // lavapipe: a row per invocation, 64 rows a workgroup.
         assert_eq!(sizes(PhysicalDeviceType::CPU, 8, 1024), 1);
         assert_eq!(KernelSizes::ALONE.composite_groups(1080), 17);
@@ -157,12 +184,21 @@ mod tests {
         assert_eq!(sizes(PhysicalDeviceType::INTEGRATED_GPU, 8, 1024), 64);
         // Never past the device's workgroup.
         assert_eq!(sizes(PhysicalDeviceType::DISCRETE_GPU, 64, 128), 128);
-        assert!(!KernelSizes::for_limits(PhysicalDeviceType::CPU, 8, 1024).rdb_bin_major);
-        assert!(KernelSizes::for_limits(PhysicalDeviceType::DISCRETE_GPU, 32, 1024).rdb_bin_major);
+        let cpu = KernelSizes::for_limits(PhysicalDeviceType::CPU, 8, 1024, 2);
+        assert!(!cpu.rdb_bin_major);
+        let gpu = KernelSizes::for_limits(PhysicalDeviceType::DISCRETE_GPU, 32, 1024, 2);
+        assert!(gpu.rdb_bin_major);
+        // A CPU's threads take the spread's list in as many parts; a GPU
+        // keeps its order.
+        assert_eq!(cpu.workgroup_streams, 2);
+        assert_eq!(gpu.workgroup_streams, 1);
+        let one_core = KernelSizes::for_limits(PhysicalDeviceType::CPU, 8, 1024, 0);
+        assert_eq!(one_core.workgroup_streams, 1);
         let nvidia = KernelSizes {
             row_threads: 256,
             rdb_bin_major: true,
             bands_shared_level: Some(3),
+            workgroup_streams: 1,
         };
         assert_eq!(KernelSizes::for_gpu(32, 1024), nvidia);
         assert_eq!(nvidia.composite_groups(1080), 1080);
@@ -189,6 +225,10 @@ mod tests {
             "local_size_x_id = {}, local_size_y_id = {}) in;",
             BANDS_SHARED_ID + 1,
             BANDS_SHARED_ID + 2
+        )));
+        let spread = include_str!("../../glsl/layered_spread.comp");
+        assert!(spread.contains(&format!(
+            "layout(constant_id = {SPREAD_STREAMS_ID}) const uint WORKGROUP_STREAMS = 1u;"
         )));
         let bins = include_str!("../../glsl/rdb_bins64.glsl");
         assert!(bins.contains(&format!(

@@ -29,7 +29,10 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::kernel_sizes::KernelSizes;
-use super::{spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized};
+use super::{
+    spread_disk, Configured, DofFrame, DofInput, DofMethod, FrameView, Specialized,
+    APERTURE_CODE_ID,
+};
 use crate::camera::{Camera, ShapeRows};
 use crate::error::{Error, Result};
 use crate::options::{check_layers, LayeredOptions};
@@ -142,11 +145,14 @@ impl Layered {
                 &[I, I, I, I, I, I, B, B, B, B],
             )?,
             spread: match int64 {
-                true => Some(Specialized::round(
+                true => Some(Specialized::with_base(
                     ctx,
                     "layered_spread",
                     SPREAD,
                     &[I, I, B, B, B, B, B, B],
+                    &sizes.spread_constants(),
+                    "round",
+                    (APERTURE_CODE_ID, 0),
                 )?),
                 false => None,
             },

@@ -141,7 +141,7 @@ impl KernelSizes {
 
     /// The spread's specialization constants (id, value).
     pub fn spread_constants(&self) -> [(u32, u32); 1] {
-        [(SPREAD_STREAMS_ID, self.workgroup_streams.max(1))]
+        [(SPREAD_STREAMS_ID, self.workgroup_streams)]
     }
 
     /// The specialization constants (id, value) of the bands' pipeline
